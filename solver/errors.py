@@ -1,0 +1,35 @@
+"""One base exception for lasercal, with specific subclasses.
+
+Every error raised on bad user input derives from :class:`LasercalError`; the CLI
+turns it into a one-line message and exit code 2, never a traceback.
+"""
+from __future__ import annotations
+
+
+class LasercalError(Exception):
+    """Base class of every error lasercal raises on purpose."""
+
+
+class FormatError(LasercalError):
+    """A file is malformed. The message names the file, and the line and column/field when known."""
+
+    def __init__(self, path, message: str, line: int | None = None, field: str | None = None):
+        self.path, self.line, self.field, self.reason = str(path), line, field, message
+        where = self.path
+        if line is not None:
+            where += f", line {line}"
+        if field is not None:
+            where += f", {'column' if line is not None else 'field'} '{field}'"
+        super().__init__(f"{where}: {message}")
+
+
+class ModelError(LasercalError):
+    """A robot model is inconsistent (wrong joint count, bad screw, ...)."""
+
+
+class IdentificationError(LasercalError):
+    """Identification cannot proceed (too few captures, no convergence possible, ...)."""
+
+
+class AimingError(LasercalError):
+    """No in-limit configuration was found that aims the beam at the requested point."""
