@@ -50,20 +50,21 @@ def polish(model: RobotModel, q: np.ndarray, point: np.ndarray, iters: int = 8) 
     ----------
     model : RobotModel
     q : (m, n) array, configurations near the solution set, rad
-    point : (3,) array, mm
+    point : (3,) or (m, 3) array, the target (per configuration), mm
 
     Returns
     -------
     (m, n) array
     """
     q = np.array(q, dtype=float)
+    point = np.broadcast_to(np.asarray(point, dtype=float), (len(q), 3))
     for _ in range(iters):
         b, da, dd = _beam_jacobian(model, q)
-        spot, t = plane_hit(b.aperture, b.direction, point[2])
+        spot, t = plane_hit(b.aperture, b.direction, point[:, 2])
         u = da + t[:, None, None] * dd
         d = b.direction
         Js = u[:, :2] - (d[:, :2] / d[:, 2:3])[:, :, None] * u[:, 2:3]
-        q = q + _dls_step(Js, point[:2] - spot[:, :2], 1e-9)
+        q = q + _dls_step(Js, point[:, :2] - spot[:, :2], 1e-9)
     return q
 
 

@@ -85,7 +85,7 @@ def screw_from_eta(T_si: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.nd
     """
     eta = np.asarray(eta, dtype=float)
     a, b = eta[0], eta[1]
-    cz = np.sqrt(1.0 - a * a - b * b)
+    cz = np.sqrt(max(1.0 - a * a - b * b, 1e-12))  # a trial step outside the unit disc must not give NaN
     if eta.size == 2:
         Sp = np.array([0, 0, 0, a, b, cz])
         dSp = np.zeros((6, 2))

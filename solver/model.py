@@ -13,6 +13,7 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
     plane: {z: -8}
     home: [...]            # optional: a configuration the aiming IK starts from
     tool: {point: [...]}   # optional: a tool point at q = 0, for point measurements
+    ee: {M: [[...], ...]}  # optional: full end-effector frame at q = 0 (4x4, mm), full-pose models
     links: [...]           # optional: masses (kg) and centres of mass at q = 0 (mm)
     extensions: {}         # optional: non-geometric parameters (see solver.effects)
     identification: {}     # written by `lasercal solve`: method, statistics, standard errors
@@ -66,6 +67,7 @@ class RobotModel:
     plane_z : float or None, height of the table plane, mm
     home : (n,) array or None, a configuration the aiming inverse kinematics starts from, rad
     tool_point : (3,) array or None, a tool point at q = 0 (point measurements), mm
+    ee_pose : (4, 4) array or None, end-effector frame M at q = 0 (full-pose models), mm
     links : tuple of Link, the gravity model (may be empty)
     extensions : dict, non-geometric parameters by effect name
     identification : dict, metadata written by an identification
@@ -81,6 +83,7 @@ class RobotModel:
     plane_z: float | None = None
     home: np.ndarray | None = None
     tool_point: np.ndarray | None = None
+    ee_pose: np.ndarray | None = None
     links: tuple = ()
     extensions: dict = field(default_factory=dict)
     identification: dict = field(default_factory=dict)
@@ -93,7 +96,7 @@ class RobotModel:
 
     def replace(self, **changes) -> "RobotModel":
         """A copy with some fields changed (arrays are frozen again)."""
-        for k in ("screws", "limits", "laser_dir", "aperture", "home", "tool_point"):
+        for k in ("screws", "limits", "laser_dir", "aperture", "home", "tool_point", "ee_pose"):
             if k in changes and changes[k] is not None:
                 changes[k] = _frozen(changes[k])
         return dataclasses.replace(self, **changes)
@@ -119,6 +122,8 @@ class RobotModel:
             d["home"] = r(self.home)
         if self.tool_point is not None:
             d["tool"] = {"point": r(self.tool_point)}
+        if self.ee_pose is not None:
+            d["ee"] = {"M": [r(row) for row in self.ee_pose]}
         if self.links:
             d["links"] = [{"mass": float(lk.mass), "com": r(lk.com)} for lk in self.links]
         if self.extensions:
@@ -198,6 +203,13 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     home = _vec(d, "home", n, path, "model") if d.get("home") is not None else None
     tool = d.get("tool")
     tool_point = _vec(tool, "point", 3, path, "tool") if isinstance(tool, dict) and tool.get("point") is not None else None
+    ee = d.get("ee")
+    ee_pose = None
+    if isinstance(ee, dict) and ee.get("M") is not None:
+        ee_pose = _vec(ee, "M", 16, path, "ee").reshape(4, 4)
+        R = ee_pose[:3, :3]
+        if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0 or np.abs(ee_pose[3] - [0, 0, 0, 1]).max() > 0:
+            raise FormatError(path, "ee.M must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field="ee.M")
     links = tuple(
         Link(float(lk["mass"]), _frozen(_vec(lk, "com", 3, path, f"links[{i}]"))) for i, lk in enumerate(d.get("links", []) or [])
     )
@@ -213,6 +225,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         plane_z=plane_z,
         home=None if home is None else _frozen(home),
         tool_point=None if tool_point is None else _frozen(tool_point),
+        ee_pose=None if ee_pose is None else _frozen(ee_pose),
         links=links,
         extensions=dict(d.get("extensions", {}) or {}),
         identification=dict(d.get("identification", {}) or {}),

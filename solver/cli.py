@@ -1,0 +1,114 @@
+"""The solver's subcommands of ``lasercal``: solve, predict, simulate (thin layers over the library)."""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .errors import FormatError
+from .identify import identify, predict_spots
+from .model import load_model, load_yaml, resolve_robot_path
+from .session import load_configs, load_layout, load_session, session_meta, write_session
+from .simulate import simulate_captures
+from .stats import cross_validate, solve_report
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add solve, predict and simulate to the ``lasercal`` subcommands."""
+    p = sub.add_parser("solve", help="identify the robot's geometry from a capture session")
+    p.add_argument("session", help="session folder (session.yaml + captures.csv)")
+    p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    p.add_argument("--method", choices=["lm", "thesis"], default="lm", help="lm (default, ours) or thesis (Section 3.2 as written)")
+    p.add_argument("--folds", type=int, default=5, help="K of the K-fold cross-validation (0: skip)")
+    p.add_argument("--no-robust", action="store_true", help="lm: do not flag or drop outlier captures")
+    p.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    p.set_defaults(func=cmd_solve)
+
+    p = sub.add_parser("predict", help="where a model's beam meets the plane, for configurations in a CSV")
+    p.add_argument("model", help="robot model YAML")
+    p.add_argument("configs", help="configurations CSV (q1..qN; t, tau1..tauN optional)")
+    p.add_argument("--plane-z", type=float, help="plane height, mm (default: the model's plane)")
+    p.set_defaults(func=cmd_predict)
+
+    p = sub.add_parser("simulate", help="a synthetic capture session whose truth is a given robot")
+    p.add_argument("truth", help="true robot model YAML (or built-in name)")
+    p.add_argument("--layout", required=True, help="layout YAML with the reference points")
+    p.add_argument("--per-point", type=int, default=15, help="captures per calibration point")
+    p.add_argument("--aim-noise", type=float, default=1.0, help="aiming noise std per axis, mm")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)")
+    p.add_argument("-o", "--output", required=True, help="session folder to write")
+    p.set_defaults(func=cmd_simulate)
+
+
+def print_report(rep: dict, out=None) -> None:
+    """The solve statistics as a readable table."""
+    w = (out or sys.stdout).write
+    idf = rep["identifiability"]
+    w(f"method {rep['method']}: {'converged' if rep['converged'] else 'NOT converged'} after {rep['iterations']} iterations, {rep['seconds']:.3f} s\n")
+    w(f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, aiming noise estimate {rep['sigma_mm']:.3f} mm per axis\n")
+    w(f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number {idf['condition']:.3g}\n")
+    for u in idf["unidentifiable"]:
+        w(f"  not seen by the data (held at nominal): {u}\n")
+    if rep["outliers"]:
+        w("outlier captures (left out): " + ", ".join(f"#{o['index']} (line {o['line']}, {o['point']})" for o in rep["outliers"]) + "\n")
+    w(f"\n{'point':8} {'':7} {'n':>4} {'scatter mean':>13} {'scatter std':>12} {'error mean':>11} {'error max':>10}   (mm)\n")
+    for nm, d in rep["points"].items():
+        for lab in ("before", "after"):
+            s = d[lab]
+            if s:
+                w(f"{nm:8} {lab:7} {s['n']:4d} {s['scatter_mean']:13.3f} {s['scatter_std']:12.3f} {s['error_mean']:11.3f} {s['error_max']:10.3f}\n")
+    cv = rep.get("cross_validation")
+    if cv:
+        w(f"\n{cv['folds']}-fold cross-validated prediction error: RMS {cv['holdout_rms_mm']:.3f} mm, mean {cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS {cv['nominal_rms_mm']:.3f})\n")
+
+
+def cmd_solve(args) -> int:
+    session = load_session(args.session)
+    kw = {"robust": not args.no_robust} if args.method == "lm" else {}
+    ident = identify(session, args.method, **kw)
+    cv = cross_validate(session, args.method, args.folds) if args.folds and args.folds > 1 else None
+    rep = solve_report(session, ident, cv)
+    meta = {k: rep[k] for k in ("method", "converged", "iterations", "captures", "fit_rms_mm", "sigma_mm", "identifiability")}
+    meta.update({"session": str(Path(args.session).resolve()), "units": "mm, rad", "std_errors": rep.get("std_errors", {})})
+    if cv is not None:
+        meta["cross_validation"] = rep["cross_validation"]
+    ident.model.replace(identification=meta).save(args.output)
+    if args.json:
+        print(json.dumps(rep, indent=2))
+    else:
+        print_report(rep)
+        print(f"\nwrote {args.output}")
+    return 0
+
+
+def cmd_predict(args) -> int:
+    model = load_model(args.model)
+    cfg = load_configs(args.configs, model)
+    z = args.plane_z if args.plane_z is not None else model.plane_z
+    if z is None:
+        raise FormatError(args.model, "the model has no plane; pass --plane-z", field="plane")
+    spots, length = predict_spots(model, cfg.q, z)
+    w = csv.writer(sys.stdout, lineterminator="\n")
+    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length"])
+    for row, s, t in zip(cfg.rows, spots, length):
+        w.writerow(row + [f"{s[0]:.6f}", f"{s[1]:.6f}", f"{t:.6f}"])
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    path = resolve_robot_path(args.truth)
+    truth = load_model(path)
+    raw = load_yaml(path)
+    nominal = args.robot or raw.get("nominal") or str(path.resolve())
+    layout = load_layout(args.layout)
+    rng = np.random.default_rng(args.seed)
+    c = simulate_captures(truth, layout, args.per_point, args.aim_noise, rng)
+    meta = session_meta(nominal, layout, truth.aperture[2], simulated={"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed})
+    write_session(args.output, meta, c.point, c.t, c.q)
+    print(f"wrote {args.output}: {len(c.q)} captures at {', '.join(layout.calibration)} (truth {truth.name}, aiming noise {args.aim_noise} mm)")
+    return 0

@@ -1,0 +1,407 @@
+"""Laser-spot detection and the precise sub-pixel centroid.
+
+Coordinates are pixels in OpenCV's convention (pixel centres at integer
+coordinates, ``u`` to the right, ``v`` down); intensities are digital numbers (DN)
+of the photo. ImageJ reports the same point at ``(u + 0.5, v + 0.5)``.
+
+Detection, on a red (or green) laser on white paper under room light:
+
+1. candidates: the laser's *colour excess* (its channel minus the brighter of the
+   other two) is ~0 on white paper, black ink and white glare alike, and positive
+   only on light of the laser's colour. It is taken on a 1/f-size block average
+   (fast on 12-megapixel photos), its smooth background is removed, and it is
+   thresholded at 6 robust sigmas. A saturated white core still leaves a coloured
+   ring, so saturated spots are found too.
+2. each candidate, at full resolution: a plane fitted to the box border is the
+   local background; the spot must be brighter than the paper in the laser's
+   channel (rejects red ink) and coloured on its unsaturated pixels (rejects white
+   reflections).
+3. centroid (``precise``): background-subtracted intensity-weighted centroid of the
+   laser's channel in a circular window re-centred until it settles, excluding
+   other spots' pixels. Clipping a symmetric spot keeps it symmetric, so
+   saturated pixels take part at their clipped value and do not bias the centre.
+
+With a laser-off reference photo the candidates come from the difference image,
+which holds nothing but laser light.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from .errors import NoSpotError, SpotCountError, VisionError
+from .images import full_scale
+
+CHANNEL = {"red": 2, "green": 1}  # BGR index of each laser's colour
+MAX_CANDIDATES = 50
+
+
+@dataclass(frozen=True)
+class Spot:
+    """One measured laser spot.
+
+    Attributes
+    ----------
+    u, v : float, centre, px (OpenCV convention)
+    sigma_u, sigma_v : float or None, 1-sigma uncertainty of the centre, px
+        (None for the ``imagej`` method, which has no error model)
+    peak : float, highest value of the laser's channel in the spot, DN
+    saturated : bool, some of the spot's pixels are clipped at full scale
+    area : int, pixels in the spot's blob
+    x_mm, y_mm : float or None, position on the table plane, base frame, mm
+    sigma_x_mm, sigma_y_mm : float or None, the centre's uncertainty mapped to mm
+    """
+
+    u: float
+    v: float
+    sigma_u: float | None
+    sigma_v: float | None
+    peak: float
+    saturated: bool
+    area: int
+    x_mm: float | None = None
+    y_mm: float | None = None
+    sigma_x_mm: float | None = None
+    sigma_y_mm: float | None = None
+
+    def to_dict(self, convention: str = "opencv") -> dict:
+        """JSON-ready dict; ``convention="imagej"`` adds 0.5 px to u and v."""
+        shift = 0.5 if convention == "imagej" else 0.0
+        r = lambda x, n: None if x is None else round(float(x), n)  # noqa: E731
+        return {"u": r(self.u + shift, 4), "v": r(self.v + shift, 4),
+                "sigma_u": r(self.sigma_u, 4), "sigma_v": r(self.sigma_v, 4),
+                "x_mm": r(self.x_mm, 4), "y_mm": r(self.y_mm, 4),
+                "sigma_x_mm": r(self.sigma_x_mm, 4), "sigma_y_mm": r(self.sigma_y_mm, 4),
+                "peak": r(self.peak, 1), "saturated": bool(self.saturated), "area": int(self.area)}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A region that may hold a laser spot.
+
+    Attributes
+    ----------
+    box : (x0, y0, x1, y1) ints, px, half-open, full resolution
+    u, v : float, rough centre, px
+    """
+
+    box: tuple[int, int, int, int]
+    u: float
+    v: float
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """Why a candidate is not a laser spot (``kind`` is ``"dim"`` or ``"white"``)."""
+
+    kind: str
+    u: float
+    v: float
+
+
+def _excess(img: np.ndarray, ch: int) -> np.ndarray:
+    """The laser's colour excess: its channel minus the brighter other one, clipped at 0."""
+    if img.ndim == 2:
+        return img
+    others = [c for c in range(3) if c != ch]
+    return cv2.subtract(img[..., ch], cv2.max(img[..., others[0]], img[..., others[1]]))
+
+
+def _robust_sigma(x: np.ndarray) -> float:
+    x = x.ravel()[:: max(1, x.size // 200_000)]  # a sample is plenty for a noise level
+    return 1.4826 * float(np.median(np.abs(x - np.median(x))))
+
+
+def find_candidates(img: np.ndarray, colour: str = "red", reference: np.ndarray | None = None,
+                    k_sigma: float = 6.0) -> list[Candidate]:
+    """Regions of laser-coloured light brighter than their surroundings.
+
+    Parameters
+    ----------
+    img : (h, w, 3) BGR or (h, w) grey array, uint8 or uint16
+    colour : "red" or "green"
+    reference : array like ``img`` or None, the same view with the laser off
+    k_sigma : float, threshold in robust sigmas of the background
+
+    Returns
+    -------
+    list of Candidate, strongest first, at most 50
+    """
+    h, w = img.shape[:2]
+    ch = CHANNEL[colour]
+    src = cv2.subtract(img, reference) if reference is not None else img
+    ex = _excess(src, ch)
+    f = max(1, min(h, w) // 750)  # block size: ~750 rows keep spots of sigma >= 1 px visible
+    small = cv2.resize(ex, (w // f, h // f), interpolation=cv2.INTER_AREA).astype(np.float32)
+    # Median of a coarser copy: a smooth background the spots themselves do not lift.
+    g = 4 if min(small.shape) >= 64 else 1
+    coarse = cv2.resize(small, (small.shape[1] // g, small.shape[0] // g), interpolation=cv2.INTER_AREA)
+    bg = cv2.medianBlur(coarse, 5) if g > 1 else np.full_like(small, np.median(small))
+    hp = small - cv2.resize(bg, small.shape[::-1], interpolation=cv2.INTER_LINEAR)
+    floor = 0.02 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
+    thr = max(k_sigma * _robust_sigma(hp), floor / 2 if f > 1 else floor)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats((hp > thr).astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return []
+    strength = np.zeros(n)
+    np.maximum.at(strength, labels.ravel(), hp.ravel())
+    order = np.argsort(-strength[1:])[:MAX_CANDIDATES] + 1
+    out = []
+    for i in order:
+        x, y, bw, bh = stats[i, :4]
+        margin = max(3, bw, bh) + 2
+        box = (max((x - margin) * f, 0), max((y - margin) * f, 0),
+               min((x + bw + margin) * f, w), min((y + bh + margin) * f, h))
+        out.append(Candidate(tuple(int(b) for b in box), float(cents[i, 0] * f + (f - 1) / 2),
+                             float(cents[i, 1] * f + (f - 1) / 2)))
+    return out
+
+
+def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fit a plane to each channel on the box border (2 px frame), robustly.
+
+    Parameters
+    ----------
+    roi : (h, w, c) float32 array
+
+    Returns
+    -------
+    background : (h, w, c) array, DN; noise : (c,) array, robust sigma of the border, DN
+    """
+    h, w, c = roi.shape
+    border = np.zeros((h, w), bool)
+    border[:2], border[-2:], border[:, :2], border[:, -2:] = True, True, True, True
+    yy, xx = np.nonzero(border)
+    A = np.column_stack([np.ones(len(xx)), xx - w / 2, yy - h / 2])
+    vals = roi[yy, xx].reshape(len(xx), c).astype(float)
+    coef, *_ = np.linalg.lstsq(A, vals, rcond=None)
+    res = vals - A @ coef
+    mad = 1.4826 * np.median(np.abs(res), 0) + 1e-6
+    keep = np.all(np.abs(res) < 3 * mad + 1, 1)  # drop border pixels crossed by ink or a neighbour spot
+    if keep.sum() >= 8:
+        coef, *_ = np.linalg.lstsq(A[keep], vals[keep], rcond=None)
+        res = vals[keep] - A[keep] @ coef
+    noise = np.maximum(np.std(res, 0), 0.3)  # quantisation keeps at least ~0.3 DN
+    Y, X = np.mgrid[:h, :w]
+    bg = coef[0] + (X - w / 2)[..., None] * coef[1] + (Y - h / 2)[..., None] * coef[2]
+    return bg.astype(np.float32), noise
+
+
+def _weighted_centroid(sig: np.ndarray, start: tuple[float, float], radius: float,
+                       exclude: np.ndarray, iterations: int = 30) -> tuple[float, float, np.ndarray]:
+    """Intensity-weighted centroid in a circular window re-centred until it settles.
+
+    Parameters
+    ----------
+    sig : (h, w) array, background-subtracted laser signal, DN
+    start : (u, v), first window centre, px in ``sig``
+    radius : float, window radius, px
+    exclude : (h, w) bool array, pixels of other spots
+
+    Returns
+    -------
+    u, v : float, px in ``sig``; weights : (h, w) array used in the last step
+    """
+    h, w = sig.shape
+    Y, X = np.mgrid[:h, :w].astype(np.float32)
+    pos = np.clip(sig, 0, None) * ~exclude
+    u, v = start
+    for _ in range(iterations):
+        # Soft edge: a pixel straddling the circle counts by the fraction inside, so the
+        # centroid moves smoothly with the window instead of in pixel steps.
+        wgt = pos * np.clip(radius + 0.5 - np.hypot(X - u, Y - v), 0, 1)
+        total = wgt.sum()
+        if total <= 0:
+            raise VisionError("empty centroid window")
+        nu, nv = (wgt * X).sum() / total, (wgt * Y).sum() / total
+        done = abs(nu - u) + abs(nv - v) < 1e-4
+        u, v = float(nu), float(nv)
+        if done:
+            break
+    return u, v, wgt
+
+
+def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tuple[float, float]:
+    """1-sigma error of a weighted centroid, from the spot's own asymmetry.
+
+    Noise and speckle make the spot asymmetric about its centre; the part of the
+    signal that is odd under point reflection through (u, v) has twice the
+    per-pixel variance of the errors, which propagate through the centroid's
+    lever arms (a sandwich estimate), inflated for the correlation of neighbours.
+    """
+    h, w = sig.shape
+    Y, X = np.mgrid[:h, :w].astype(np.float32)
+    mirror = cv2.remap(sig.astype(np.float32), (2 * u - X), (2 * v - Y), cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_REPLICATE)
+    inside = wgt > 0
+    odd = np.where(inside, sig - mirror, 0)
+    odd2 = odd[inside] ** 2 / 2
+    # Speckle grains span several pixels: inflate by the neighbours' correlation.
+    rho = np.clip(((odd[:, 1:] * odd[:, :-1]).sum() + (odd[1:] * odd[:-1]).sum())
+                  / (2 * (odd ** 2).sum() + 1e-12), 0, 0.95)
+    total = wgt.sum() / (1 + 2 * rho)
+    su = np.sqrt(((X[inside] - u) ** 2 * odd2).sum()) / total
+    sv = np.sqrt(((Y[inside] - v) ** 2 * odd2).sum()) / total
+    return float(su), float(sv)
+
+
+def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", reference: np.ndarray | None = None,
+                 others: list[Candidate] = ()) -> Spot | Rejection:
+    """Measure one candidate with the precise method.
+
+    Parameters
+    ----------
+    img : (h, w, 3) BGR or (h, w) grey array
+    cand : Candidate
+    colour : "red" or "green"
+    reference : laser-off photo like ``img``, or None
+    others : the other candidates, whose pixels are kept out of the window
+
+    Returns
+    -------
+    Spot, or Rejection when the candidate is not laser light.
+    """
+    h, w = img.shape[:2]
+    ch = CHANNEL[colour] if img.ndim == 3 else 0
+    full = full_scale(img)
+    x0, y0, x1, y1 = cand.box
+    for attempt in range(4):  # grow the box until the spot no longer touches its border
+        roi = img[y0:y1, x0:x1].astype(np.float32).reshape(y1 - y0, x1 - x0, -1)
+        if reference is not None:
+            roi = roi - reference[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)
+        bg, noise = _plane_background(roi)
+        delta = roi - bg
+        sig = delta[..., ch]
+        peak_d = float(sig.max())
+        edge = max(sig[0].max(), sig[-1].max(), sig[:, 0].max(), sig[:, -1].max())
+        if edge < 0.1 * peak_d or (x0, y0, x1, y1) == (0, 0, w, h) or attempt == 3:
+            break
+        gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
+        x0, y0, x1, y1 = max(x0 - gx, 0), max(y0 - gy, 0), min(x1 + gx, w), min(y1 + gy, h)
+    if peak_d < max(8 * noise[ch], 0.04 * full):
+        return Rejection("dim", cand.u, cand.v)  # not brighter than the paper: ink, not light
+    thr = max(4 * noise[ch], 0.15 * peak_d)
+    n, labels = cv2.connectedComponents((sig > thr).astype(np.uint8), connectivity=8)
+    iy, ix = np.unravel_index(np.argmax(np.where(labels > 0, sig, -np.inf)), sig.shape)
+    blob = labels == labels[iy, ix]
+    if blob.sum() < 4:
+        return Rejection("dim", cand.u, cand.v)  # a lone bright pixel: JPEG ringing or noise, not a spot
+    raw = img[y0:y1, x0:x1].reshape(roi.shape)[..., ch].astype(np.float32)
+    clipped = raw >= 0.985 * full
+    if img.ndim == 3:
+        # Colour test on unsaturated pixels near the blob: a white reflection has as
+        # much excess in the other channels as in the laser's.
+        near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~clipped
+        near &= sig > thr / 2
+        colour_ex = cv2.blur(sig - np.max(np.delete(delta, ch, axis=2), axis=2), (3, 3))
+        if near.sum() >= 3:
+            if colour_ex[near].sum() < 0.3 * sig[near].sum():
+                return Rejection("white", cand.u, cand.v)
+        # JPEG ringing beside black ink is faintly coloured; laser light is strongly so.
+        if colour_ex[near | blob].max(initial=0) < max(6 * noise[ch], 0.04 * full):
+            return Rejection("white", cand.u, cand.v)
+    exclude = np.zeros(sig.shape, bool)
+    for o in others:
+        ox, oy = int(round(o.u)) - x0, int(round(o.v)) - y0
+        if 0 <= ox < sig.shape[1] and 0 <= oy < sig.shape[0] and labels[oy, ox] > 0 and not blob[oy, ox]:
+            exclude |= labels == labels[oy, ox]
+    r_eq = np.sqrt(blob.sum() / np.pi)
+    m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
+    start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
+    u, v, wgt = _weighted_centroid(sig, start, 1.5 * r_eq + 2, exclude)
+    su, sv = _centroid_sigma(sig, wgt, u, v)
+    return Spot(u + x0, v + y0, su, sv, float(raw[blob].max()), bool(clipped[blob].any()), int(blob.sum()))
+
+
+def _dedupe(spots: list[Spot], radius: float = 2.0) -> list[Spot]:
+    """Drop spots found twice (two candidates of one spot converge to one centre)."""
+    out: list[Spot] = []
+    for s in sorted(spots, key=lambda s: -s.peak * s.area):
+        if all(np.hypot(s.u - o.u, s.v - o.v) > radius for o in out):
+            out.append(s)
+    return out
+
+
+def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", reference: np.ndarray | None = None,
+                 expect: int | None = 1, method: str = "precise", imagej_mode: str = "centroid",
+                 imagej_threshold: str = "default", imagej_box: int = 64) -> tuple[list[Spot], list[str]]:
+    """Find and measure the laser spots of one photo.
+
+    Parameters
+    ----------
+    img : (h, w, 3) BGR or (h, w) grey array, uint8 or uint16
+    name : str, the photo's name for messages
+    colour : "red" or "green"
+    reference : laser-off photo of the same view and size, or None
+    expect : int or None, the number of spots expected; None accepts any number
+    method : "precise" or "imagej"
+    imagej_mode, imagej_threshold, imagej_box : see :func:`vision.imagej.measure`
+
+    Returns
+    -------
+    spots : list of Spot, sorted by v then u
+    warnings : list of str
+
+    Raises
+    ------
+    NoSpotError
+        Nothing that looks like laser light.
+    SpotCountError
+        More spots than ``expect``.
+    """
+    if reference is not None and reference.shape != img.shape:
+        raise VisionError(f"{name}: the reference photo is {reference.shape[1]}x{reference.shape[0]} px, "
+                          f"the photo {img.shape[1]}x{img.shape[0]} px")
+    cands = find_candidates(img, colour, reference)
+    found, rejected = [], []
+    for c in cands:
+        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c])
+        (rejected if isinstance(r, Rejection) else found).append(r)
+    spots = _dedupe(found)
+    warnings = []
+    if img.ndim == 2:
+        warnings.append("grey photo: white reflections cannot be told from laser light")
+    if not spots:
+        why = {"dim": "not brighter than the paper (printed marks?)", "white": "white, not laser-coloured (reflections?)"}
+        kinds = [k for k in why if any(r.kind == k for r in rejected)]
+        detail = "; rejected: " + ", ".join(f"{sum(r.kind == k for r in rejected)} {why[k]}" for k in kinds) \
+            if kinds else ""
+        raise NoSpotError(f"{name}: no {colour} laser spot found{detail}")
+    if expect is not None and len(spots) > expect:
+        where = ", ".join(f"({s.u:.1f}, {s.v:.1f})" for s in spots[:6])
+        raise SpotCountError(f"{name}: {len(spots)} spots found where {expect} "
+                             f"{'is' if expect == 1 else 'are'} expected, at px {where}"
+                             f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several spots)")
+    if expect is not None and len(spots) < expect:
+        warnings.append(f"{len(spots)} spot{'s' * (len(spots) != 1)} found where {expect} are expected")
+    if method == "imagej":
+        from .imagej import measure as imagej_measure
+        measured = []
+        for s in spots:
+            box = _imagej_box(img.shape, s, imagej_box)
+            try:
+                measured.append(imagej_measure(img, box, imagej_mode, imagej_threshold, colour))
+            except VisionError as exc:
+                warnings.append(f"imagej: spot at ({s.u:.1f}, {s.v:.1f}) px: {exc}")
+        if not measured:
+            raise NoSpotError(f"{name}: the imagej method measured none of the {len(spots)} spots found")
+        spots = measured
+    elif method != "precise":
+        raise VisionError(f"unknown centroid method '{method}' (precise or imagej)")
+    return sorted(spots, key=lambda s: (round(s.v), s.u)), warnings
+
+
+def _imagej_box(shape, spot: Spot, side: int) -> tuple[int, int, int, int]:
+    """The box a person would draw around a spot: ``side`` px square, 0 for the whole photo."""
+    h, w = shape[:2]
+    if side <= 0:
+        return 0, 0, w, h
+    x0, y0 = int(round(spot.u - side / 2)), int(round(spot.v - side / 2))
+    return max(x0, 0), max(y0, 0), min(x0 + side, w), min(y0 + side, h)
+
+
+def with_plane(spot: Spot, x: float, y: float, sx: float | None, sy: float | None) -> Spot:
+    """The spot with its plane position (mm) filled in."""
+    return replace(spot, x_mm=x, y_mm=y, sigma_x_mm=sx, sigma_y_mm=sy)

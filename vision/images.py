@@ -1,0 +1,64 @@
+"""Reading photos.
+
+Images are kept as OpenCV reads them: BGR (or grey) arrays of uint8 or uint16,
+pixel (row v, column u), OpenCV pixel convention (pixel centres at integer
+coordinates). EXIF orientation is ignored on purpose: the camera model, the
+markers and ImageJ all work in the sensor's own frame, and a phone that flags
+some photos as rotated would otherwise mix two frames.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .errors import ImageReadError
+
+_FLAGS = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
+
+
+def read_image(path) -> np.ndarray:
+    """Read a photo as it was recorded.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    (h, w, 3) BGR or (h, w) grey array, uint8 or uint16
+
+    Raises
+    ------
+    ImageReadError
+        The file is missing, unreadable or not an image OpenCV can decode.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ImageReadError(f"{path}: no such file")
+    try:
+        data = np.fromfile(path, np.uint8)
+    except OSError as exc:
+        raise ImageReadError(f"{path}: cannot read ({exc.strerror})") from None
+    img = cv2.imdecode(data, _FLAGS) if data.size else None
+    if img is None:
+        raise ImageReadError(f"{path}: not an image OpenCV can decode (JPEG, PNG, TIFF, ...)")
+    if img.dtype not in (np.uint8, np.uint16):
+        raise ImageReadError(f"{path}: {img.dtype} pixels are not supported (8- or 16-bit only)")
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = img[..., :3]  # alpha carries no light
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
+    return np.ascontiguousarray(img)
+
+
+def full_scale(img: np.ndarray) -> float:
+    """The saturation level of an image's pixels, DN."""
+    return float(np.iinfo(img.dtype).max)
+
+
+def to_gray(img: np.ndarray) -> np.ndarray:
+    """Grey uint8 copy for marker and pattern detection."""
+    g = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    return g if g.dtype == np.uint8 else (g >> 8).astype(np.uint8)

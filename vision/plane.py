@@ -1,0 +1,385 @@
+"""From pixels to millimetres on the table plane, with printed ArUco/ChArUco fiducials.
+
+Units: image points in pixels (OpenCV convention, recorded, i.e. with lens
+distortion unless a camera is given); plane points in mm in the robot base frame
+(x, y on the plane whose height is the layout's ``plane.z``).
+
+The layout's ``markers`` section (``format: lasercal-layout/1``; other sections
+are ignored here)::
+
+    markers:
+      dictionary: DICT_4X4_50        # an OpenCV predefined dictionary
+      min_markers: 3                 # optional: markers needed (default min(3, listed))
+      ids:                           # per marker id: its 4 outer corners, mm, base frame,
+        0: [[x, y], [x, y], [x, y], [x, y]]  # in OpenCV's order: top-left, top-right,
+        1: ...                                # bottom-right, bottom-left of the printed marker
+      charuco:                       # optional ChArUco board (corners ~3x more precise)
+        dictionary: DICT_5X5_100     # optional, default the markers' dictionary
+        squares: [7, 5]              # squares along the board's x and y
+        square: 30.0                 # square side, mm
+        marker: 22.0                 # marker side, mm
+        origin: [300, 150]           # board's outer top-left corner, mm, base frame
+        x_axis: [1, 0]               # board's +x (to the right on the print), base frame
+        y_axis: [0, -1]              # board's +y (down on the print), base frame
+        first_id: 0                  # optional: id of the board's first marker
+        legacy: false                # optional: OpenCV < 4.6 board pattern
+
+Seen from above, OpenCV's corner order runs clockwise; the corners are checked for it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from .camera import Camera
+from .errors import LayoutError, MarkerError
+
+LAYOUT_FORMAT = "lasercal-layout/1"
+RANSAC_MM = 2.0  # a corner further than this from its layout position is an outlier, mm
+
+
+def aruco_dictionary(name: str, path="layout", field="markers.dictionary"):
+    """OpenCV's predefined ArUco dictionary called ``name`` (e.g. ``"DICT_4X4_50"``)."""
+    if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+        raise LayoutError(path, f"'{name}' is not an OpenCV ArUco dictionary (e.g. DICT_4X4_50)", field)
+    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+
+
+@dataclass(frozen=True)
+class CharucoLayout:
+    """A ChArUco board on the sheet (see the module docstring; lengths in mm)."""
+
+    dictionary: str
+    squares: tuple[int, int]
+    square: float
+    marker: float
+    origin: np.ndarray
+    x_axis: np.ndarray
+    y_axis: np.ndarray
+    first_id: int = 0
+    legacy: bool = False
+
+    def board(self):
+        """The OpenCV ``CharucoBoard``."""
+        n = (self.squares[0] * self.squares[1]) // 2
+        b = cv2.aruco.CharucoBoard(self.squares, self.square, self.marker, aruco_dictionary(self.dictionary),
+                                   np.arange(self.first_id, self.first_id + n, dtype=np.int32))
+        b.setLegacyPattern(self.legacy)
+        return b
+
+    def marker_ids(self) -> range:
+        return range(self.first_id, self.first_id + (self.squares[0] * self.squares[1]) // 2)
+
+    def to_base(self, board_xy: np.ndarray) -> np.ndarray:
+        """Board coordinates (n, 2) mm -> base frame (n, 2) mm."""
+        return self.origin + board_xy[:, :1] * self.x_axis + board_xy[:, 1:2] * self.y_axis
+
+
+@dataclass(frozen=True)
+class MarkerLayout:
+    """The ``markers`` section of a layout.
+
+    Attributes
+    ----------
+    path : str, the layout file
+    dictionary : str, OpenCV dictionary name
+    corners : dict int -> (4, 2) array, mm, base frame, OpenCV corner order
+    min_markers : int, markers needed in a photo (a ChArUco board counts as enough)
+    charuco : CharucoLayout or None
+    """
+
+    path: str
+    dictionary: str
+    corners: dict
+    min_markers: int
+    charuco: CharucoLayout | None = None
+
+
+def _vec(value, n, path, field):
+    try:
+        a = np.array(value, float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise LayoutError(path, f"expected {n} numbers", field)
+    return a
+
+
+def _parse_charuco(c, default_dict, path) -> CharucoLayout:
+    f = "markers.charuco"
+    if not isinstance(c, dict):
+        raise LayoutError(path, "expected a mapping", f)
+    for key in ("squares", "square", "marker", "origin", "x_axis", "y_axis"):
+        if key not in c:
+            raise LayoutError(path, "missing", f"{f}.{key}")
+    squares = _vec(c["squares"], 2, path, f"{f}.squares")
+    if np.any(squares < 2) or np.any(squares != np.round(squares)):
+        raise LayoutError(path, "expected two whole numbers >= 2", f"{f}.squares")
+    square = float(_vec([c["square"]], 1, path, f"{f}.square")[0])
+    marker = float(_vec([c["marker"]], 1, path, f"{f}.marker")[0])
+    if not 0 < marker < square:
+        raise LayoutError(path, f"marker side {marker} mm must be positive and below the square side {square} mm",
+                          f"{f}.marker")
+    x_axis, y_axis = _vec(c["x_axis"], 2, path, f"{f}.x_axis"), _vec(c["y_axis"], 2, path, f"{f}.y_axis")
+    if abs(np.linalg.norm(x_axis) - 1) > 1e-3 or abs(np.linalg.norm(y_axis) - 1) > 1e-3 or abs(x_axis @ y_axis) > 1e-3:
+        raise LayoutError(path, "x_axis and y_axis must be orthogonal unit vectors", f"{f}.x_axis")
+    name = c.get("dictionary", default_dict)
+    aruco_dictionary(name, path, f"{f}.dictionary")
+    return CharucoLayout(name, (int(squares[0]), int(squares[1])), square, marker,
+                         _vec(c["origin"], 2, path, f"{f}.origin"), x_axis, y_axis,
+                         int(c.get("first_id", 0)), bool(c.get("legacy", False)))
+
+
+def load_layout(path) -> MarkerLayout | None:
+    """Read the ``markers`` section of a layout YAML; None when it has none.
+
+    Raises
+    ------
+    LayoutError
+        Missing file, bad YAML or a malformed ``markers`` section (names the field).
+    """
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise LayoutError(path, f"cannot read layout ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        raise LayoutError(path, f"not valid YAML ({exc})") from None
+    if not isinstance(doc, dict):
+        raise LayoutError(path, "expected a mapping at the top level")
+    if doc.get("format", LAYOUT_FORMAT) != LAYOUT_FORMAT:
+        raise LayoutError(path, f"expected '{LAYOUT_FORMAT}'", "format")
+    units = doc.get("units") or {}
+    if isinstance(units, dict) and units.get("length", "mm") != "mm":
+        raise LayoutError(path, "only mm is supported", "units.length")
+    m = doc.get("markers")
+    if m is None:
+        return None
+    if not isinstance(m, dict):
+        raise LayoutError(path, "expected a mapping", "markers")
+    if "dictionary" not in m:
+        raise LayoutError(path, "missing", "markers.dictionary")
+    aruco_dictionary(m["dictionary"], path)
+    ids = m.get("ids") or {}
+    if not isinstance(ids, dict):
+        raise LayoutError(path, "expected a mapping of marker id -> 4 corners", "markers.ids")
+    corners = {}
+    for key, value in ids.items():
+        field = f"markers.ids.{key}"
+        try:
+            mid = int(key)
+        except (TypeError, ValueError):
+            raise LayoutError(path, "marker ids are whole numbers", field) from None
+        try:
+            c = np.array(value, float)
+        except (TypeError, ValueError):
+            c = None
+        if c is None or c.shape != (4, 2) or not np.all(np.isfinite(c)):
+            raise LayoutError(path, "expected 4 corners [[x, y], ...] in mm", field)
+        x, y = c.T
+        area = 0.5 * (x @ np.roll(y, -1) - y @ np.roll(x, -1))  # > 0 counter-clockwise (y up)
+        if area >= 0:
+            raise LayoutError(path, "corners must run clockwise seen from above (OpenCV's order: top-left, "
+                              "top-right, bottom-right, bottom-left)", field)
+        corners[mid] = c
+    charuco = _parse_charuco(m["charuco"], m["dictionary"], path) if m.get("charuco") is not None else None
+    if charuco is None and not corners:
+        raise LayoutError(path, "no markers listed", "markers.ids")
+    if charuco is not None and charuco.dictionary == m["dictionary"]:
+        shared = sorted(set(corners) & set(charuco.marker_ids()))
+        if shared:
+            raise LayoutError(path, f"ids {shared} are also markers of the ChArUco board", "markers.ids")
+    default_min = max(1, min(3, len(corners)))
+    try:
+        min_markers = int(m.get("min_markers", default_min))
+    except (TypeError, ValueError):
+        raise LayoutError(path, "expected a whole number", "markers.min_markers") from None
+    if not 1 <= min_markers <= max(len(corners), 1):
+        raise LayoutError(path, f"must be between 1 and the {len(corners)} markers listed", "markers.min_markers")
+    return MarkerLayout(str(path), m["dictionary"], corners, min_markers, charuco)
+
+
+def _detector(dictionary: str):
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    return cv2.aruco.ArucoDetector(aruco_dictionary(dictionary), params)
+
+
+@dataclass(frozen=True)
+class Fiducials:
+    """Fiducial points found in one photo.
+
+    Attributes
+    ----------
+    image : (n, 2) array, recorded px
+    plane : (n, 2) array, mm, base frame
+    marker_ids : tuple of int, layout markers found
+    marker_corners : (k, 4, 2) array, px, their corners
+    charuco : int, ChArUco corners found
+    unknown_ids : tuple of int, markers seen that the layout does not list
+    """
+
+    image: np.ndarray
+    plane: np.ndarray
+    marker_ids: tuple
+    marker_corners: np.ndarray
+    charuco: int
+    unknown_ids: tuple
+
+
+def linearise(gray: np.ndarray, gamma: float) -> np.ndarray:
+    """Undo a camera's gamma encoding (uint8 in, uint8 out).
+
+    Corner refinement finds edges by their gradients; on gamma-encoded photos the
+    blurred edges are skewed and the corners land ~0.5 px inside a black marker.
+    """
+    if gamma == 1:
+        return gray
+    lut = np.round(255 * (np.arange(256) / 255) ** gamma).astype(np.uint8)
+    return cv2.LUT(gray, lut)
+
+
+def find_fiducials(gray: np.ndarray, layout: MarkerLayout, gamma: float = 2.2) -> Fiducials:
+    """Detect the layout's markers (and ChArUco corners) in a grey photo.
+
+    Parameters
+    ----------
+    gray : (h, w) uint8 array
+    layout : MarkerLayout
+    gamma : float, the photo's encoding gamma (2.2 for camera JPEGs, 1 for linear data)
+    """
+    gray = linearise(gray, gamma)
+    corners, ids, _ = _detector(layout.dictionary).detectMarkers(gray)
+    ids = np.asarray(ids if ids is not None else [], int).reshape(-1)  # (N, 1) in 4.x, (N,) in 5.x
+    corners = np.asarray(corners, float).reshape(-1, 4, 2)
+    board_ids = set(layout.charuco.marker_ids()) if layout.charuco and layout.charuco.dictionary == \
+        layout.dictionary else set()
+    counts = {i: int((ids == i).sum()) for i in set(ids.tolist())}
+    # A duplicated id cannot be told apart: drop it rather than guess.
+    keep = [k for k, i in enumerate(ids) if i in layout.corners and counts[i] == 1]
+    unknown = tuple(sorted({int(i) for i in ids if i not in layout.corners and i not in board_ids}))
+    img_pts = [corners[keep].reshape(-1, 2)]
+    plane_pts = [np.concatenate([layout.corners[int(ids[k])] for k in keep]) if keep else np.zeros((0, 2))]
+    n_charuco = 0
+    if layout.charuco is not None:
+        board = layout.charuco.board()
+        cc, cids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(gray)
+        if cids is not None and len(cids):
+            cids = np.asarray(cids, int).reshape(-1)  # (N, 1) in 4.x, (N,) in 5.x
+            obj = board.getChessboardCorners()[cids, :2]
+            img_pts.append(np.asarray(cc, float).reshape(-1, 2))
+            plane_pts.append(layout.charuco.to_base(obj))
+            n_charuco = len(cids)
+    return Fiducials(np.concatenate(img_pts), np.concatenate(plane_pts), tuple(int(ids[k]) for k in keep),
+                     corners[keep], n_charuco, unknown)
+
+
+@dataclass(frozen=True)
+class PlaneMap:
+    """Homography from a photo to the table plane.
+
+    Attributes
+    ----------
+    H : (3, 3) array, ideal (undistorted) px -> mm
+    camera : Camera or None, lens model applied before H
+    rms_mm : float, RMS reprojection error of the inlier fiducials on the plane, mm
+    max_mm : float, largest inlier reprojection error, mm
+    inliers : (n,) bool array, fiducials that agree with the layout
+    fiducials : Fiducials
+    mm_per_px : float, scale at the image centre, mm / px
+    """
+
+    H: np.ndarray
+    camera: Camera | None
+    rms_mm: float
+    max_mm: float
+    inliers: np.ndarray
+    fiducials: Fiducials
+    mm_per_px: float
+
+    def _ideal(self, uv):
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        return self.camera.undistort(uv) if self.camera is not None else uv
+
+    def to_plane(self, uv: np.ndarray) -> np.ndarray:
+        """Recorded pixels (n, 2) px -> plane (n, 2) mm."""
+        return cv2.perspectiveTransform(self._ideal(uv).reshape(-1, 1, 2), self.H).reshape(-1, 2)
+
+    def to_image(self, xy: np.ndarray) -> np.ndarray:
+        """Plane points (n, 2) mm -> recorded pixels (n, 2) px."""
+        from .camera import distort
+        uv = cv2.perspectiveTransform(np.asarray(xy, float).reshape(-1, 1, 2), np.linalg.inv(self.H)).reshape(-1, 2)
+        return distort(uv, self.camera.K, self.camera.dist) if self.camera is not None else uv
+
+    def jacobian(self, uv: np.ndarray, h: float = 0.5) -> np.ndarray:
+        """d(mm)/d(px) at recorded pixels: (n, 2, 2), by central differences."""
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        cols = [(self.to_plane(uv + d) - self.to_plane(uv - d)) / (2 * h) for d in ([h, 0], [0, h])]
+        return np.stack(cols, -1)
+
+    def sigma_mm(self, uv: np.ndarray, sigma_uv: np.ndarray) -> np.ndarray:
+        """1-sigma plane errors (n, 2) mm of points with pixel errors (n, 2) px.
+
+        The centroid's error is mapped through the local scale; the homography's own
+        error adds in quadrature as its RMS residual times sqrt(8 / fiducials), an
+        average over the area the fiducials span.
+        """
+        J = self.jacobian(uv)
+        cov = np.einsum("nij,nj,nkj->nik", J, np.asarray(sigma_uv, float) ** 2, J)
+        fit = self.rms_mm ** 2 * 8 / max(int(self.inliers.sum()), 8)
+        return np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + fit)
+
+    def inside(self, uv: np.ndarray) -> np.ndarray:
+        """(n,) bool: recorded pixels inside the hull of the inlier fiducials."""
+        hull = cv2.convexHull(self.fiducials.image[self.inliers].astype(np.float32))
+        return np.array([cv2.pointPolygonTest(hull, (float(u), float(v)), False) >= 0
+                         for u, v in np.asarray(uv, float).reshape(-1, 2)])
+
+
+def fit_plane(fid: Fiducials, layout: MarkerLayout, camera: Camera | None, size: tuple[int, int],
+              name: str = "image") -> PlaneMap:
+    """Homography from the fiducials (RANSAC over all corners, refined on the inliers).
+
+    Parameters
+    ----------
+    fid : Fiducials
+    layout : MarkerLayout
+    camera : Camera or None
+    size : (width, height) of the photo, px
+    name : the photo's name for messages
+
+    Raises
+    ------
+    MarkerError
+        Fewer markers than the layout's ``min_markers`` (and no ChArUco board), or
+        too few fiducials agreeing with the layout.
+    """
+    enough_charuco = fid.charuco >= 6
+    if len(fid.marker_ids) < layout.min_markers and not enough_charuco:
+        seen = f" (ids {', '.join(map(str, fid.marker_ids))})" if fid.marker_ids else ""
+        extra = f"; unknown ids seen: {', '.join(map(str, fid.unknown_ids))}" if fid.unknown_ids else ""
+        board = f" and {fid.charuco} ChArUco corners" if layout.charuco is not None else ""
+        raise MarkerError(f"{name}: found {len(fid.marker_ids)} of the {len(layout.corners)} markers of "
+                          f"{layout.path}{seen}{board}; at least {layout.min_markers} needed{extra}")
+    ideal = camera.undistort(fid.image) if camera is not None else fid.image
+    H, mask = cv2.findHomography(ideal, fid.plane, cv2.RANSAC, RANSAC_MM, maxIters=5000, confidence=0.999)
+    if H is None or mask is None or mask.sum() < 4:
+        raise MarkerError(f"{name}: the markers' corners do not agree with {layout.path} (no consistent homography)")
+    inl = mask.ravel().astype(bool)
+    # Refine on the inliers by least squares: RANSAC's model leans on a minimal sample.
+    H, _ = cv2.findHomography(ideal[inl], fid.plane[inl], 0)
+    res = np.linalg.norm(cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 2) - fid.plane, axis=1)
+    pm = PlaneMap(H, camera, float(np.sqrt(np.mean(res[inl] ** 2))), float(res[inl].max()), inl, fid, 0.0)
+    c = np.array([[(size[0] - 1) / 2, (size[1] - 1) / 2]])
+    scale = float(np.sqrt(abs(np.linalg.det(pm.jacobian(c)[0]))))
+    return PlaneMap(H, camera, pm.rms_mm, pm.max_mm, inl, fid, scale)
+
+
+def layout_markers(dictionary: str, corners: dict) -> dict:
+    """The ``markers`` section for a layout YAML from ``{id: (4, 2) corners mm}``."""
+    return {"dictionary": dictionary,
+            "ids": {int(i): np.round(np.asarray(c, float), 4).tolist() for i, c in corners.items()}}

@@ -1,0 +1,340 @@
+"""Synthetic photos of laser spots on a printed sheet, with known truth.
+
+Used by the tests and the benchmark to measure errors against the truth.
+
+Geometry: a point (x, y) in mm on the table plane (robot base frame) maps to an
+ideal pixel through a homography ``H`` (3x3), then through OpenCV's lens
+distortion ``(K, dist)`` to the recorded pixel. Pixels follow OpenCV's convention
+(pixel centres at integer coordinates). A laser spot is placed by its true centre
+``(u, v)`` in recorded pixels.
+
+Photometry, in linear digital numbers (DN, full scale 255): paper brightness
+times room light (tint, gradient, vignetting) times printed reflectance, blurred by
+the lens PSF; plus laser light (a Gaussian, optionally elliptical, with speckle)
+and specular glare; plus shot and read noise; excess charge blooms into the
+neighbours; clipped at full scale; then gamma-encoded, quantised to 8 bits and
+optionally JPEG-compressed (with 4:2:0 chroma subsampling, as cameras do).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .camera import distort, undistort
+
+FULL = 255.0
+
+
+@dataclass(frozen=True)
+class View:
+    """How the table plane appears in the photo.
+
+    Attributes
+    ----------
+    size : (width, height), px
+    H : (3, 3) array, plane (x, y) mm -> ideal pixel
+    K : (3, 3) array, camera matrix, px
+    dist : (k,) array, OpenCV distortion coefficients
+    """
+
+    size: tuple[int, int]
+    H: np.ndarray
+    K: np.ndarray
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
+
+    def project(self, xy: np.ndarray) -> np.ndarray:
+        """Plane points (n, 2) mm -> recorded pixels (n, 2) px."""
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        p = np.column_stack([xy, np.ones(len(xy))]) @ self.H.T
+        return distort(p[:, :2] / p[:, 2:], self.K, self.dist)
+
+    def unproject(self, uv: np.ndarray) -> np.ndarray:
+        """Recorded pixels (n, 2) px -> plane points (n, 2) mm."""
+        uv = undistort(uv, self.K, self.dist)
+        p = np.column_stack([uv, np.ones(len(uv))]) @ np.linalg.inv(self.H).T
+        return p[:, :2] / p[:, 2:]
+
+
+def pose_view(size, K, dist, R, t, z: float = 0.0) -> View:
+    """View of the plane z = ``z`` (mm) from a camera with pose ``x_cam = R x + t``.
+
+    Parameters
+    ----------
+    size : (width, height), px
+    K : (3, 3) array; dist : (k,) array
+    R : (3, 3) rotation, base -> camera; t : (3,) array, mm
+    z : float, height of the plane in the base frame, mm
+    """
+    R, t = np.asarray(R, float), np.asarray(t, float)
+    H = np.asarray(K, float) @ np.column_stack([R[:, 0], R[:, 1], R[:, 2] * z + t])
+    return View(tuple(size), H / H[2, 2], np.asarray(K, float), np.asarray(dist, float))
+
+
+def look_down(size=(4000, 3000), mm_per_px: float = 0.3, centre=(450.0, 0.0), yaw_deg: float = 0.0,
+              tilt_deg=(0.0, 0.0), height: float = 1000.0, dist=(0, 0, 0, 0, 0), z: float = 0.0) -> View:
+    """A camera ``height`` mm above ``centre`` looking down at the plane z = ``z``.
+
+    With zero yaw the image's right is +x and its down is -y (a top view of a
+    right-handed frame with z up). ``tilt_deg`` rotates the camera about its own
+    x and y axes (perspective); ``mm_per_px`` is the scale at the image centre.
+    """
+    w, h = size
+    f = height / mm_per_px
+    K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    R0 = np.array([[c, s, 0], [s, -c, 0], [0, 0, -1.0]])
+    ax, ay = np.radians(tilt_deg)
+    Rx = np.array([[1, 0, 0], [0, np.cos(ax), -np.sin(ax)], [0, np.sin(ax), np.cos(ax)]])
+    Ry = np.array([[np.cos(ay), 0, np.sin(ay)], [0, 1, 0], [-np.sin(ay), 0, np.cos(ay)]])
+    R = Rx @ Ry @ R0
+    C = np.array([centre[0], centre[1], z + height])
+    return pose_view(size, K, dist, R, -R @ C, z)
+
+
+@dataclass(frozen=True)
+class Print:
+    """A printed item on the sheet.
+
+    Attributes
+    ----------
+    image : (h, w) or (h, w, 3) BGR array, reflectance in [0, 1]
+    corners_mm : (4, 2) array, plane positions of the image's outer corners
+        (top-left, top-right, bottom-right, bottom-left), mm
+    """
+
+    image: np.ndarray
+    corners_mm: np.ndarray
+
+
+def square_corners(centre, side: float, angle_deg: float = 0.0) -> np.ndarray:
+    """Corners (4, 2) mm of a square as seen from above: top-left, top-right,
+    bottom-right, bottom-left (OpenCV's marker corner order), rotated by
+    ``angle_deg`` counter-clockwise about ``centre``."""
+    half = side / 2
+    local = np.array([[-half, half], [half, half], [half, -half], [-half, -half]])
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    return np.asarray(centre, float) + local @ np.array([[c, s], [-s, c]])
+
+
+def aruco_print(dictionary: str, marker_id: int, corners_mm) -> Print:
+    """An ArUco marker of OpenCV's ``dictionary`` (e.g. ``"DICT_4X4_50"``)."""
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
+    cells = d.markerSize + 2
+    img = cv2.aruco.generateImageMarker(d, int(marker_id), cells)
+    return Print(img.astype(np.float32) / 255, np.asarray(corners_mm, float))
+
+
+def chessboard_print(cols: int, rows: int, square: float, origin=(0.0, 0.0)) -> Print:
+    """A chessboard with ``cols`` x ``rows`` inner corners, squares of ``square`` mm."""
+    board = (np.indices((rows + 1, cols + 1)).sum(0) % 2).astype(np.float32)
+    w, h = (cols + 1) * square, (rows + 1) * square
+    x0, y0 = origin
+    return Print(board, np.array([[x0, y0 + h], [x0 + w, y0 + h], [x0 + w, y0], [x0, y0]], float))
+
+
+def cross_print(centre, size: float = 10.0, width: float = 0.5) -> Print:
+    """A printed black cross (a reference-point mark), arms ``size`` mm, lines ``width`` mm."""
+    n = max(int(round(size / width)) | 1, 3)
+    img = np.ones((n, n), np.float32)
+    img[n // 2, :] = img[:, n // 2] = 0.05
+    return Print(img, square_corners(centre, n * width))
+
+
+def ink_dot(centre, diameter: float, bgr=(0.15, 0.15, 0.85)) -> Print:
+    """A printed coloured dot (red ink by default) of ``diameter`` mm."""
+    n = 32
+    yy, xx = np.mgrid[:n, :n] - (n - 1) / 2
+    img = np.ones((n, n, 3), np.float32)
+    img[xx ** 2 + yy ** 2 <= (n / 2) ** 2] = bgr
+    return Print(img, square_corners(centre, diameter))
+
+
+@dataclass(frozen=True)
+class LaserSpot:
+    """A laser spot with its true centre.
+
+    Attributes
+    ----------
+    u, v : float, true centre, px (OpenCV convention)
+    sigma : float, Gaussian sigma along the major axis, px
+    peak : float, peak irradiance in the laser's channel, in units of full scale
+        (> 1 saturates)
+    speckle : float, speckle contrast in [0, 1] (std / mean of the multiplicative pattern)
+    grain : float, speckle grain size (correlation length), px
+    aspect : float, minor / major sigma
+    angle_deg : float, direction of the major axis, degrees from +u towards +v
+    """
+
+    u: float
+    v: float
+    sigma: float = 2.0
+    peak: float = 0.7
+    speckle: float = 0.0
+    grain: float = 1.5
+    aspect: float = 1.0
+    angle_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Glare:
+    """A specular reflection of room light: white, additive, px and full-scale units."""
+
+    u: float
+    v: float
+    sigma: float = 6.0
+    peak: float = 2.0
+
+
+LASER_RESPONSE = {  # camera response (B, G, R) to each laser, crosstalk of the Bayer filters
+    "red": np.array([0.04, 0.10, 1.0]),
+    "green": np.array([0.15, 1.0, 0.08]),
+}
+
+
+@dataclass(frozen=True)
+class Photo:
+    """Everything needed to render one photo (see the module docstring for units)."""
+
+    view: View
+    prints: tuple = ()
+    spots: tuple = ()
+    glares: tuple = ()
+    colour: str = "red"
+    paper: float = 0.65
+    tint: tuple = (0.85, 0.95, 1.0)  # room light (B, G, R): warm
+    gradient: float = 0.0  # relative brightness change from the left to the right edge
+    vignetting: float = 0.0  # relative brightness loss at the corners
+    psf: float = 0.6  # lens blur sigma, px
+    read_noise: float = 1.0  # DN
+    shot_noise: float = 0.02  # variance per DN of signal, DN
+    bloom: float = 0.0  # fraction of excess charge spilt into the neighbours
+    bloom_sigma: float = 2.0  # px
+    gamma: float = 1.0  # 2.2 for an sRGB-like camera JPEG
+    jpeg: int | None = None  # JPEG quality, None for lossless
+
+    def truth(self) -> np.ndarray:
+        """(n, 2) array of the spots' true centres, px."""
+        return np.array([[s.u, s.v] for s in self.spots], float).reshape(-1, 2)
+
+
+def _supersample(x0: int, y0: int, w: int, h: int, s: int) -> np.ndarray:
+    """Sample points (h*s, w*s, 2) spread evenly over each pixel of a box, px."""
+    offs = (np.arange(s) + 0.5) / s - 0.5
+    xs = (x0 + np.arange(w)[:, None] + offs).ravel()
+    ys = (y0 + np.arange(h)[:, None] + offs).ravel()
+    return np.stack(np.meshgrid(xs, ys), -1)
+
+
+def _paste(refl: np.ndarray, view: View, item: Print, blur: float) -> None:
+    """Multiply the reflectance map by a print seen through a blur of ``blur`` px.
+
+    The print is upsampled, blurred by the lens PSF combined with the pixel's box
+    aperture, and sampled at each pixel centre: edges land at exact sub-pixel places.
+    """
+    h_img, w_img = refl.shape[:2]
+    t = np.linspace(0, 1, 9)[:, None]
+    c = item.corners_mm
+    edges = np.concatenate([c[i] + t * (c[(i + 1) % 4] - c[i]) for i in range(4)])
+    px = view.project(edges)
+    pad_px = int(np.ceil(4 * blur)) + 2
+    x0, y0 = np.maximum(np.floor(px.min(0)).astype(int) - pad_px, 0)
+    x1, y1 = np.minimum(np.ceil(px.max(0)).astype(int) + pad_px + 1, [w_img, h_img])
+    if x1 <= x0 or y1 <= y0:
+        return
+    th, tw = item.image.shape[:2]
+    px_per_texel = np.linalg.norm(px[9] - px[0]) / tw
+    up = max(1, int(np.ceil(8 * px_per_texel)))  # >= 8 samples per pixel
+    pad = int(np.ceil(4 * blur * up / px_per_texel)) + 1
+    img = item.image if item.image.ndim == 3 else item.image[..., None].repeat(3, -1)
+    big = np.ones((th * up + 2 * pad, tw * up + 2 * pad, 3), np.float32)
+    big[pad:-pad, pad:-pad] = img.repeat(up, 0).repeat(up, 1)
+    big = cv2.GaussianBlur(big, (0, 0), blur * up / px_per_texel)
+    grid = np.stack(np.meshgrid(np.arange(x0, x1), np.arange(y0, y1)), -1).reshape(-1, 2)
+    T = cv2.getPerspectiveTransform(c.astype(np.float32), np.float32(
+        [[-0.5, -0.5], [tw - 0.5, -0.5], [tw - 0.5, th - 0.5], [-0.5, th - 0.5]]))
+    tex = cv2.perspectiveTransform(view.unproject(grid).reshape(-1, 1, 2), T).reshape(y1 - y0, x1 - x0, 2)
+    tex = ((tex + 0.5) * up - 0.5 + pad).astype(np.float32)
+    vals = cv2.remap(big, tex[..., 0], tex[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=(1.0, 1.0, 1.0))
+    refl[y0:y1, x0:x1] *= vals
+
+
+def _spot_box(u, v, r, w, h):
+    x0, y0 = max(int(np.floor(u - r)), 0), max(int(np.floor(v - r)), 0)
+    return x0, y0, min(int(np.ceil(u + r)) + 1, w), min(int(np.ceil(v + r)) + 1, h)
+
+
+def _gaussian(spot: LaserSpot, x0, y0, w, h, s: int = 5) -> np.ndarray:
+    """Pixel-integrated elliptical Gaussian with unit peak, (h, w)."""
+    p = _supersample(x0, y0, w, h, s) - [spot.u, spot.v]
+    a = np.radians(spot.angle_deg)
+    major = p @ [np.cos(a), np.sin(a)]
+    minor = p @ [-np.sin(a), np.cos(a)]
+    g = np.exp(-0.5 * ((major / spot.sigma) ** 2 + (minor / (spot.sigma * spot.aspect)) ** 2))
+    return g.reshape(h, s, w, s).mean((1, 3))
+
+
+def _speckle(shape, grain: float, contrast: float, rng) -> np.ndarray:
+    """Multiplicative speckle with mean 1 and std ``contrast``, grain ``grain`` px."""
+    field = rng.standard_normal(shape + (2,)).astype(np.float32)
+    k = max(grain / 2, 0.3)
+    field = cv2.GaussianBlur(field, (0, 0), k, borderType=cv2.BORDER_REFLECT)
+    inten = (field ** 2).sum(-1)
+    inten /= inten.mean()
+    return 1 + contrast * (inten - 1)  # fully developed speckle (exponential) scaled to the contrast
+
+
+def render(photo: Photo, seed: int = 0) -> np.ndarray:
+    """Render a photo.
+
+    Parameters
+    ----------
+    photo : Photo
+    seed : int, seed of the noise and speckle
+
+    Returns
+    -------
+    (height, width, 3) uint8 BGR image
+    """
+    rng = np.random.default_rng(seed)
+    w, h = photo.view.size
+    refl = np.ones((h, w, 3), np.float32)
+    for item in photo.prints:
+        _paste(refl, photo.view, item, np.hypot(photo.psf, np.sqrt(1 / 12)))  # PSF and pixel aperture
+    xs = np.linspace(-0.5, 0.5, w, dtype=np.float32)
+    ys = np.linspace(-0.5, 0.5, h, dtype=np.float32) * (h / w)
+    light = (1 + photo.gradient * xs)[None, :] * (1 - photo.vignetting * 2 * (xs[None, :] ** 2 + ys[:, None] ** 2))
+    img = refl * (FULL * photo.paper * light)[..., None] * np.float32(photo.tint)
+    response = LASER_RESPONSE[photo.colour].astype(np.float32)
+    for spot in photo.spots:
+        # Out to where the tail falls below 1e-3 DN.
+        r = spot.sigma * np.sqrt(2 * np.log(max(spot.peak * FULL, 2) / 1e-3)) + 2
+        x0, y0, x1, y1 = _spot_box(spot.u, spot.v, r, w, h)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        g = _gaussian(spot, x0, y0, x1 - x0, y1 - y0) * (FULL * spot.peak)
+        if spot.speckle > 0:
+            g *= _speckle(g.shape, spot.grain, spot.speckle, rng)
+        # Laser light is reflected by the sheet like room light: ink under the spot absorbs it.
+        img[y0:y1, x0:x1] += g[..., None] * response * refl[y0:y1, x0:x1]
+    for gl in photo.glares:
+        r = gl.sigma * np.sqrt(2 * np.log(max(gl.peak * FULL, 2) / 1e-3)) + 2
+        x0, y0, x1, y1 = _spot_box(gl.u, gl.v, r, w, h)
+        g = _gaussian(LaserSpot(gl.u, gl.v, gl.sigma), x0, y0, x1 - x0, y1 - y0) * (FULL * gl.peak)
+        img[y0:y1, x0:x1] += g[..., None] * np.float32(photo.tint)
+    img += np.sqrt(photo.read_noise ** 2 + photo.shot_noise * np.maximum(img, 0)) * \
+        rng.standard_normal(img.shape, dtype=np.float32)
+    if photo.bloom > 0:
+        excess = np.maximum(img - FULL, 0)
+        if excess.any():
+            img += photo.bloom * cv2.GaussianBlur(excess, (0, 0), photo.bloom_sigma)
+    np.clip(img, 0, FULL, out=img)
+    if photo.gamma != 1:
+        img = FULL * (img / FULL) ** (1 / photo.gamma)
+    out = np.round(img).astype(np.uint8)
+    if photo.jpeg is not None:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(photo.jpeg)])
+        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return out
