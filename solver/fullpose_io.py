@@ -250,6 +250,9 @@ def read_pose_csv(path, n: int | None = None) -> PoseData:
     rcols = [f"r{i}{j}" for i in range(1, 4) for j in range(1, 4)]
     header, rows, hline = _parse(path, rcols + ["x", "y", "z"])
     qcols = _joint_columns(header, path, hline)
+    extra = set(header) - set(qcols) - set(rcols) - {"x", "y", "z"}
+    if extra:
+        raise FormatError(path, f"unknown column(s) {', '.join(sorted(extra))}", line=hline)
     if n is not None and len(qcols) != n:
         raise FormatError(path, f"the file has {len(qcols)} joint columns but the robot has {n} joints", line=hline)
     q = np.array([[_num(path, ln, r, c) for c in qcols] for ln, r in rows])

@@ -117,7 +117,7 @@ def _identifiability(J: np.ndarray, names: list) -> tuple[Identifiability, np.nd
     """SVD identifiability report; returns it with the column scales D and the basis V_r (scaled)."""
     scale = np.linalg.norm(J, axis=0)
     scale[scale < 1e-9 * scale.max()] = 1.0  # a column of round-off: do not blow it up to unit norm
-    _, s, Vt = np.linalg.svd(J / scale, full_matrices=True)
+    _, s, Vt = np.linalg.svd(J / scale, full_matrices=J.shape[0] < J.shape[1])  # never the (2m x 2m) U of a tall J
     s_full = np.zeros(J.shape[1])
     s_full[: len(s)] = s
     rank = int(np.sum(s_full > _RANK_RTOL * s_full[0]))

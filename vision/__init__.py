@@ -1,1 +1,24 @@
-"""lasercal vision."""
+"""lasercal vision: laser-spot measurement in photos, sub-pixel and in millimetres.
+
+Replaces measuring spots by hand in ImageJ (thesis Section 4.3): detect the laser
+spot(s) in a top-view photo, measure their centroids in pixels (OpenCV convention,
+pixel centres at integer coordinates; ImageJ's is +0.5 px) and map them to mm on the
+table plane in the robot base frame through printed ArUco/ChArUco markers.
+
+Stands alone: imports neither ``solver`` nor ``collector``.
+"""
+from .beamcheck import Circle, fit_circle, tilt
+from .camera import Camera, calibrate, load_camera, save_camera
+from .detect import Spot, detect_spots
+from .errors import (CalibrationError, ImageReadError, LayoutError, MarkerError, NoSpotError, SpotCountError,
+                     VisionError)
+from .images import read_image
+from .measure import Options, PhotoResult, measure_photo
+from .plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane, load_layout
+
+__all__ = [
+    "Camera", "CalibrationError", "Circle", "ImageReadError", "LayoutError", "MarkerError", "MarkerLayout",
+    "NoSpotError", "Options", "PhotoResult", "PlaneMap", "Spot", "SpotCountError", "VisionError", "calibrate",
+    "detect_spots", "find_fiducials", "fit_circle", "fit_plane", "load_camera", "load_layout", "measure_photo",
+    "read_image", "save_camera", "tilt",
+]

@@ -188,7 +188,7 @@ def charuco_points(gray: np.ndarray, detector) -> tuple[np.ndarray, np.ndarray] 
     return obj.reshape(-1, 3).astype(np.float32), img.reshape(-1, 2).astype(np.float32)
 
 
-def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -> Camera:
+def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -> tuple[Camera, int]:
     """Calibrate a camera from photos of a chessboard or a ChArUco board.
 
     Parameters
@@ -202,8 +202,8 @@ def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -
 
     Returns
     -------
-    Camera
-        With the RMS reprojection error in px.
+    camera : Camera, with the RMS reprojection error in px
+    used : int, photos in which the pattern was found
 
     Raises
     ------
@@ -234,4 +234,4 @@ def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -
                                "at least 3 are needed (from different angles)")
     size = sizes.pop()
     rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None)
-    return Camera(tuple(int(s) for s in size), K, dist.ravel(), float(rms))
+    return Camera(tuple(int(s) for s in size), K, dist.ravel(), float(rms)), len(obj)

@@ -114,6 +114,23 @@ def _robust_sigma(x: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(x - np.median(x))))
 
 
+def _highpass(small: np.ndarray, tile: int = 24) -> np.ndarray:
+    """Subtract the paper level (room light, tint, vignetting) from a small image.
+
+    The paper level is the 90th percentile of tiles, median-filtered and
+    interpolated: a spot covers too little of a tile to lift it, and a black marker
+    too little to sink it, so the white cells inside a marker are not "brighter
+    than their surroundings" as they would be against a local median.
+    """
+    h, w = small.shape
+    ty, tx = max(h // tile, 1), max(w // tile, 1)
+    tiles = small[:ty * (h // ty), :tx * (w // tx)].reshape(ty, h // ty, tx, w // tx)
+    level = np.percentile(tiles, 90, axis=(1, 3)).astype(np.float32)
+    if min(ty, tx) >= 3:
+        level = cv2.medianBlur(level, 3)
+    return small - cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
 def find_candidates(img: np.ndarray, colour: str = "red", reference: np.ndarray | None = None,
                     k_sigma: float = 6.0) -> list[Candidate]:
     """Regions of laser-coloured light brighter than their surroundings.
@@ -132,22 +149,21 @@ def find_candidates(img: np.ndarray, colour: str = "red", reference: np.ndarray 
     h, w = img.shape[:2]
     ch = CHANNEL[colour]
     src = cv2.subtract(img, reference) if reference is not None else img
-    ex = _excess(src, ch)
     f = max(1, min(h, w) // 750)  # block size: ~750 rows keep spots of sigma >= 1 px visible
-    small = cv2.resize(ex, (w // f, h // f), interpolation=cv2.INTER_AREA).astype(np.float32)
-    # Median of a coarser copy: a smooth background the spots themselves do not lift.
-    g = 4 if min(small.shape) >= 64 else 1
-    coarse = cv2.resize(small, (small.shape[1] // g, small.shape[0] // g), interpolation=cv2.INTER_AREA)
-    bg = cv2.medianBlur(coarse, 5) if g > 1 else np.full_like(small, np.median(small))
-    hp = small - cv2.resize(bg, small.shape[::-1], interpolation=cv2.INTER_LINEAR)
-    floor = 0.02 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
-    thr = max(k_sigma * _robust_sigma(hp), floor / 2 if f > 1 else floor)
-    n, labels, stats, cents = cv2.connectedComponentsWithStats((hp > thr).astype(np.uint8), connectivity=8)
+    floor = 0.03 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
+    mask = None
+    for plane in ([_excess(src, ch)] + ([src[..., ch]] if src.ndim == 3 else [])):
+        hp = _highpass(cv2.resize(plane, (w // f, h // f), interpolation=cv2.INTER_AREA).astype(np.float32))
+        # Laser light is both coloured and brighter than its surroundings; JPEG colour
+        # fringes at ink edges are coloured but not brighter, red ink neither.
+        above = hp > max(k_sigma * _robust_sigma(hp), floor)
+        mask, strength = (above, hp) if mask is None else (mask & above, strength)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     if n <= 1:
         return []
-    strength = np.zeros(n)
-    np.maximum.at(strength, labels.ravel(), hp.ravel())
-    order = np.argsort(-strength[1:])[:MAX_CANDIDATES] + 1
+    best = np.zeros(n)
+    np.maximum.at(best, labels.ravel(), strength.ravel())
+    order = np.argsort(-best[1:])[:MAX_CANDIDATES] + 1
     out = []
     for i in order:
         x, y, bw, bh = stats[i, :4]
@@ -280,11 +296,14 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
             break
         gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
         x0, y0, x1, y1 = max(x0 - gx, 0), max(y0 - gy, 0), min(x1 + gx, w), min(y1 + gy, h)
-    if peak_d < max(8 * noise[ch], 0.04 * full):
+    if peak_d < max(8 * noise[ch], 0.08 * full):
         return Rejection("dim", cand.u, cand.v)  # not brighter than the paper: ink, not light
     thr = max(4 * noise[ch], 0.15 * peak_d)
-    n, labels = cv2.connectedComponents((sig > thr).astype(np.uint8), connectivity=8)
-    iy, ix = np.unravel_index(np.argmax(np.where(labels > 0, sig, -np.inf)), sig.shape)
+    smooth = cv2.GaussianBlur(sig, (0, 0), 1.0)  # speckle would split a spot into several blobs
+    n, labels = cv2.connectedComponents((smooth > thr).astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return Rejection("dim", cand.u, cand.v)
+    iy, ix = np.unravel_index(np.argmax(np.where(labels > 0, smooth, -np.inf)), sig.shape)
     blob = labels == labels[iy, ix]
     if blob.sum() < 4:
         return Rejection("dim", cand.u, cand.v)  # a lone bright pixel: JPEG ringing or noise, not a spot
@@ -311,15 +330,18 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
     m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
     start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
     u, v, wgt = _weighted_centroid(sig, start, 1.5 * r_eq + 2, exclude)
+    # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
+    if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max():
+        return Rejection("dim", cand.u, cand.v)
     su, sv = _centroid_sigma(sig, wgt, u, v)
     return Spot(u + x0, v + y0, su, sv, float(raw[blob].max()), bool(clipped[blob].any()), int(blob.sum()))
 
 
-def _dedupe(spots: list[Spot], radius: float = 2.0) -> list[Spot]:
-    """Drop spots found twice (two candidates of one spot converge to one centre)."""
+def _dedupe(spots: list[Spot]) -> list[Spot]:
+    """Drop spots found twice: two candidates of one spot converge within its radius."""
     out: list[Spot] = []
     for s in sorted(spots, key=lambda s: -s.peak * s.area):
-        if all(np.hypot(s.u - o.u, s.v - o.v) > radius for o in out):
+        if all(np.hypot(s.u - o.u, s.v - o.v) > max(3.0, np.sqrt(max(s.area, o.area) / np.pi)) for o in out):
             out.append(s)
     return out
 

@@ -90,6 +90,7 @@ class MarkerLayout:
     corners : dict int -> (4, 2) array, mm, base frame, OpenCV corner order
     min_markers : int, markers needed in a photo (a ChArUco board counts as enough)
     charuco : CharucoLayout or None
+    plane_z : float or None, the layout's ``plane.z``, mm
     """
 
     path: str
@@ -97,6 +98,7 @@ class MarkerLayout:
     corners: dict
     min_markers: int
     charuco: CharucoLayout | None = None
+    plane_z: float | None = None
 
 
 def _vec(value, n, path, field):
@@ -200,7 +202,12 @@ def load_layout(path) -> MarkerLayout | None:
         raise LayoutError(path, "expected a whole number", "markers.min_markers") from None
     if not 1 <= min_markers <= max(len(corners), 1):
         raise LayoutError(path, f"must be between 1 and the {len(corners)} markers listed", "markers.min_markers")
-    return MarkerLayout(str(path), m["dictionary"], corners, min_markers, charuco)
+    plane = doc.get("plane") or {}
+    try:
+        plane_z = float(plane["z"]) if isinstance(plane, dict) and "z" in plane else None
+    except (TypeError, ValueError):
+        raise LayoutError(path, "expected a number, mm", "plane.z") from None
+    return MarkerLayout(str(path), m["dictionary"], corners, min_markers, charuco, plane_z)
 
 
 def _detector(dictionary: str):

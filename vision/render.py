@@ -338,3 +338,32 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(photo.jpeg)])
         out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     return out
+
+
+def marker_sheet(view: View, side: float = 40.0, dictionary: str = "DICT_4X4_50", inset: float = 0.1,
+                 ids=(0, 1, 2, 3)) -> dict:
+    """Four markers near the corners of the photo, upright in it.
+
+    Parameters
+    ----------
+    view : View
+    side : float, marker side, mm
+    dictionary : str, OpenCV dictionary name
+    inset : float, marker centres at this fraction of the width/height from the photo's edges
+    ids : 4 marker ids (top-left, top-right, bottom-right, bottom-left of the photo)
+
+    Returns
+    -------
+    dict id -> (4, 2) corners mm (OpenCV order), for :func:`aruco_print` and the layout
+    """
+    w, h = view.size
+    at = np.array([[inset, inset], [1 - inset, inset], [1 - inset, 1 - inset], [inset, 1 - inset]]) * [w - 1, h - 1]
+    centres = view.unproject(at)
+    right = view.unproject(at + [1, 0]) - centres  # the photo's +u on the plane
+    angles = np.degrees(np.arctan2(right[:, 1], right[:, 0]))
+    return {int(i): square_corners(c, side, a) for i, c, a in zip(ids, centres, angles)}
+
+
+def marker_prints(corners: dict, dictionary: str = "DICT_4X4_50") -> tuple:
+    """Prints of the markers ``{id: (4, 2) corners mm}``."""
+    return tuple(aruco_print(dictionary, i, c) for i, c in corners.items())
