@@ -14,19 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import AimingError
-from .laser import beam, plane_hit
+from .laser import beam, beam_joint_jacobian, plane_hit, spot_joint_jacobian
 from .model import RobotModel
-from .poe import space_jacobian
-
-
-def _beam_jacobian(model: RobotModel, q: np.ndarray):
-    """Aperture a, direction d and their joint Jacobians da/dq, dd/dq, each (m, 3, n)."""
-    b = beam(model.screws, model.laser_dir, model.aperture, q)
-    J = space_jacobian(model.screws, b.chain)
-    w, v = J[:, :3], J[:, 3:]
-    da = np.cross(w, b.aperture[:, :, None], axis=1) + v
-    dd = np.cross(w, b.direction[:, :, None], axis=1)
-    return b, da, dd
 
 
 def _dls_step(J: np.ndarray, r: np.ndarray, damping: float) -> np.ndarray:
@@ -59,11 +48,7 @@ def polish(model: RobotModel, q: np.ndarray, point: np.ndarray, iters: int = 8) 
     q = np.array(q, dtype=float)
     point = np.broadcast_to(np.asarray(point, dtype=float), (len(q), 3))
     for _ in range(iters):
-        b, da, dd = _beam_jacobian(model, q)
-        spot, t = plane_hit(b.aperture, b.direction, point[:, 2])
-        u = da + t[:, None, None] * dd
-        d = b.direction
-        Js = u[:, :2] - (d[:, :2] / d[:, 2:3])[:, :, None] * u[:, 2:3]
+        spot, Js = spot_joint_jacobian(model, q, point[:, 2])
         q = q + _dls_step(Js, point[:, :2] - spot[:, :2], 1e-9)
     return q
 
@@ -117,7 +102,7 @@ def aim(
         a_star = point - rng.uniform(*length, pool)[:, None] * d_star
         q = np.clip(home + rng.normal(0, seed_spread, (pool, nj)), lo, hi)
         for _ in range(60):
-            b, da, dd = _beam_jacobian(model, q)
+            b, da, dd = beam_joint_jacobian(model, q)
             r = np.concatenate([a_star - b.aperture, 300.0 * (d_star - b.direction)], axis=1)
             J = np.concatenate([da, 300.0 * dd], axis=1)  # direction weighted as a 300 mm lever
             q = np.clip(q + _dls_step(J, r, 5.0), lo, hi)

@@ -16,7 +16,7 @@ import numpy as np
 
 from .minimal import link_frame, screw_from_eta
 from .model import RobotModel
-from .poe import adjoint, dexp_A, poe_chain
+from .poe import adjoint, dexp_A, poe_chain, space_jacobian
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,35 @@ def plane_hit(a: np.ndarray, d: np.ndarray, z: np.ndarray | float) -> tuple[np.n
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (np.asarray(z, dtype=float) - a[:, 2]) / d[:, 2]
     return a + t[:, None] * d, t
+
+
+def beam_joint_jacobian(model: RobotModel, q: np.ndarray) -> tuple[Beam, np.ndarray, np.ndarray]:
+    """Beam and the joint Jacobians of its aperture and direction.
+
+    With (omega_j, v_j) the space-Jacobian column of joint j: da/dq_j = omega_j x a + v_j,
+    dd/dq_j = omega_j x d.
+
+    Returns
+    -------
+    Beam, da/dq (m, 3, n) array (mm/rad), dd/dq (m, 3, n) array (1/rad)
+    """
+    b = beam(model.screws, model.laser_dir, model.aperture, q)
+    J = space_jacobian(model.screws, b.chain)
+    w, v = J[:, :3], J[:, 3:]
+    return b, np.cross(w, b.aperture[:, :, None], axis=1) + v, np.cross(w, b.direction[:, :, None], axis=1)
+
+
+def spot_joint_jacobian(model: RobotModel, q: np.ndarray, z) -> tuple[np.ndarray, np.ndarray]:
+    """Spots on the plane z and their joint Jacobian d(spot_xy)/dq.
+
+    Returns
+    -------
+    spot : (m, 3) array, mm
+    J : (m, 2, n) array, mm/rad
+    """
+    b, da, dd = beam_joint_jacobian(model, q)
+    spot, t = plane_hit(b.aperture, b.direction, z)
+    return spot, project_to_plane(da + t[:, None, None] * dd, b.direction)
 
 
 def tip_jacobian_columns(b: Beam, twists: np.ndarray, dd: np.ndarray, da: np.ndarray, length: np.ndarray) -> np.ndarray:
