@@ -27,7 +27,8 @@ import numpy as np
 from scipy import optimize, stats
 
 from .errors import IdentificationError
-from .laser import LaserParams, plane_hit
+from .effects import Extension, require
+from .laser import LaserParams, plane_hit, spot_joint_jacobian
 from .model import RobotModel
 from .session import Session
 
@@ -75,6 +76,8 @@ class Identification:
     param_names : list of str
     estimate : (p,) array, the identified parameter vector (in the nominal's link frames)
     seconds : float, wall time
+    extra : dict, e.g. 'cov' the parameter covariance (p, p)
+    extension : Extension or None, the fitted non-geometric effect with standard errors
     """
 
     method: str
@@ -93,6 +96,7 @@ class Identification:
     estimate: np.ndarray
     seconds: float
     extra: dict = field(default_factory=dict)
+    extension: Extension | None = None
 
     @property
     def rms_mm(self) -> float:
@@ -111,6 +115,34 @@ def _start(nominal: RobotModel, session: Session) -> RobotModel:
     if session.aperture_z is None:
         return nominal
     return nominal.replace(aperture=np.r_[nominal.aperture[:2], session.aperture_z])
+
+
+def _aperture_gauge(P: LaserParams, v: np.ndarray, cov: np.ndarray, aperture_z: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Slide the aperture along the beam to the measured height p_Mz (Section 3.2.1).
+
+    The aperture's position along the beam is invisible to spot data, so the estimate and
+    its covariance are only defined once that gauge is fixed; this fixes it without changing
+    any prediction, and maps the covariance through the gauge map's Jacobian.
+    """
+    if aperture_z is None:
+        return v, cov
+
+    def gauge(u):
+        _, _, vp, _, pM = P.geometry(u)
+        out = u.copy()
+        out[P.slice_M] = pM + (aperture_z - pM[2]) / vp[2] * vp
+        return out
+
+    if abs(P.geometry(v)[2][2]) < 1e-3:  # a near-horizontal beam: the height does not fix the gauge
+        return v, cov
+    G = np.eye(len(v))
+    cols = list(range(P.slice_laser.start, P.slice_M.stop))
+    h = 1e-7
+    for c in cols:
+        e = np.zeros(len(v))
+        e[c] = h
+        G[:, c] = (gauge(v + e) - gauge(v - e)) / (2 * h)
+    return gauge(v), G @ cov @ G.T
 
 
 def _identifiability(J: np.ndarray, names: list) -> tuple[Identifiability, np.ndarray, np.ndarray]:
@@ -148,7 +180,7 @@ def _flag_outliers(res: np.ndarray, w: np.ndarray, dof_ratio: float) -> tuple[np
     return r > max(cut, 1e-4), sigma  # 0.1 um floor: exact data has round-off, not outliers
 
 
-def identify_lm(session: Session, nominal: RobotModel | None = None, robust: bool = True) -> Identification:
+def identify_lm(session: Session, nominal: RobotModel | None = None, robust: bool = True, extension: Extension | None = None, tau: np.ndarray | None = None) -> Identification:
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
 
     Parameters
@@ -156,6 +188,9 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
     session : Session
     nominal : RobotModel, start model (default: the session's robot)
     robust : bool, flag outliers and refit without them
+    extension : Extension, optional non-geometric effect identified jointly with the geometry
+        (its parameters start at zero)
+    tau : (m, n) array, joint torques for a compliance extension (default: the session's)
 
     Returns
     -------
@@ -165,54 +200,85 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
     nominal = nominal or session.robot
     start = _start(nominal, session)
     P = LaserParams(start)
-    q, target = session.q, session.target
+    q, target, t = session.q, session.target, session.t
+    tau = session.tau if tau is None else tau
     m, p = len(q), P.size
+    k = extension.size if extension else 0
+    if extension:
+        require(extension, t, tau)
     if 2 * m <= 8:
-        raise IdentificationError(f"{m} captures are far too few to identify {p} parameters")
-    x0 = P.x0()
-    _, _, J0 = P.spot_jacobian(x0, q, target[:, 2])
-    ident, D, Vr = _identifiability(J0.reshape(2 * m, p), P.names)
-    basis = D[:, None] * Vr  # x = x0 + basis @ z
-    r = basis.shape[1]
+        raise IdentificationError(f"{m} captures are far too few to identify {p + k} parameters")
+    names = P.names + (extension.names if extension else [])
 
-    def fun(z, sw):
-        spot, _ = P.spots(x0 + basis @ z, q, target[:, 2])
-        return ((spot[:, :2] - target[:, :2]) * sw[:, None]).ravel()
+    def model_inputs(v):
+        """True configurations and in-plane targets under parameters v = [x, theta]."""
+        if not extension:
+            return q, target[:, :2]
+        e = extension.with_params(v[p:])
+        return e.true_q(q, t, tau), target[:, :2] + e.target_offset(session.point)
 
-    def jac(z, sw):
-        _, _, J = P.spot_jacobian(x0 + basis @ z, q, target[:, 2])
-        return (J * sw[:, None, None]).reshape(2 * m, p) @ basis
+    def residual(v):
+        qt, tg = model_inputs(v)
+        spot, _ = P.spots(v[:p], qt, target[:, 2])
+        return spot[:, :2] - tg
 
-    def fun_line(z):
-        return P.line_jacobian(x0 + basis @ z, q, target)[0].ravel()
-
-    def jac_line(z):
-        return P.line_jacobian(x0 + basis @ z, q, target)[1].reshape(3 * m, p) @ basis
+    def jacobian(v):
+        qt, _ = model_inputs(v)
+        _, _, J = P.spot_jacobian(v[:p], qt, target[:, 2])
+        if not extension:
+            return J
+        if extension.effect == "reference_point_offset":
+            Je = np.zeros((m, 2, 2))
+            Je[session.point == extension.point] = -np.eye(2)
+        else:
+            idx, G = extension.regressors(q, t, tau)
+            _, Jq = spot_joint_jacobian(P.to_model(v[:p]), qt, target[:, 2])
+            Je = Jq[:, :, idx] * G[:, None, :]
+        return np.concatenate([J, Je], axis=2)
 
     history, iterations = [], 0
-
-    def run(z, w, method="lm", **kw):
-        nonlocal iterations
-        sw = np.sqrt(w)
-        sol = optimize.least_squares(fun, z, jac, args=(sw,), method=method, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200, **kw)
-        iterations += sol.njev
-        res = fun(sol.x, np.ones(m)).reshape(m, 2)
-        history.append({"pass": len(history), "method": method, "rms_mm": float(np.sqrt(np.mean(np.sum(res[w > 0] ** 2, 1)))), "iterations": int(sol.njev), "status": int(sol.status)})
-        return sol, res
-
-    dof_ratio = max(1 - r / (2 * m), 0.05)
     w = np.ones(m)
     if robust:  # gross outliers (a wrong point) already stand out against the nominal model: keep them out of the start
         flags, _ = _flag_outliers(spot_residuals(start, q, target), w, 1.0)
         w = np.where(flags, 0.0, 1.0)
-    # Stage 1: the beam-to-point distance brings a far-off start (steep beams) into the basin of stage 2.
-    sw = np.sqrt(w)[:, None]
-    first = optimize.least_squares(lambda z: (fun_line(z).reshape(m, 3) * sw).ravel(), np.zeros(r),
-                                   lambda z: (jac_line(z).reshape(m, 3, r) * sw[:, :, None]).reshape(3 * m, r),
-                                   method="lm", xtol=1e-10, ftol=1e-10, max_nfev=100)
+
+    # Stage 1 (geometry only): the beam-to-point distance brings a far-off start (steep beams) into the basin of stage 2.
+    x0 = P.x0()
+    _, _, J0 = P.spot_jacobian(x0, q, target[:, 2])
+    _, D1, V1 = _identifiability(J0.reshape(2 * m, p), P.names)
+    B1 = D1[:, None] * V1
+    sw = np.sqrt(w)[:, None, None]
+
+    def line(z):
+        r, J = P.line_jacobian(x0 + B1 @ z, q, target)
+        return (r[:, :, None] * sw)[..., 0].ravel(), (J * sw).reshape(3 * m, p) @ B1
+
+    first = optimize.least_squares(lambda z: line(z)[0], np.zeros(B1.shape[1]), lambda z: line(z)[1], method="lm", xtol=1e-10, ftol=1e-10, max_nfev=100)
     iterations += first.njev
     history.append({"pass": 0, "method": "lm (beam distance)", "rms_mm": float(np.sqrt(np.mean(first.fun**2) * 3)), "iterations": int(first.njev), "status": int(first.status)})
-    sol, res = run(first.x, w)
+
+    # Stage 2: in-plane residuals, geometry and extension together, in the identifiable subspace at the stage-1 solution.
+    v1 = np.r_[x0 + B1 @ first.x, np.zeros(k)]
+    ident, D, Vr = _identifiability(jacobian(v1).reshape(2 * m, p + k), names)
+    basis = D[:, None] * Vr  # v = v1 + basis @ z
+    r = basis.shape[1]
+
+    def run(z, w):
+        nonlocal iterations
+        sw = np.sqrt(w)
+        sol = optimize.least_squares(
+            lambda z: (residual(v1 + basis @ z) * sw[:, None]).ravel(),
+            z,
+            lambda z: (jacobian(v1 + basis @ z) * sw[:, None, None]).reshape(2 * m, p + k) @ basis,
+            method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200,
+        )
+        iterations += sol.njev
+        res = residual(v1 + basis @ sol.x)
+        history.append({"pass": len(history), "method": "lm", "rms_mm": float(np.sqrt(np.mean(np.sum(res[w > 0] ** 2, 1)))), "iterations": int(sol.njev), "status": int(sol.status)})
+        return sol, res
+
+    dof_ratio = max(1 - r / (2 * m), 0.05)
+    sol, res = run(np.zeros(r), w)
     if robust:  # skipped least squares: test every capture against the fit of the others, refit, until stable
         for _ in range(5):
             flags, _ = _flag_outliers(res, w, dof_ratio)
@@ -220,21 +286,23 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
                 break
             w = np.where(flags, 0.0, 1.0)
             sol, res = run(sol.x, w)
-    x = x0 + basis @ sol.x
+    v = v1 + basis @ sol.x
     used = w > 0
     dof = 2 * used.sum() - r
     if dof <= 0:
         raise IdentificationError(f"{used.sum()} usable captures cannot identify {r} parameter combinations")
     sigma = float(np.sqrt(np.sum(res[used] ** 2) / dof))  # per-axis noise
-    Jz = jac(sol.x, np.sqrt(w))
-    cov_x = basis @ _covariance(Jz, sigma) @ basis.T
-    se = dict(zip(P.names, np.sqrt(np.clip(np.diag(cov_x), 0, None)).tolist()))
+    Jz = (jacobian(v) * np.sqrt(w)[:, None, None]).reshape(2 * m, p + k) @ basis
+    v, cov = _aperture_gauge(P, v, basis @ _covariance(Jz, sigma) @ basis.T, session.aperture_z)
+    se_all = np.sqrt(np.clip(np.diag(cov), 0, None))
     converged = bool(sol.status > 0)
-    meta = {"method": "lm", "converged": converged, "iterations": iterations, "rank": ident.rank, "n_params": p}
+    meta = {"method": "lm", "converged": converged, "iterations": iterations, "rank": ident.rank, "n_params": p + k}
+    fitted = extension.with_params(v[p:], se_all[p:]) if extension else None
+    extensions = {fitted.effect: fitted.to_dict()} if fitted and fitted.effect != "reference_point_offset" else {}
+    model = P.to_model(v[:p], identification=meta, extensions=extensions)
     return Identification(
-        "lm", nominal, P.to_model(x, identification=meta), converged, iterations, tuple(history), res, w,
-        tuple(int(i) for i in np.flatnonzero(~used)), sigma, ident, se, P.names, x, time.perf_counter() - t0,
-        {"cov": cov_x},
+        "lm", nominal, model, converged, iterations, tuple(history), res, w, tuple(int(i) for i in np.flatnonzero(~used)),
+        sigma, ident, dict(zip(names, se_all.tolist())), names, v, time.perf_counter() - t0, {"cov": cov}, fitted,
     )
 
 

@@ -64,7 +64,7 @@ def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout:
                                    opts.imagej_mode, opts.imagej_threshold, opts.imagej_box)
     plane = None
     if layout is not None:
-        fid = find_fiducials(to_gray(img), layout, opts.gamma)
+        fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
         plane = fit_plane(fid, layout, camera, size, name)
         if fid.unknown_ids:
             warnings.append(f"markers not in the layout ignored: ids {', '.join(map(str, fid.unknown_ids))}")
