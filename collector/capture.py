@@ -123,8 +123,16 @@ def check_capture(nominal: RobotModel, points: dict, name: str, q: np.ndarray, e
     return Check(name, offset, nearest, flag, similar_to, distance, vary)
 
 
-def wait_still(robot: RobotAdapter, opts: CaptureOptions) -> tuple[JointState | None, float]:
-    """Poll the arm until every joint has been slower than the threshold for the hold time.
+def wait_still(robot: RobotAdapter, threshold: float, hold: float, timeout: float, poll: float) -> tuple[JointState | None, float]:
+    """Poll the arm until every joint has been slower than ``threshold`` (rad/s) for ``hold`` s.
+
+    Parameters
+    ----------
+    robot : RobotAdapter
+    threshold : float, rad/s
+    hold : float, s
+    timeout : float, give up after this long, s
+    poll : float, interval between reads, s
 
     Returns
     -------
@@ -137,15 +145,15 @@ def wait_still(robot: RobotAdapter, opts: CaptureOptions) -> tuple[JointState | 
     while True:
         s = robot.read()
         peak = float(np.abs(s.dq).max())
-        if peak < opts.speed_threshold:
+        if peak < threshold:
             since = s.t if since is None else since
-            if s.t - since >= opts.hold:
+            if s.t - since >= hold:
                 return s, peak
         else:
             since = None
-        if s.t - start > opts.still_timeout:
+        if s.t - start > timeout:
             return None, peak
-        clock.sleep(opts.poll)
+        clock.sleep(poll)
 
 
 def progress_lines(counts: dict, per_point: int, width: int = 20) -> list[str]:
@@ -157,7 +165,7 @@ def progress_lines(counts: dict, per_point: int, width: int = 20) -> list[str]:
     return out
 
 
-def _report(check: Check, number: int, state: JointState, t: float, peak: float, length: float | None) -> list[str]:
+def _report(check: Check, number: int, t: float, peak: float, length: float | None) -> list[str]:
     lines = [f"captured {check.point} #{number} at t = {t:.1f} s (still, max |dq| {peak:.4f} rad/s)"
              + (f", laser length {length:.1f} mm" if length is not None else "")]
     if np.all(np.isfinite(check.offset)):
@@ -234,7 +242,7 @@ def run_capture(store: CaptureStore, robot: RobotAdapter, trigger: Trigger, nomi
                     discarded += 1
                     w(f"discarded the last capture at {gone}\n")
                 continue
-            state, peak = wait_still(robot, opts)
+            state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
             if state is None:
                 w(f"the arm did not come to rest within {opts.still_timeout:g} s (max |dq| {peak:.4f} rad/s): not captured\n")
                 continue
@@ -248,12 +256,12 @@ def run_capture(store: CaptureStore, robot: RobotAdapter, trigger: Trigger, nomi
             store.append({"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, **extra})
             counts[name] += 1
             captured += 1
-            w("\n".join(_report(check, counts[name], state, t, peak, length)) + "\n")
+            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n")
             if check.flag and opts.auto_discard:
                 store.discard_last()
                 counts[name] -= 1
                 discarded += 1
-                w(f"discarded it (the simulated operator heeds the warning)\n")
+                w("discarded it (the simulated operator heeds the warning)\n")
     except RobotConnectionError as e:
         raise RobotConnectionError(f"{e}; {saved()}") from None
     except DeviceError as e:

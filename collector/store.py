@@ -42,10 +42,43 @@ def write_atomic(path: Path, text: str) -> None:
     _fsync_dir(path.parent)
 
 
-def _csv_line(cells: list[str]) -> bytes:
+def csv_line(cells: list) -> bytes:
+    """One CSV row, numbers at full precision, ending in a newline."""
     buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow(cells)
+    csv.writer(buf, lineterminator="\n").writerow([c if isinstance(c, str) else format_row([c])[0] for c in cells])
     return buf.getvalue().encode("utf-8")
+
+
+def append_durably(fd: int, line: bytes, path) -> None:
+    """Append one line with a single write and fsync it before returning."""
+    if os.write(fd, line) != len(line):
+        raise SessionError(f"{path}: short write (disk full?); the last row was not saved")
+    os.fsync(fd)
+
+
+class CsvLog:
+    """A CSV file grown one durable row at a time (validation runs).
+
+    Parameters
+    ----------
+    path : Path, created with ``comment`` lines (each starting with '#') and the header
+    header : list of str
+    comment : list of str
+    """
+
+    def __init__(self, path: Path, header: list[str], comment=()):
+        if path.exists():
+            raise SessionError(f"{path} exists: choose another folder")
+        write_atomic(path, "".join(f"# {c}\n" for c in comment) + csv_line(header).decode())
+        self.path, self.header = path, header
+        self._fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+
+    def append(self, row: dict) -> None:
+        """Append a row given as column -> value (missing columns left empty)."""
+        append_durably(self._fd, csv_line([row.get(h, "") for h in self.header]), self.path)
+
+    def close(self) -> None:
+        os.close(self._fd)
 
 
 class CaptureStore:
@@ -91,7 +124,7 @@ class CaptureStore:
         folder.mkdir(parents=True, exist_ok=True)
         write_atomic(folder / "session.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
         header = captures_header(n, dq=True, tau=True, extra=extra_columns)
-        write_atomic(folder / "captures.csv", _csv_line(header).decode())
+        write_atomic(folder / "captures.csv", csv_line(header).decode())
         return cls(folder, meta, header, None)
 
     @classmethod
@@ -113,7 +146,7 @@ class CaptureStore:
         if not cpath.exists():  # killed between writing session.yaml and the header
             n = load_model(meta.get("robot"), base=folder).n
             extra = (meta.get("collector") or {}).get("extra_columns", [])
-            write_atomic(cpath, _csv_line(captures_header(n, True, True, extra)).decode())
+            write_atomic(cpath, csv_line(captures_header(n, True, True, extra)).decode())
         data = cpath.read_bytes()
         keep = data.rfind(b"\n") + 1  # every row ends with a newline: anything after the last one is torn
         if keep < len(data):
@@ -135,11 +168,7 @@ class CaptureStore:
         cells = {"point": values["point"], "t": values["t"]}
         for key in ("q", "dq", "tau"):
             cells.update({f"{key}{j + 1}": v for j, v in enumerate(np.asarray(values[key], dtype=float))})
-        row = [cells[h] if h in cells else values.get(h, "") for h in self.header]
-        line = _csv_line([c if isinstance(c, str) else format_row([c])[0] for c in row])
-        if os.write(self._fd, line) != len(line):
-            raise SessionError(f"{self.path}: short write (disk full?); the last capture was not saved")
-        os.fsync(self._fd)
+        append_durably(self._fd, csv_line([cells[h] if h in cells else values.get(h, "") for h in self.header]), self.path)
         self.point.append(str(values["point"]))
         self.t.append(float(values["t"]))
         self.q.append(np.asarray(values["q"], dtype=float))

@@ -11,7 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .aim import aim, polish
+from .effects import JOINT_EFFECTS, Extension
 from .errors import AimingError
+from .gravity import gravity_torques
 from .identify import predict_spots
 from .model import RobotModel
 from .session import Layout
@@ -27,15 +29,20 @@ class SimulatedCaptures:
     t : (m,) array, s
     q : (m, n) array, rad
     hit : (m, 3) array, where the true beam really met the plane, mm
+    tau : (m, n) array or None, logged joint torques (gravity model plus sensor noise), Nm
     """
 
     point: np.ndarray
     t: np.ndarray
     q: np.ndarray
     hit: np.ndarray
+    tau: np.ndarray | None = None
 
 
-def simulate_captures(truth: RobotModel, layout: Layout, per_point: int, aim_noise: float, rng: np.random.Generator, points=None) -> SimulatedCaptures:
+def simulate_captures(
+    truth: RobotModel, layout: Layout, per_point: int, aim_noise: float, rng: np.random.Generator, points=None,
+    effect: Extension | None = None, tau_noise: float = 0.05,
+) -> SimulatedCaptures:
     """Configurations of the true robot aimed at each reference point with aiming noise.
 
     Parameters
@@ -46,6 +53,10 @@ def simulate_captures(truth: RobotModel, layout: Layout, per_point: int, aim_noi
     aim_noise : float, std of the in-plane aiming error per axis, mm
     rng : numpy Generator
     points : list of point names (default: the layout's calibration points)
+    effect : Extension, a hidden non-geometric effect with its true parameters: the logged
+        angles are the true ones minus the effect's correction (solved by fixed-point
+        iteration), or the operator aims at the point's true position (point offset)
+    tau_noise : float, std of the logged joint torques about the gravity model, Nm
 
     Returns
     -------
@@ -57,13 +68,21 @@ def simulate_captures(truth: RobotModel, layout: Layout, per_point: int, aim_noi
         p = layout.points[name]
         q = aim(truth, p, per_point, rng, **layout.aim_kwargs())
         hit = p + np.c_[rng.normal(0, aim_noise, (per_point, 2)), np.zeros(per_point)]
+        if effect is not None and effect.point == name:
+            hit[:, :2] += effect.params[:2]
         qs.append(polish(truth, q, hit) if aim_noise > 0 else q)
         hits.append(hit)
     q = np.concatenate(qs)
     if not truth.within_limits(q).all():  # polishing moved a pose by far less than aim()'s limit margin
         raise AimingError("a noisy aim left the joint limits; lower the aiming noise")
     t = np.cumsum(rng.uniform(10.0, 30.0, len(q)))
-    return SimulatedCaptures(np.repeat(np.array(names, dtype=object), per_point), t, q, np.concatenate(hits))
+    tau_true = gravity_torques(truth, q) if truth.links else None
+    if effect is not None and effect.effect in JOINT_EFFECTS:
+        q_true, q = q, q.copy()
+        for _ in range(6):  # q_logged = q_true - dq(q_logged): converges fast, dq is milliradians
+            q = q_true - (effect.true_q(q, t, tau_true) - q)
+    tau = None if tau_true is None else tau_true + rng.normal(0, tau_noise, tau_true.shape)
+    return SimulatedCaptures(np.repeat(np.array(names, dtype=object), per_point), t, q, np.concatenate(hits), tau)
 
 
 def validation_spots(truth: RobotModel, model: RobotModel, point, n: int, rng: np.random.Generator, **aim_kw) -> np.ndarray:

@@ -63,6 +63,9 @@ def fit_circle(points: np.ndarray) -> Circle:
         raise CalibrationError("all spots are at the same place: the beam is aligned with the axis "
                                "to within the measurement (radius 0)")
     q = q / scale
+    sv = np.linalg.svd(q, compute_uv=False)
+    if sv[1] < 1e-6 * sv[0]:
+        raise CalibrationError("the spots lie on a line, not on a circle")
     A = np.column_stack([q, np.ones(len(q))])
     sol, *_ = np.linalg.lstsq(A, (q ** 2).sum(1), rcond=None)
     c0 = sol[:2] / 2

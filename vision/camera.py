@@ -233,5 +233,6 @@ def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -
         raise CalibrationError(f"the calibration pattern was found in {len(obj)} of {len(images)} photos; "
                                "at least 3 are needed (from different angles)")
     size = sizes.pop()
-    rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None)
+    # k3 only helps wide-angle lenses and runs wild when the photos leave the corners empty.
+    rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None, flags=cv2.CALIB_FIX_K3)
     return Camera(tuple(int(s) for s in size), K, dist.ravel(), float(rms)), len(obj)

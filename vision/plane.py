@@ -43,6 +43,7 @@ def distort_px(uv: np.ndarray, camera) -> np.ndarray:
     return uv if camera is None else distort(uv, camera.K, camera.dist)
 from .errors import LayoutError, MarkerError
 
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # renamed in numpy 2.0
 LAYOUT_FORMAT = "lasercal-layout/1"
 RANSAC_MM = 2.0  # a corner further than this from its layout position is an outlier, mm
 
@@ -247,7 +248,7 @@ def _edge_line(gray: np.ndarray, a: np.ndarray, b: np.ndarray, outward: np.ndarr
     if ok.sum() < 5:
         return None
     frac = np.clip((prof[ok] - lo[ok, None]) / (hi - lo)[ok, None], 0, 1)
-    x_edge = reach - np.trapezoid(frac, s, axis=1) if hasattr(np, "trapezoid") else reach - np.trapz(frac, s, axis=1)
+    x_edge = reach - _trapezoid(frac, s, axis=1)
     edge = base[ok] + x_edge[:, None] * outward
     if camera is not None:
         edge = camera.undistort(edge)

@@ -1,0 +1,311 @@
+"""Model discrepancy: where measured data disagree with the geometric model, which effect explains it.
+
+Procedure (documented in README "Diagnosis"):
+
+1. Fit the geometric model (``lm``). Its residuals should be aiming noise: unstructured,
+   of one size.
+2. Test every candidate extension of :mod:`solver.effects` (each effect on each joint, or
+   an offset of each reference point) against the geometric model with a nested-model
+   F test, linearised at the geometric solution (the score form: the residual's squared
+   projection on the candidate's columns after removing what the geometry can already
+   explain). Candidate p-values are Bonferroni-corrected over all candidates. The
+   smallest corrected p-value below ``alpha`` names the effect; further joints of the same
+   effect are added while their conditional test (after refitting) stays significant.
+   Otherwise the answer is ``none``.
+3. Show the disagreement by simulation: a parametric bootstrap re-runs the experiment on
+   the identified geometric robot (same poses, the estimated aiming noise), refits, and
+   recomputes the strongest candidate's statistic; the measured value's rank among the
+   simulated ones is a significance level that needs no F-distribution assumption.
+4. Fit the winning extension jointly with the geometry and measure the gain by
+   cross-validation (the same stratified folds for both models).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import stats
+
+from .aim import polish
+from .effects import Extension, candidates
+from .errors import ModelError
+from .gravity import gravity_torques
+from .identify import Identification, identify_lm, spot_residuals
+from .laser import LaserParams, spot_joint_jacobian
+from .session import Session
+from .stats import folds
+
+ALPHA = 0.01  # family-wise false-alarm rate of the decision
+_RTOL = 1e-6
+_AMBIGUOUS = 0.97  # a runner-up explaining this share of the winner's residual drop is reported as indistinguishable
+
+
+@dataclass(frozen=True)
+class CandidateTest:
+    """Nested-model F test of one candidate extension against the current model."""
+
+    extension: Extension
+    F: float
+    df: int
+    p: float
+    p_adjusted: float
+    rss_drop: float
+
+    @property
+    def label(self) -> str:
+        e = self.extension
+        return f"{e.effect}[{e.point}]" if e.point else f"{e.effect}[joint {','.join(map(str, e.joints))}]"
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """The finding, with the evidence.
+
+    Attributes
+    ----------
+    effect : str, one of effects.EFFECTS
+    extension : Extension or None, the fitted effect with standard errors
+    p_value : float, Bonferroni-corrected p of the first selected candidate (or of the best one, for 'none')
+    tests : list of CandidateTest, every candidate against the geometric model, best first
+    geometric, extended : Identification
+    holdout_rms : dict 'geometric'/'extended' -> mm, K-fold cross-validated
+    bootstrap : dict, the simulated distribution of the best statistic and of the residual RMS
+    torque_source : str, 'logged' or 'gravity model' or 'none'
+    seconds : float
+    session : Session, the diagnosed session (with the torques used)
+    residuals_holdout : dict 'geometric'/'extended' -> (m, 2) cross-validated residuals, mm
+    ambiguous_with : tuple of str, candidates that explain the data (nearly) as well as the winner
+        -- e.g. with three reference points an offset of any one of them looks alike, because the
+        geometry absorbs a planar similarity of the whole layout
+    """
+
+    effect: str
+    extension: Extension | None
+    p_value: float
+    tests: list
+    geometric: Identification
+    extended: Identification | None
+    holdout_rms: dict
+    bootstrap: dict
+    torque_source: str
+    seconds: float
+    residuals_holdout: dict = field(default_factory=dict)
+    ambiguous_with: tuple = ()
+    session: Session | None = None
+
+    @property
+    def gain_percent(self) -> float:
+        g, e = self.holdout_rms["geometric"], self.holdout_rms["extended"]
+        return float(100.0 * (g - e) / g) if g > 0 else 0.0
+
+    def as_dict(self) -> dict:
+        """The ``lasercal diagnose --json`` object."""
+        ext = self.extension
+        params = {}
+        if ext is not None:
+            for nm, v, se in zip(ext.names, ext.params, ext.std_errors if ext.std_errors is not None else [np.nan] * ext.size):
+                params[nm] = {"value": float(v), "std_error": float(se), "units": _unit(ext.effect)}
+        return {
+            "effect": self.effect,
+            "joints": [int(j) for j in ext.joints] if ext else [],
+            "point": ext.point if ext else None,
+            "parameters": params,
+            "p_value": float(self.p_value),
+            "holdout_rms_mm": {k: round(float(v), 6) for k, v in self.holdout_rms.items()},
+            "gain_percent": round(self.gain_percent, 3),
+            "details": {
+                "alpha": ALPHA,
+                "bootstrap_p_value": self.bootstrap.get("p_value"),
+                "bootstrap_replicates": self.bootstrap.get("replicates"),
+                "torques": self.torque_source,
+                "ambiguous_with": list(self.ambiguous_with),
+                "seconds": round(self.seconds, 3),
+                "candidates": [{"candidate": t.label, "F": round(t.F, 4), "df": t.df, "p": float(f"{t.p:.4g}"), "p_adjusted": float(f"{t.p_adjusted:.4g}")} for t in self.tests[:8]],
+            },
+        }
+
+
+def _unit(effect: str) -> str:
+    from .effects import UNITS
+
+    return UNITS[effect]
+
+
+def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, str]:
+    """Logged joint torques, or the robot's gravity model at the logged poses, or None."""
+    if session.tau is not None:
+        return session.tau, "logged"
+    if session.robot.links:
+        return gravity_torques(session.robot, session.q, payload), "gravity model"
+    return None, "none"
+
+
+def _candidate_columns(ext: Extension, session: Session, Jq: np.ndarray, tau) -> np.ndarray:
+    """d(residual)/d(parameters) of a candidate at zero effect, (m, 2, k)."""
+    m = session.m
+    if ext.effect == "reference_point_offset":
+        C = np.zeros((m, 2, 2))
+        C[session.point == ext.point] = -np.eye(2)
+        return C
+    idx, G = ext.regressors(session.q, session.t, tau)
+    return Jq[:, :, idx] * G[:, None, :]
+
+
+def _orthonormal(A: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the column space of A (rank by SVD with a relative tolerance)."""
+    if A.shape[1] == 0:
+        return A
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, _ = np.linalg.svd(A / scale, full_matrices=False)
+    return U[:, : int(np.sum(s > _RTOL * max(s[0], 1e-300)))]
+
+
+def score_tests(session: Session, ident: Identification, exts: list, tau, base: list | None = None) -> list[CandidateTest]:
+    """F tests of candidate extensions against the fitted model (linearised at its solution).
+
+    F = (drop / d) / ((RSS - drop) / (N - r - d)), drop = |Pi_Q res|^2 with Q the candidate's
+    columns made orthogonal to the fitted model's Jacobian (rank r); Bonferroni over ``exts``.
+
+    Parameters
+    ----------
+    session : Session
+    ident : Identification, the fitted model (geometric, or already extended)
+    exts : list of Extension, the candidates
+    tau : (m, n) array or None
+    base : list of Extension, effects already in ``ident`` (their columns join the fitted Jacobian)
+    """
+    used = ident.weights > 0
+    model = ident.model
+    P = LaserParams(model)
+    qt = ident.extension.true_q(session.q, session.t, tau) if ident.extension else session.q
+    _, _, Jg = P.spot_jacobian(P.x0(), qt, session.target[:, 2])
+    _, Jq = spot_joint_jacobian(model, qt, session.target[:, 2])
+    fitted = [Jg] + [_candidate_columns(e, session, Jq, tau) for e in (base or [])]
+    J = np.concatenate(fitted, axis=2)[used].reshape(2 * used.sum(), -1)
+    U = _orthonormal(J)
+    r = U.shape[1]
+    res = ident.residuals[used].ravel()
+    rss = float(res @ res)
+    N = res.size
+    out = []
+    for e in exts:
+        C = _candidate_columns(e, session, Jq, tau)[used].reshape(N, -1)
+        Q = _orthonormal(C - U @ (U.T @ C))
+        d = Q.shape[1]
+        if d == 0 or N - r - d <= 0:
+            out.append(CandidateTest(e, 0.0, 0, 1.0, 1.0, 0.0))
+            continue
+        drop = float(np.sum((Q.T @ res) ** 2))
+        F = (drop / d) / max((rss - drop) / (N - r - d), 1e-300)
+        p = float(stats.f.sf(F, d, N - r - d))
+        out.append(CandidateTest(e, F, d, p, min(1.0, p * len(exts)), drop))
+    return sorted(out, key=lambda c: (c.p, -c.F))
+
+
+def bootstrap(session: Session, ident: Identification, exts: list, tau, observed: float, B: int, rng: np.random.Generator) -> dict:
+    """Parametric bootstrap: the experiment re-simulated on the identified geometric robot.
+
+    Same poses (the robot's true configurations are the identified model's, polished onto
+    noisy hits), Gaussian aiming noise at the estimated sigma; each replicate is refitted
+    and tested like the data. Returns the replicates' best -log10 p and residual RMS, and
+    the bootstrap p-value of the observed best statistic.
+    """
+    used = ident.weights > 0
+    s = session.subset(used)
+    tau_u = None if tau is None else tau[used]
+    best, rms = [], []
+    for _ in range(B):
+        hits = s.target + np.c_[rng.normal(0, ident.sigma_mm, (s.m, 2)), np.zeros(s.m)]
+        qb = polish(ident.model, s.q, hits)
+        sb = replace(s, q=qb)
+        fit = identify_lm(sb, ident.model, robust=False)
+        tests = score_tests(sb, fit, exts, tau_u)
+        best.append(-np.log10(max(tests[0].p, 1e-300)))
+        rms.append(fit.rms_mm)
+    best = np.array(best)
+    return {
+        "replicates": B,
+        "best_stat": best.tolist(),
+        "rms_mm": rms,
+        "observed_best_stat": observed,
+        "observed_rms_mm": ident.rms_mm,
+        "p_value": float((1 + np.sum(best >= observed)) / (B + 1)),
+    }
+
+
+def holdout(session: Session, fit, k: int = 5, seed: int = 0) -> np.ndarray:
+    """Cross-validated in-plane residuals (m, 2): ``fit(train) -> predict(test) -> (k, 2)``."""
+    f = folds(session, k, seed)
+    out = np.empty((session.m, 2))
+    for i in range(k):
+        test = f == i
+        out[test] = fit(session.subset(~test))(session.subset(test))
+    return out
+
+
+def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 60, seed: int = 0, k: int = 5, payload=None, effect: str | None = None) -> Diagnosis:
+    """Find, name and fit the non-geometric effect the data carry (or 'none').
+
+    Parameters
+    ----------
+    session : Session
+    alpha : float, family-wise significance level of the decision
+    n_boot : int, parametric-bootstrap replicates (0 to skip)
+    seed : int
+    k : int, cross-validation folds
+    payload : (kg, (3,) mm), extra mass on the flange for the gravity model when torques are not logged
+    effect : str, restrict the catalogue to one effect (``solve --extend EFFECT``): the best
+        candidate of that effect is fitted even when not significant
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    tau, tau_src = session_torques(session, payload)
+    session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
+    geo = identify_lm(session)
+    exts = candidates(session.robot.n, list(dict.fromkeys(session.point)), tau is not None, session.t is not None and np.ptp(session.t) > 0)
+    if effect is not None:
+        exts = [e for e in exts if e.effect == effect]
+        if not exts:
+            raise ModelError(f"effect {effect!r} cannot be tested on this session (it needs {'torques' if effect == 'joint_compliance' else 'times'})")
+    tests = score_tests(session, geo, exts, tau)
+    best = tests[0]
+    chosen = None
+    if best.p_adjusted < alpha or effect is not None:
+        chosen = best.extension
+        ext_fit = identify_lm(session, extension=chosen)
+        if chosen.effect != "reference_point_offset":  # more joints of the same effect, while significant
+            while True:
+                rest = [e for e in exts if e.effect == chosen.effect and e.joints[0] not in chosen.joints]
+                if not rest:
+                    break
+                nxt = score_tests(session, ext_fit, rest, tau, base=[chosen])[0]
+                if nxt.p_adjusted >= alpha:
+                    break
+                chosen = Extension(chosen.effect, tuple(sorted(chosen.joints + nxt.extension.joints)), None, np.zeros(chosen.size + nxt.extension.size))
+                ext_fit = identify_lm(session, extension=chosen)
+    ambiguous = tuple(t.label for t in tests[1:] if chosen is not None and t.rss_drop >= _AMBIGUOUS * best.rss_drop and t.p_adjusted < alpha)
+    boot = bootstrap(session, geo, exts, tau, -np.log10(max(best.p, 1e-300)), n_boot, rng) if n_boot else {}
+
+    def fit_geo(train):
+        model = identify_lm(train).model
+        return lambda test: spot_residuals(model, test.q, test.target)
+
+    def fit_ext(train):
+        fitted = identify_lm(train, extension=chosen)
+        e = fitted.extension
+        return lambda test: spot_residuals(fitted.model, e.true_q(test.q, test.t, test.tau), np.c_[test.target[:, :2] + e.target_offset(test.point), test.target[:, 2]])
+
+    r_geo = holdout(session, fit_geo, k, seed)
+    r_ext = holdout(session, fit_ext, k, seed) if chosen else r_geo
+    rms = lambda r: float(np.sqrt(np.mean(np.sum(r**2, axis=1))))  # noqa: E731
+    return Diagnosis(
+        chosen.effect if chosen else "none", ext_fit.extension if chosen else None, best.p_adjusted, tests, geo,
+        ext_fit if chosen else None, {"geometric": rms(r_geo), "extended": rms(r_ext)}, boot, tau_src,
+        time.perf_counter() - t0, {"geometric": r_geo, "extended": r_ext}, ambiguous, session,
+    )

@@ -1,0 +1,55 @@
+"""``lasercal diagnose``: the model-discrepancy finding, as text, JSON and plots."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from .diagnose import ALPHA, diagnose
+from .session import load_session
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("diagnose", help="find the non-geometric effect the geometric model misses (or 'none')")
+    p.add_argument("session", help="session folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--report", metavar="DIR", help="write the plots that make the case")
+    p.add_argument("--alpha", type=float, default=ALPHA, help=f"family-wise significance level (default {ALPHA})")
+    p.add_argument("--bootstrap", type=int, default=60, help="parametric-bootstrap replicates (default 60; 0 skips)")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_diagnose)
+
+
+def format_diagnosis(d) -> str:
+    """A person's summary of a Diagnosis."""
+    o = d.as_dict()
+    lines = []
+    if o["effect"] == "none":
+        lines.append(f"finding: none -- the geometric model and aiming noise explain the data (best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g})")
+    else:
+        where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(map(str, o["joints"]))
+        lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
+        for nm, v in o["parameters"].items():
+            lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
+        if d.ambiguous_with:
+            lines.append("  (explains the data almost as well: " + ", ".join(d.ambiguous_with) + " -- more reference points would tell them apart)")
+    b = d.bootstrap
+    if b:
+        lines.append(f"simulation: {b['replicates']} re-runs of the experiment on the identified geometric robot; measured strongest-candidate statistic beats {100 * (1 - b['p_value']):.0f}% of them (bootstrap p = {b['p_value']:.3g})")
+    h = o["holdout_rms_mm"]
+    lines.append(f"held-out RMS: geometric {h['geometric']:.3f} mm, extended {h['extended']:.3f} mm, gain {o['gain_percent']:.1f}%  (torques: {d.torque_source})")
+    lines.append("candidates (F test against the geometric model, Bonferroni over all):")
+    for t in d.tests[:6]:
+        lines.append(f"  {t.label:38} F = {t.F:9.3f}  df {t.df}  p = {t.p:.3g}  corrected {t.p_adjusted:.3g}")
+    return "\n".join(lines)
+
+
+def cmd_diagnose(args) -> int:
+    d = diagnose(load_session(args.session), alpha=args.alpha, n_boot=args.bootstrap, seed=args.seed)
+    if args.report:
+        from .plots import diagnosis_plots
+
+        for path in diagnosis_plots(d, args.report):
+            print(f"wrote {path}", file=sys.stderr)
+    print(json.dumps(d.as_dict(), indent=2) if args.json else format_diagnosis(d))
+    return 0
