@@ -26,7 +26,7 @@ from .validate import (FakeCamera, OpenCVCamera, ValidateOptions, fake_view, mea
 
 THESIS_LAYOUT = DATA_DIR / "layouts" / "thesis.yaml"
 DEFAULTS = {"robot": "panda", "trigger": "enter", "truth": "panda_thesis_identified", "aim_noise": 1.0, "seed": 0,
-            "speed_threshold": 0.005, "hold": 0.5, "dynamics": 0.1, "ros_port": 9090, "auto_pace": 0.0}
+            "speed_threshold": 0.005, "hold": 0.5, "dynamics": 0.1, "ros_port": 9090}
 # Settings a resumed session must keep: they decide what its captures mean.
 FIXED = ("backend", "robot", "per_point", "truth", "perturb_seed", "aim_noise", "seed", "rangefinder")
 SETTINGS = FIXED + ("speed_threshold", "hold", "trigger", "host", "dynamics", "desk_user", "ros_port", "ros_joints",
@@ -164,7 +164,7 @@ def cmd_capture(args) -> int:
         if cfg["backend"] == "fake":
             extra["simulated"] = {"truth": robot.truth.name, "aim_noise_mm": cfg["aim_noise"], "seed": cfg["seed"]}
         store = CaptureStore.create(args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns)
-    trigger = AutoTrigger(cfg["auto_pace"]) if args.auto else make_trigger(cfg["trigger"], robot)
+    trigger = AutoTrigger(args.auto_pace or 0.0) if args.auto else make_trigger(cfg["trigger"], robot)
     rangefinder = None
     if cfg.get("rangefinder") == "fake":
         if cfg["backend"] != "fake":

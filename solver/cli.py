@@ -9,7 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FormatError
+from .diagnose import diagnose
+from .diagnose_cli import format_diagnosis
+from .effects import JOINT_EFFECTS, Extension, extension_from_model
+from .errors import FormatError, IdentificationError
+from .gravity import gravity_torques
 from .identify import identify, predict_spots
 from .model import load_model, load_yaml, resolve_robot_path
 from .session import load_configs, load_layout, load_session, session_meta, write_session
@@ -25,6 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=["lm", "thesis"], default="lm", help="lm (default, ours) or thesis (Section 3.2 as written)")
     p.add_argument("--folds", type=int, default=5, help="K of the K-fold cross-validation (0: skip)")
     p.add_argument("--no-robust", action="store_true", help="lm: do not flag or drop outlier captures")
+    p.add_argument("--extend", default="none", choices=["auto", "none"] + list(JOINT_EFFECTS) + ["reference_point_offset"],
+                   help="auto: diagnose and fit the winning non-geometric effect; or name one (default none)")
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
     p.set_defaults(func=cmd_solve)
 
@@ -41,6 +47,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--aim-noise", type=float, default=1.0, help="aiming noise std per axis, mm")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)")
+    p.add_argument("--effect", choices=list(JOINT_EFFECTS) + ["reference_point_offset"], help="hide a non-geometric effect in the data")
+    p.add_argument("--effect-joints", default="2", help="1-based joints of a joint effect, comma-separated (default 2)")
+    p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
+    p.add_argument("--effect-size", type=float, help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)")
     p.add_argument("-o", "--output", required=True, help="session folder to write")
     p.set_defaults(func=cmd_simulate)
 
@@ -69,19 +79,31 @@ def print_report(rep: dict, out=None) -> None:
 
 def cmd_solve(args) -> int:
     session = load_session(args.session)
-    kw = {"robust": not args.no_robust} if args.method == "lm" else {}
-    ident = identify(session, args.method, **kw)
+    diagnosis = None
+    if args.extend != "none" and args.method != "lm":
+        raise IdentificationError("--extend needs --method lm")
+    if args.extend != "none":
+        diagnosis = diagnose(session, n_boot=0, effect=None if args.extend == "auto" else args.extend)  # the decision needs no bootstrap
+        ident = diagnosis.extended or diagnosis.geometric
+        session = diagnosis.session
+    else:
+        ident = identify(session, args.method, **({"robust": not args.no_robust} if args.method == "lm" else {}))
     cv = cross_validate(session, args.method, args.folds) if args.folds and args.folds > 1 else None
     rep = solve_report(session, ident, cv)
+    if diagnosis is not None:
+        rep["diagnosis"] = diagnosis.as_dict()
     meta = {k: rep[k] for k in ("method", "converged", "iterations", "captures", "fit_rms_mm", "sigma_mm", "identifiability")}
     meta.update({"session": str(Path(args.session).resolve()), "units": "mm, rad", "std_errors": rep.get("std_errors", {})})
-    if cv is not None:
-        meta["cross_validation"] = rep["cross_validation"]
+    for k in ("cross_validation", "diagnosis"):
+        if k in rep:
+            meta[k] = rep[k]
     ident.model.replace(identification=meta).save(args.output)
     if args.json:
         print(json.dumps(rep, indent=2))
     else:
         print_report(rep)
+        if diagnosis is not None:
+            print("\n" + format_diagnosis(diagnosis))
         print(f"\nwrote {args.output}")
     return 0
 
@@ -92,12 +114,47 @@ def cmd_predict(args) -> int:
     z = args.plane_z if args.plane_z is not None else model.plane_z
     if z is None:
         raise FormatError(args.model, "the model has no plane; pass --plane-z", field="plane")
-    spots, length = predict_spots(model, cfg.q, z)
+    ext = extension_from_model(model.extensions, args.model, model.n)
+    q = cfg.q
+    if ext is not None:
+        tau = cfg.tau
+        if "tau" in ext.needs() and tau is None:
+            tau = gravity_torques(model, q)  # no logged torques: the robot's gravity model at these poses
+        if "t" in ext.needs() and cfg.t is None:
+            raise FormatError(args.configs, f"the model's {ext.effect} extension needs a 't' column (s)", line=1, field="t")
+        q = ext.true_q(q, cfg.t, tau)
+    spots, length = predict_spots(model, q, z)
     w = csv.writer(sys.stdout, lineterminator="\n")
     w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length"])
     for row, s, t in zip(cfg.rows, spots, length):
         w.writerow(row + [f"{s[0]:.6f}", f"{s[1]:.6f}", f"{t:.6f}"])
     return 0
+
+
+def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension | None:
+    """The effect ``simulate --effect`` hides, with its true parameters (random phase/direction from the seed)."""
+    if not args.effect:
+        return None
+    if args.effect_size is None:
+        raise FormatError("--effect-size", "give the size of the hidden effect")
+    size = args.effect_size
+    if args.effect == "reference_point_offset":
+        if args.effect_point not in layout.points:
+            raise FormatError(args.layout, f"--effect-point {args.effect_point!r} is not a point of the layout", field="points")
+        phi = rng.uniform(0, 2 * np.pi)
+        return Extension(args.effect, (), args.effect_point, size * np.array([np.cos(phi), np.sin(phi)]))
+    try:
+        joints = tuple(int(j) for j in str(args.effect_joints).split(","))
+    except ValueError:
+        raise FormatError("--effect-joints", "joints must be comma-separated integers") from None
+    if any(not 1 <= j <= n for j in joints):
+        raise FormatError("--effect-joints", f"joints are numbered 1..{n}")
+    if args.effect == "encoder_eccentricity":
+        phi = rng.uniform(0, 2 * np.pi, len(joints))
+        params = np.stack([size * np.cos(phi), size * np.sin(phi)], axis=1).ravel()
+    else:
+        params = np.full(len(joints), size)
+    return Extension(args.effect, joints, None, params)
 
 
 def cmd_simulate(args) -> int:
@@ -107,8 +164,13 @@ def cmd_simulate(args) -> int:
     nominal = args.robot or raw.get("nominal") or str(path.resolve())
     layout = load_layout(args.layout)
     rng = np.random.default_rng(args.seed)
-    c = simulate_captures(truth, layout, args.per_point, args.aim_noise, rng)
-    meta = session_meta(nominal, layout, truth.aperture[2], simulated={"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed})
-    write_session(args.output, meta, c.point, c.t, c.q)
-    print(f"wrote {args.output}: {len(c.q)} captures at {', '.join(layout.calibration)} (truth {truth.name}, aiming noise {args.aim_noise} mm)")
+    effect = hidden_effect(args, layout, truth.n, rng)
+    c = simulate_captures(truth, layout, args.per_point, args.aim_noise, rng, effect=effect)
+    sim = {"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed}
+    if effect is not None:
+        sim["effect"] = {"name": effect.effect, **effect.to_dict()}
+    meta = session_meta(nominal, layout, truth.aperture[2], simulated=sim)
+    write_session(args.output, meta, c.point, c.t, c.q, tau=c.tau)
+    hidden = f", hidden {effect.effect} {effect.names} = {np.round(effect.params, 9).tolist()}" if effect else ""
+    print(f"wrote {args.output}: {len(c.q)} captures at {', '.join(layout.calibration)} (truth {truth.name}, aiming noise {args.aim_noise} mm{hidden})")
     return 0

@@ -254,7 +254,7 @@ def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 60, seed: int
     alpha : float, family-wise significance level of the decision
     n_boot : int, parametric-bootstrap replicates (0 to skip)
     seed : int
-    k : int, cross-validation folds
+    k : int, cross-validation folds (0 or 1: skip, report fit residuals instead)
     payload : (kg, (3,) mm), extra mass on the flange for the gravity model when torques are not logged
     effect : str, restrict the catalogue to one effect (``solve --extend EFFECT``): the best
         candidate of that effect is fitted even when not significant
@@ -301,8 +301,12 @@ def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 60, seed: int
         e = fitted.extension
         return lambda test: spot_residuals(fitted.model, e.true_q(test.q, test.t, test.tau), np.c_[test.target[:, :2] + e.target_offset(test.point), test.target[:, 2]])
 
-    r_geo = holdout(session, fit_geo, k, seed)
-    r_ext = holdout(session, fit_ext, k, seed) if chosen else r_geo
+    if k > 1:
+        r_geo = holdout(session, fit_geo, k, seed)
+        r_ext = holdout(session, fit_ext, k, seed) if chosen else r_geo
+    else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
+        r_geo = geo.residuals
+        r_ext = ext_fit.residuals if chosen else r_geo
     rms = lambda r: float(np.sqrt(np.mean(np.sum(r**2, axis=1))))  # noqa: E731
     return Diagnosis(
         chosen.effect if chosen else "none", ext_fit.extension if chosen else None, best.p_adjusted, tests, geo,

@@ -334,7 +334,7 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
     r_eq = np.sqrt(blob.sum() / np.pi)
     m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
     start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
-    u, v, wgt = _weighted_centroid(sig, start, 1.5 * r_eq + 2, exclude)
+    u, v, wgt = _weighted_centroid(sig, start, 1.1 * r_eq + 1, exclude)
     # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
     if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max():
         return Rejection("dim", cand.u, cand.v)
