@@ -19,7 +19,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from solver.aim import aim  # noqa: E402
-from solver.identify import _identifiability, identify, predict_spots  # noqa: E402
+from solver.identify import identify, predict_spots  # noqa: E402
+from solver.lsq import identifiability  # noqa: E402
 from solver.laser import LaserParams  # noqa: E402
 from solver.model import DATA_DIR, load_model  # noqa: E402
 from solver.session import Session, load_layout  # noqa: E402
@@ -53,8 +54,7 @@ def crb_rms(q_fit, target, q_new, tgt_new, sigma):
     x = P.x0()
     _, _, J = P.spot_jacobian(x, q_fit, target[:, 2])
     m = len(q_fit)
-    _, D, Vr = _identifiability(J.reshape(2 * m, -1), P.names)
-    B = D[:, None] * Vr
+    _, B = identifiability(J.reshape(2 * m, -1), P.names)
     Jz = J.reshape(2 * m, -1) @ B
     _, s, Vt = np.linalg.svd(Jz, full_matrices=False)
     C = sigma**2 * (Vt.T / s**2) @ Vt

@@ -24,36 +24,15 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
 
 from .errors import IdentificationError
 from .effects import Extension, require
+from .lsq import Identifiability, fit_subspace, flag_outliers, identifiability
 from .laser import LaserParams, plane_hit, spot_joint_jacobian
 from .model import RobotModel
 from .session import Session
 
-_RANK_RTOL = 1e-6  # singular values of the column-scaled Jacobian below this fraction of the largest are unidentifiable
-_OUTLIER_ALPHA = 0.01  # family-wise false-flag rate of the outlier test (Bonferroni over captures)
-
-
-@dataclass(frozen=True)
-class Identifiability:
-    """What the data can and cannot see (SVD of the column-scaled Jacobian).
-
-    Attributes
-    ----------
-    n_params : int
-    rank : int
-    condition : float, s_max / s_min over the identifiable subspace
-    singular_values : (n_params,) array, of the column-scaled Jacobian
-    unidentifiable : list of str, each null-space direction as its largest parameter components
-    """
-
-    n_params: int
-    rank: int
-    condition: float
-    singular_values: np.ndarray
-    unidentifiable: list
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,41 +124,6 @@ def _aperture_gauge(P: LaserParams, v: np.ndarray, cov: np.ndarray, aperture_z: 
     return gauge(v), G @ cov @ G.T
 
 
-def _identifiability(J: np.ndarray, names: list) -> tuple[Identifiability, np.ndarray, np.ndarray]:
-    """SVD identifiability report; returns it with the column scales D and the basis V_r (scaled)."""
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale < 1e-9 * scale.max()] = 1.0  # a column of round-off: do not blow it up to unit norm
-    _, s, Vt = np.linalg.svd(J / scale, full_matrices=J.shape[0] < J.shape[1])  # never the (2m x 2m) U of a tall J
-    s_full = np.zeros(J.shape[1])
-    s_full[: len(s)] = s
-    rank = int(np.sum(s_full > _RANK_RTOL * s_full[0]))
-    null = []
-    for v in Vt[rank:]:
-        top = np.argsort(-np.abs(v))[:3]
-        null.append(" ".join(f"{v[k]:+.2f}*{names[k]}" for k in top if abs(v[k]) > 0.05))
-    report = Identifiability(J.shape[1], rank, float(s_full[0] / s_full[rank - 1]), s_full, null)
-    return report, 1.0 / scale, Vt[:rank].T
-
-
-def _covariance(Jz: np.ndarray, sigma: float) -> np.ndarray:
-    """sigma^2 (Jz^T Jz)^-1 through the SVD of a full-column-rank Jz (never an explicit normal-matrix inverse)."""
-    _, s, Vt = np.linalg.svd(Jz, full_matrices=False)
-    return sigma**2 * (Vt.T / s**2) @ Vt
-
-
-def _flag_outliers(res: np.ndarray, w: np.ndarray, dof_ratio: float) -> tuple[np.ndarray, float]:
-    """Outlier mask by a chi-square(2) test on |residual| / sigma, sigma from the median (robust).
-
-    The median of a Rayleigh distance is sigma * sqrt(2 ln 2); the threshold is Bonferroni-corrected
-    so that a clean session of m captures is flagged with probability about ``_OUTLIER_ALPHA``.
-    """
-    r = np.linalg.norm(res, axis=1)
-    sigma = float(np.median(r[w > 0]) / np.sqrt(2 * np.log(2)) / np.sqrt(dof_ratio))
-    m = len(r)
-    cut = sigma * np.sqrt(stats.chi2.ppf(1 - _OUTLIER_ALPHA / m, 2)) * np.sqrt(dof_ratio)
-    return r > max(cut, 1e-4), sigma  # 0.1 um floor: exact data has round-off, not outliers
-
-
 def identify_lm(session: Session, nominal: RobotModel | None = None, robust: bool = True, extension: Extension | None = None, tau: np.ndarray | None = None) -> Identification:
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
 
@@ -239,14 +183,13 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
     history, iterations = [], 0
     w = np.ones(m)
     if robust:  # gross outliers (a wrong point) already stand out against the nominal model: keep them out of the start
-        flags, _ = _flag_outliers(spot_residuals(start, q, target), w, 1.0)
+        flags, _ = flag_outliers(spot_residuals(start, q, target), w)
         w = np.where(flags, 0.0, 1.0)
 
     # Stage 1 (geometry only): the beam-to-point distance brings a far-off start (steep beams) into the basin of stage 2.
     x0 = P.x0()
     _, _, J0 = P.spot_jacobian(x0, q, target[:, 2])
-    _, D1, V1 = _identifiability(J0.reshape(2 * m, p), P.names)
-    B1 = D1[:, None] * V1
+    _, B1 = identifiability(J0.reshape(2 * m, p), P.names)
     sw = np.sqrt(w)[:, None, None]
 
     def line(z):
@@ -259,50 +202,19 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
 
     # Stage 2: in-plane residuals, geometry and extension together, in the identifiable subspace at the stage-1 solution.
     v1 = np.r_[x0 + B1 @ first.x, np.zeros(k)]
-    ident, D, Vr = _identifiability(jacobian(v1).reshape(2 * m, p + k), names)
-    basis = D[:, None] * Vr  # v = v1 + basis @ z
-    r = basis.shape[1]
-
-    def run(z, w):
-        nonlocal iterations
-        sw = np.sqrt(w)
-        sol = optimize.least_squares(
-            lambda z: (residual(v1 + basis @ z) * sw[:, None]).ravel(),
-            z,
-            lambda z: (jacobian(v1 + basis @ z) * sw[:, None, None]).reshape(2 * m, p + k) @ basis,
-            method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200,
-        )
-        iterations += sol.njev
-        res = residual(v1 + basis @ sol.x)
-        history.append({"pass": len(history), "method": "lm", "rms_mm": float(np.sqrt(np.mean(np.sum(res[w > 0] ** 2, 1)))), "iterations": int(sol.njev), "status": int(sol.status)})
-        return sol, res
-
-    dof_ratio = max(1 - r / (2 * m), 0.05)
-    sol, res = run(np.zeros(r), w)
-    if robust:  # skipped least squares: test every capture against the fit of the others, refit, until stable
-        for _ in range(5):
-            flags, _ = _flag_outliers(res, w, dof_ratio)
-            if np.array_equal(flags, w == 0):
-                break
-            w = np.where(flags, 0.0, 1.0)
-            sol, res = run(sol.x, w)
-    v = v1 + basis @ sol.x
-    used = w > 0
-    dof = 2 * used.sum() - r
-    if dof <= 0:
-        raise IdentificationError(f"{used.sum()} usable captures cannot identify {r} parameter combinations")
-    sigma = float(np.sqrt(np.sum(res[used] ** 2) / dof))  # per-axis noise
-    Jz = (jacobian(v) * np.sqrt(w)[:, None, None]).reshape(2 * m, p + k) @ basis
-    v, cov = _aperture_gauge(P, v, basis @ _covariance(Jz, sigma) @ basis.T, session.aperture_z)
+    fit = fit_subspace(residual, jacobian, v1, names, robust, w)
+    iterations += fit.iterations
+    history += fit.history
+    v, cov = _aperture_gauge(P, fit.v, fit.cov, session.aperture_z)
     se_all = np.sqrt(np.clip(np.diag(cov), 0, None))
-    converged = bool(sol.status > 0)
-    meta = {"method": "lm", "converged": converged, "iterations": iterations, "rank": ident.rank, "n_params": p + k}
+    meta = {"method": "lm", "converged": fit.converged, "iterations": iterations, "rank": fit.identifiability.rank, "n_params": p + k}
     fitted = extension.with_params(v[p:], se_all[p:]) if extension else None
     extensions = {fitted.effect: fitted.to_dict()} if fitted and fitted.effect != "reference_point_offset" else {}
     model = P.to_model(v[:p], identification=meta, extensions=extensions)
     return Identification(
-        "lm", nominal, model, converged, iterations, tuple(history), res, w, tuple(int(i) for i in np.flatnonzero(~used)),
-        sigma, ident, dict(zip(names, se_all.tolist())), names, v, time.perf_counter() - t0, {"cov": cov}, fitted,
+        "lm", nominal, model, fit.converged, iterations, tuple(history), fit.residuals, fit.weights,
+        tuple(int(i) for i in np.flatnonzero(fit.weights == 0)), fit.sigma, fit.identifiability, dict(zip(names, se_all.tolist())),
+        names, v, time.perf_counter() - t0, {"cov": cov}, fitted,
     )
 
 
@@ -346,7 +258,7 @@ def identify_thesis(session: Session, nominal: RobotModel | None = None, max_ite
     res = spot_residuals(model, q, target)
     Pn = LaserParams(model)
     _, _, J = Pn.spot_jacobian(Pn.x0(), q, target[:, 2])
-    ident, _, _ = _identifiability(J.reshape(2 * m, Pn.size), Pn.names)
+    ident, _ = identifiability(J.reshape(2 * m, Pn.size), Pn.names)
     sigma = float(np.sqrt(np.sum(res**2) / max(2 * m - ident.rank, 1)))
     meta = {"method": "thesis", "converged": converged, "iterations": len(history)}
     model = model.replace(identification=meta)

@@ -86,7 +86,7 @@ def _set_cell(lines, row, col, value):
         (lambda L: _set_cell(L, 6, "t", "abc"), None, ["captures.csv, line 7, column 't'", "not a finite number"]),
         (lambda L: _set_cell(L, 7, "q4", "0.5"), None, ["captures.csv, line 8, column 'q4'", "outside its limits"]),
         (lambda L: [L[0].replace("q7", "qq")] + L[1:], None, ["captures.csv, line 1, column 'q7'", "missing column"]),
-        (lambda L: L[:4] + [L[4] + ",1"] + L[5:], None, ["captures.csv, line 5", "expected 9 values"]),
+        (lambda L: L[:4] + [L[4] + ",1"] + L[5:], None, ["captures.csv, line 5", "expected 16 values"]),
         (None, lambda m: m.update(format="other/2"), ["session.yaml, field 'format'"]),
         (None, lambda m: m["points"].update(P1=[1, 2]), ["session.yaml, field 'points.P1'"]),
         (None, lambda m: m.update(robot="nonexistent_robot"), ["nonexistent_robot", "no such robot"]),
