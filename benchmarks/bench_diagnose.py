@@ -64,8 +64,8 @@ def make(effect_name, size, rng):
 
 SIZES = {
     "joint_compliance": [1e-5, 2e-5, 3e-5, 5e-5, 8e-5],  # rad/Nm on joint 2
-    "encoder_eccentricity": [1e-4, 2e-4, 3e-4, 5e-4, 8e-4],  # rad amplitude on joint 3
-    "drift": [1e-7, 2e-7, 3e-7, 5e-7, 8e-7],  # rad/s on joint 4
+    "encoder_eccentricity": [5e-4, 8e-4, 1.2e-3, 2e-3, 3e-3],  # rad amplitude on joint 3
+    "drift": [1e-7, 2e-7, 3e-7, 5e-7, 8e-7, 1.2e-6],  # rad/s on joint 4
     "reference_point_offset": [0.1, 0.2, 0.3, 0.5, 0.8],  # mm, point P2 of four
 }
 

@@ -47,7 +47,7 @@ class CaptureOptions:
     speed_threshold: float = 0.005
     hold: float = 0.5
     still_timeout: float = 30.0
-    poll: float = 0.02
+    poll: float = 1 / 64  # a power of two: simulated times sum exactly, so a resumed fake session repeats bit for bit
     check_mm: float = 40.0
     similar_rad: float = 0.5
     auto_discard: bool = False
@@ -110,7 +110,8 @@ def check_capture(nominal: RobotModel, points: dict, name: str, q: np.ndarray, e
     if nearest != name:
         flag = f"the beam lands nearest to {nearest}, not {name}: aimed at the wrong point?"
     elif np.linalg.norm(offset) > opts.check_mm:
-        flag = f"{np.linalg.norm(offset):.0f} mm from {name} by the nominal model (more than {opts.check_mm:g} mm): aimed at the wrong place, or the arm moved?"
+        flag = (f"{np.linalg.norm(offset):.0f} mm from {name} by the nominal model (more than {opts.check_mm:g} mm): "
+                "aimed at the wrong place, or the arm moved?")
     similar_to, distance, vary = None, np.nan, ()
     if len(earlier):
         d = np.linalg.norm(earlier - q, axis=1)
@@ -212,7 +213,9 @@ def run_capture(store: CaptureStore, robot: RobotAdapter, trigger: Trigger, nomi
     captured = discarded = 0
 
     def saved() -> str:
-        return f"{len(store.point)} captures are safe in {store.path}" + (f"; resume with: {resume_hint}" if resume_hint else "")
+        k = len(store.point)
+        safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {store.path}"
+        return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
 
     try:
         robot.connect()
@@ -238,7 +241,8 @@ def run_capture(store: CaptureStore, robot: RobotAdapter, trigger: Trigger, nomi
                 if gone is None:
                     w("nothing to discard\n")
                 else:
-                    counts[gone] -= 1
+                    if gone in counts:  # a row at a point no longer requested counts nowhere
+                        counts[gone] -= 1
                     discarded += 1
                     w(f"discarded the last capture at {gone}\n")
                 continue

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from solver.errors import LasercalError
-from solver.model import DATA_DIR, RobotModel, load_model
+from solver.model import DATA_DIR, RobotModel, load_model, load_yaml
 from solver.session import Layout, load_layout, session_meta
 from solver.stats import spot_stats
 
@@ -39,15 +39,18 @@ def _backend_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
     g.add_argument("--robot", help="nominal robot model: name under data/robots/ or YAML (default panda)")
     g.add_argument("--host", help="robot FCI address (franky, panda-py) or rosbridge host (ros)")
-    g.add_argument("--dynamics", type=float, help="franky/panda-py: speed of commanded moves, fraction of the limits (default 0.1)")
-    g.add_argument("--desk-user", help="Desk user for --trigger pilot (password in $LASERCAL_DESK_PASSWORD)")
-    g.add_argument("--ros-port", type=int, help="rosbridge port (default 9090)")
-    g.add_argument("--ros-joints", help="comma-separated arm joint names in /joint_states (default: found by name)")
-    g.add_argument("--trigger", help="enter (default), serial:URL (button box / foot pedal, pyserial URL) or pilot")
+    g.add_argument("--dynamics", type=float, metavar="F",
+                   help="franky/panda-py: speed of commanded moves, fraction of the limits (default 0.1)")
+    g.add_argument("--desk-user", metavar="USER", help="Desk user for --trigger pilot (password in $LASERCAL_DESK_PASSWORD)")
+    g.add_argument("--ros-port", type=int, metavar="PORT", help="rosbridge port (default 9090)")
+    g.add_argument("--ros-joints", metavar="NAMES", help="comma-separated arm joint names in /joint_states (default: found by name)")
+    g.add_argument("--trigger", metavar="enter|serial:URL|pilot",
+                   help="enter (default), serial:URL (button box / foot pedal, pyserial URL) or pilot")
     f = p.add_argument_group("fake backend")
-    f.add_argument("--truth", help="the fake robot's true geometry: robot YAML or name (default panda_thesis_identified)")
+    f.add_argument("--truth", metavar="ROBOT.yaml",
+                   help="the fake robot's true geometry: robot YAML or name (default panda_thesis_identified)")
     f.add_argument("--perturb-seed", type=int, metavar="S", help="instead of --truth: a seeded random perturbation of the nominal robot")
-    f.add_argument("--seed", type=int, help="seed of the simulation (default 0)")
+    f.add_argument("--seed", type=int, metavar="S", help="seed of the simulation (default 0)")
     s = p.add_argument_group("standstill")
     s.add_argument("--speed-threshold", type=float, metavar="RAD_S", help="the arm is still when every joint is slower (default 0.005)")
     s.add_argument("--hold", type=float, metavar="S", help="... for this long (default 0.5)")
@@ -61,7 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", metavar="SESSION", help="new session folder")
     p.add_argument("--resume", metavar="SESSION", help="continue an interrupted session where it stopped")
     p.add_argument("--aperture-z", type=float, metavar="MM", help="measured height of the laser aperture at q = 0, mm (p_Mz)")
-    p.add_argument("--rangefinder", metavar="URL", help="serial laser rangefinder (pyserial URL; 'fake' with --backend fake): log the laser length")
+    p.add_argument("--rangefinder", metavar="URL",
+                   help="serial laser rangefinder (pyserial URL; 'fake' with --backend fake): log the laser length")
     p.add_argument("--rangefinder-query", metavar="TEXT", help="sent before each reading (e.g. 'D\\n'); default: the device streams")
     p.add_argument("--auto", action="store_true", help="fake backend: the simulated operator triggers too (no keyboard)")
     p.add_argument("--auto-pace", type=float, metavar="S", help="with --auto: real seconds per capture, to watch (default 0)")
@@ -122,49 +126,41 @@ def _layout_of(meta: dict, folder: Path) -> Layout:
                   tuple(meta.get("validation") or ()), dict(c.get("aiming") or {}))
 
 
-def cmd_capture(args) -> int:
+def _capture_settings(args) -> tuple[dict, Layout]:
+    """The settings and layout of a new session (command line) or a resumed one (its session.yaml + command line)."""
     given = _settings(args)
-    if args.per_point is not None:
-        given["per_point"] = args.per_point
-    if args.aim_noise is not None:
-        given["aim_noise"] = args.aim_noise
-    if args.resume:
-        if args.output or args.layout:
-            raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")
-        store = CaptureStore.open(args.resume)
-        stored = (store.meta.get("collector") or {})
-        if not stored:
-            raise SessionError(f"{args.resume} was not started by lasercal capture: nothing to resume")
-        for k in FIXED:
-            if k in given and given[k] != stored.get(k):
-                raise SessionError(f"{args.resume} was started with {k.replace('_', '-')} {stored.get(k)}: it cannot change on resume")
-        cfg = {**DEFAULTS, **stored, **given}
-        layout = _layout_of(store.meta, store.folder)
-        if store.recovered:
-            print(f"cut off a torn last line ({store.recovered} bytes): the capture in flight when the session stopped")
-        print(f"resuming {store.folder}: {len(store.point)} captures on disk")
-    else:
-        missing = [f for f, v in (("--layout", args.layout), ("--per-point", args.per_point), ("-o", args.output), ("--backend", args.backend)) if v is None]
+    for key in ("per_point", "aim_noise"):
+        if getattr(args, key) is not None:
+            given[key] = getattr(args, key)
+    if not args.resume:
+        missing = [f for f, v in (("--layout", args.layout), ("--per-point", args.per_point), ("-o", args.output),
+                                  ("--backend", args.backend)) if v is None]
         if missing:
             raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
         if args.per_point < 1:
             raise SessionError("--per-point must be at least 1")
-        cfg = {**DEFAULTS, **given}
-        layout = load_layout(args.layout)
+        return {**DEFAULTS, **given}, load_layout(args.layout)
+    if args.output or args.layout:
+        raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")
+    folder = Path(args.resume)
+    if not (folder / "session.yaml").is_file():
+        raise SessionError(f"{folder} is not a session folder (no session.yaml): nothing to resume")
+    meta = load_yaml(folder / "session.yaml")
+    stored = meta.get("collector") if isinstance(meta, dict) else None
+    if not stored:
+        raise SessionError(f"{folder} was not started by lasercal capture: nothing to resume")
+    for k in FIXED:
+        if k in given and given[k] != stored.get(k):
+            raise SessionError(f"{folder} was started with {k.replace('_', '-')} {stored.get(k)}: it cannot change on resume")
+    return {**DEFAULTS, **stored, **given}, _layout_of(meta, folder)
+
+
+def cmd_capture(args) -> int:
+    cfg, layout = _capture_settings(args)
     if args.auto and cfg["backend"] != "fake":
         raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
     nominal = load_model(cfg["robot"])
     robot = make_robot(cfg, nominal, layout, cfg["per_point"])
-    if not args.resume:
-        columns = list(robot.extra_columns) + (["laser_length_measured"] if cfg.get("rangefinder") else [])
-        aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if cfg["backend"] == "fake" else None)
-        collector = {**cfg, "aperture_z": aperture, "layout": str(Path(args.layout).resolve()), "aiming": layout.aiming,
-                     "extra_columns": columns, "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
-        extra = {"collector": collector}
-        if cfg["backend"] == "fake":
-            extra["simulated"] = {"truth": robot.truth.name, "aim_noise_mm": cfg["aim_noise"], "seed": cfg["seed"]}
-        store = CaptureStore.create(args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns)
-    trigger = AutoTrigger(args.auto_pace or 0.0) if args.auto else make_trigger(cfg["trigger"], robot)
     rangefinder = None
     if cfg.get("rangefinder") == "fake":
         if cfg["backend"] != "fake":
@@ -173,9 +169,24 @@ def cmd_capture(args) -> int:
     elif cfg.get("rangefinder"):
         query = (cfg.get("rangefinder_query") or "").encode().decode("unicode_escape").encode()
         rangefinder = SerialRangefinder.from_url(cfg["rangefinder"], query)
+    trigger = AutoTrigger(args.auto_pace or 0.0) if args.auto else make_trigger(cfg["trigger"], robot)
+    if args.resume:  # devices first, folder last: a device that fails leaves nothing to clean up
+        store = CaptureStore.open(args.resume)
+        if store.recovered:
+            print(f"cut off a torn last line ({store.recovered} bytes): the capture in flight when the session stopped")
+        print(f"resuming {store.folder}: {len(store.point)} captures on disk")
+    else:
+        columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
+        aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if cfg["backend"] == "fake" else None)
+        collector = {**cfg, "aperture_z": aperture, "layout": str(Path(args.layout).resolve()), "aiming": layout.aiming,
+                     "extra_columns": columns, "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
+        extra = {"collector": collector}
+        if cfg["backend"] == "fake":
+            extra["simulated"] = {"truth": robot.truth.name, "aim_noise_mm": cfg["aim_noise"], "seed": cfg["seed"]}
+        store = CaptureStore.create(args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns)
     opts = CaptureOptions(cfg["per_point"], cfg["speed_threshold"], cfg["hold"], auto_discard=args.auto)
+    hint = f"lasercal capture --resume {store.folder}" + (" --auto" if args.auto else "")
     try:
-        hint = f"lasercal capture --resume {store.folder}" + (" --auto" if args.auto else "")
         run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint)
     finally:
         store.close()
@@ -200,7 +211,7 @@ def cmd_validate(args) -> int:
         if args.backend != "fake":
             raise LasercalError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
         view = fake_view(layout.points[point][:2], layout.plane_z)
-        camera = FakeCamera(robot, view, layout.plane_z, layout.points, seed=cfg["seed"])
+        camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
         measure = lambda img, name: measure_known_view(img, name, view)  # noqa: E731
     elif camera_spec is None:
         raise LasercalError("validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot")

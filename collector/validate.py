@@ -27,11 +27,11 @@ from solver.model import RobotModel
 from solver.session import Layout
 from vision.detect import detect_spots
 from vision.errors import VisionError
-from vision.render import LaserSpot, Photo, View, cross_print, look_down, render
+from vision.render import LaserSpot, Photo, View, look_down, render
 
 from .adapters.base import RobotAdapter
 from .capture import wait_still
-from .errors import DeviceError, RobotConnectionError
+from .errors import DeviceError, RobotConnectionError, SessionError
 from .store import CsvLog, write_atomic
 
 VALIDATION_FORMAT = "lasercal-validation/1"
@@ -82,23 +82,24 @@ class SpotLook:
 
 
 class FakeCamera:
-    """Photos of the spot the fake robot's true beam makes, with the layout's cross marks.
+    """Photos of the spot the fake robot's true beam makes on a blank sheet.
+
+    No reference marks are printed: ink under the spot would bias its centroid, and the
+    validation measures the model, not the spot detector.
 
     Parameters
     ----------
     robot : FakeRobot (anything with ``true_spot(z) -> (spot, length)``)
     view : vision.render.View
     plane_z : float, mm
-    marks : dict name -> (3,) array, reference points drawn as printed crosses, mm
     seed : int, seed of the image noise
     look : SpotLook
     """
 
     name = "fake"
 
-    def __init__(self, robot, view: View, plane_z: float, marks: dict, seed: int = 0, look: SpotLook = SpotLook()):
+    def __init__(self, robot, view: View, plane_z: float, seed: int = 0, look: SpotLook = SpotLook()):
         self.robot, self.view, self.plane_z, self.seed, self.look = robot, view, plane_z, seed, look
-        self.prints = tuple(cross_print(np.asarray(p)[:2]) for p in marks.values())
         self._count = 0
 
     def photo(self) -> np.ndarray:
@@ -106,7 +107,7 @@ class FakeCamera:
         u, v = self.view.project(spot[:2])[0]
         self._count += 1
         lk = self.look
-        return render(Photo(self.view, self.prints, (LaserSpot(u, v, lk.sigma, lk.peak, lk.speckle),)), seed=self.seed + self._count)
+        return render(Photo(self.view, (), (LaserSpot(u, v, lk.sigma, lk.peak, lk.speckle),)), seed=self.seed + self._count)
 
     def close(self) -> None:
         """Nothing to release."""
@@ -162,7 +163,7 @@ class ValidateOptions:
     speed_threshold: float = 0.005
     hold: float = 0.5
     still_timeout: float = 30.0
-    poll: float = 0.02
+    poll: float = 1 / 64
 
 
 def run_validation(folder, model: RobotModel, model_ref: str, layout: Layout, point: str, robot: RobotAdapter, camera,
@@ -189,6 +190,8 @@ def run_validation(folder, model: RobotModel, model_ref: str, layout: Layout, po
     """
     p = layout.points[point]
     folder = Path(folder)
+    if (folder / "validation.csv").exists():
+        raise SessionError(f"{folder} already holds a validation run: choose another folder")
     (folder / "photos").mkdir(parents=True, exist_ok=True)
     planned = aim(model, p, opts.n, np.random.default_rng(opts.seed), **layout.aim_kwargs())
     guided = opts.guide or not robot.can_move
@@ -234,7 +237,8 @@ def run_validation(folder, model: RobotModel, model_ref: str, layout: Layout, po
             name = f"photos/{i:04d}.png"
             if not cv2.imwrite(str(folder / name), img):
                 raise DeviceError(f"cannot write {folder / name}")
-            row = {"index": i, **{f"q{j + 1}": v for j, v in enumerate(state.q)}, "photo": name, "q_dev": float(np.abs(state.q - q).max())}
+            row = {"index": str(i), **{f"q{j + 1}": v for j, v in enumerate(state.q)}, "photo": name,
+                   "q_dev": float(np.abs(state.q - q).max())}
             msg = f"photo {i + 1}/{opts.n}: {name}"
             if measure is not None:
                 try:

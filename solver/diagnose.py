@@ -32,7 +32,8 @@ from .effects import Extension, candidates
 from .errors import ModelError
 from .gravity import gravity_torques
 from .identify import Identification, identify_lm, spot_residuals
-from .laser import LaserParams, spot_joint_jacobian
+from .laser import spot_joint_jacobian
+from .point import identify_point, polish_point, session_targets, tip_joint_jacobian, tips
 from .session import Session
 from .stats import folds
 
@@ -141,10 +142,35 @@ def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, 
     return None, "none"
 
 
+def fit(session: Session, extension: Extension | None = None, nominal=None, robust: bool = True) -> Identification:
+    """The lm identification for the session's measurement type."""
+    if session.measurement == "point":
+        return identify_point(session, nominal, robust, extension)
+    return identify_lm(session, nominal, robust, extension)
+
+
+def residuals(model, ext: Extension | None, session: Session, points: dict | None = None) -> np.ndarray:
+    """Residuals (m, d) of a model (and its extension) on captures: spot or tip minus target, mm."""
+    q = ext.true_q(session.q, session.t, session.tau) if ext else session.q
+    if session.measurement == "point":
+        return tips(model, q) - session_targets(session, points or {})
+    target = session.target.copy()
+    if ext is not None:
+        target[:, :2] += ext.target_offset(session.point)
+    return spot_residuals(model, q, target)
+
+
+def _joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
+    """d(residual)/dq (m, d, n) of the fitted model: spot in the plane, or tool point."""
+    if session.measurement == "point":
+        return tip_joint_jacobian(model, q)[1]
+    return spot_joint_jacobian(model, q, session.target[:, 2])[1]
+
+
 def _candidate_columns(ext: Extension, session: Session, Jq: np.ndarray, tau) -> np.ndarray:
     """d(residual)/d(parameters) of a candidate at zero effect, (m, 2, k)."""
     m = session.m
-    if ext.effect == "reference_point_offset":
+    if ext.effect == "reference_point_offset":  # laser sessions only: point sessions identify their points
         C = np.zeros((m, 2, 2))
         C[session.point == ext.point] = -np.eye(2)
         return C
@@ -162,11 +188,12 @@ def _orthonormal(A: np.ndarray) -> np.ndarray:
     return U[:, : int(np.sum(s > _RTOL * max(s[0], 1e-300)))]
 
 
-def score_tests(session: Session, ident: Identification, exts: list, tau, base: list | None = None) -> list[CandidateTest]:
-    """F tests of candidate extensions against the fitted model (linearised at its solution).
+class Tester:
+    """Nested-model F tests of candidate extensions against a fitted model (linearised at its solution).
 
-    F = (drop / d) / ((RSS - drop) / (N - r - d)), drop = |Pi_Q res|^2 with Q the candidate's
-    columns made orthogonal to the fitted model's Jacobian (rank r); Bonferroni over ``exts``.
+    F = (drop / k) / ((RSS - drop) / (N - r - k)), drop = |Q^T res|^2 with Q the candidate's
+    columns made orthogonal to what the fit could absorb (rank r); Bonferroni over the candidates.
+    Prepared once, it tests any residual vector: the data's, or simulated ones.
 
     Parameters
     ----------
@@ -174,59 +201,92 @@ def score_tests(session: Session, ident: Identification, exts: list, tau, base: 
     ident : Identification, the fitted model (geometric, or already extended)
     exts : list of Extension, the candidates
     tau : (m, n) array or None
-    base : list of Extension, effects already in ``ident`` (their columns join the fitted Jacobian)
     """
-    used = ident.weights > 0
-    model = ident.model
-    P = LaserParams(model)
-    qt = ident.extension.true_q(session.q, session.t, tau) if ident.extension else session.q
-    _, _, Jg = P.spot_jacobian(P.x0(), qt, session.target[:, 2])
-    _, Jq = spot_joint_jacobian(model, qt, session.target[:, 2])
-    fitted = [Jg] + [_candidate_columns(e, session, Jq, tau) for e in (base or [])]
-    J = np.concatenate(fitted, axis=2)[used].reshape(2 * used.sum(), -1)
-    U = _orthonormal(J)
-    r = U.shape[1]
-    res = ident.residuals[used].ravel()
-    rss = float(res @ res)
-    N = res.size
-    out = []
-    for e in exts:
-        C = _candidate_columns(e, session, Jq, tau)[used].reshape(N, -1)
-        Q = _orthonormal(C - U @ (U.T @ C))
-        d = Q.shape[1]
-        if d == 0 or N - r - d <= 0:
-            out.append(CandidateTest(e, 0.0, 0, 1.0, 1.0, 0.0))
-            continue
-        drop = float(np.sum((Q.T @ res) ** 2))
-        F = (drop / d) / max((rss - drop) / (N - r - d), 1e-300)
-        p = float(stats.f.sf(F, d, N - r - d))
-        out.append(CandidateTest(e, F, d, p, min(1.0, p * len(exts)), drop))
-    return sorted(out, key=lambda c: (c.p, -c.F))
+
+    def __init__(self, session: Session, ident: Identification, exts: list, tau):
+        used = ident.weights > 0
+        qt = ident.extension.true_q(session.q, session.t, tau) if ident.extension else session.q
+        Jq = _joint_jacobian(session, ident.model, qt)
+        d = ident.residuals.shape[1]  # 2 (spot in the plane) or 3 (tool point)
+        # What the fit could absorb: its Jacobian in its own identifiable subspace (extension included),
+        # with its constraint rows -- without them a world scaling, which scales every residual, would
+        # seem to explain any residual (the known distances are what pin the scale).
+        Jc = ident.extra.get("constraint_span", np.zeros((0, ident.extra["span"].shape[2])))
+        self.U = _orthonormal(np.vstack([ident.extra["span"][used].reshape(d * used.sum(), -1), Jc]))
+        self.n_capture_rows = d * used.sum()
+        self.res = np.r_[ident.residuals[used].ravel(), ident.extra.get("constraint_residuals", np.zeros(0))]
+        self.exts = exts
+        self.Q = []
+        for e in exts:
+            C = np.vstack([_candidate_columns(e, session, Jq, tau)[used].reshape(self.n_capture_rows, -1), np.zeros((len(Jc), e.size))])
+            self.Q.append(_orthonormal(C - self.U @ (self.U.T @ C)))
+
+    def tests(self, res: np.ndarray | None = None) -> list[CandidateTest]:
+        """Every candidate's test on ``res`` (default: the data's residuals), best first."""
+        res = self.res if res is None else res
+        rss, N, r = float(res @ res), res.size, self.U.shape[1]
+        out = []
+        for e, Q in zip(self.exts, self.Q):
+            k = Q.shape[1]
+            if k == 0 or N - r - k <= 0:
+                out.append(CandidateTest(e, 0.0, 0, 1.0, 1.0, 0.0))
+                continue
+            drop = float(np.sum((Q.T @ res) ** 2))
+            F = (drop / k) / max((rss - drop) / (N - r - k), 1e-300)
+            p = float(stats.f.sf(F, k, N - r - k))
+            out.append(CandidateTest(e, F, k, p, min(1.0, p * len(self.exts)), drop))
+        return sorted(out, key=lambda c: (c.p, -c.F))
+
+    def best_statistic(self, R: np.ndarray) -> np.ndarray:
+        """max over candidates of -log10 p for each column of R (N, B): vectorised for simulations."""
+        rss = np.sum(R**2, axis=0)
+        N, r = R.shape[0], self.U.shape[1]
+        best = np.zeros(R.shape[1])
+        for Q in self.Q:
+            k = Q.shape[1]
+            if k == 0 or N - r - k <= 0:
+                continue
+            drop = np.sum((Q.T @ R) ** 2, axis=0)
+            F = (drop / k) / np.maximum((rss - drop) / (N - r - k), 1e-300)
+            best = np.maximum(best, -np.log10(np.maximum(stats.f.sf(F, k, N - r - k), 1e-300)))
+        return best
 
 
-def bootstrap(session: Session, ident: Identification, exts: list, tau, observed: float, B: int, rng: np.random.Generator) -> dict:
+def score_tests(session: Session, ident: Identification, exts: list, tau) -> list[CandidateTest]:
+    """:class:`Tester` on the data's residuals."""
+    return Tester(session, ident, exts, tau).tests()
+
+
+def bootstrap(session: Session, ident: Identification, tester: Tester, B: int, n_refit: int, rng: np.random.Generator) -> dict:
     """Parametric bootstrap: the experiment re-simulated on the identified geometric robot.
 
-    Same poses (the robot's true configurations are the identified model's, polished onto
-    noisy hits), Gaussian aiming noise at the estimated sigma; each replicate is refitted
-    and tested like the data. Returns the replicates' best -log10 p and residual RMS, and
-    the bootstrap p-value of the observed best statistic.
+    Two levels. (1) ``B`` first-order simulations: Gaussian aiming noise at the estimated
+    sigma on the same poses, refitted to first order (the residual is the noise minus its
+    projection on what the fit absorbs), tested like the data -- this calibrates the
+    strongest-candidate statistic, multiple comparisons included, with no F-distribution
+    assumption. (2) ``n_refit`` full simulations (the robot's true configurations polished onto
+    noisy targets, a nonlinear refit) give the residual RMS the experiment should show.
     """
+    N = tester.res.size
+    E = np.zeros((N, B))
+    E[: tester.n_capture_rows] = rng.normal(0, ident.sigma_mm, (tester.n_capture_rows, B))
+    R = E - tester.U @ (tester.U.T @ E)
+    best = tester.best_statistic(R)
+    observed = float(tester.best_statistic(tester.res[:, None])[0])
     used = ident.weights > 0
     s = session.subset(used)
-    tau_u = None if tau is None else tau[used]
-    best, rms = [], []
-    for _ in range(B):
-        hits = s.target + np.c_[rng.normal(0, ident.sigma_mm, (s.m, 2)), np.zeros(s.m)]
-        qb = polish(ident.model, s.q, hits)
-        sb = replace(s, q=qb)
-        fit = identify_lm(sb, ident.model, robust=False)
-        tests = score_tests(sb, fit, exts, tau_u)
-        best.append(-np.log10(max(tests[0].p, 1e-300)))
-        rms.append(fit.rms_mm)
-    best = np.array(best)
+    point = s.measurement == "point"
+    target = session_targets(s, ident.extra.get("points", {})) if point else s.target
+    rms = []
+    for _ in range(n_refit):
+        if point:
+            qb = polish_point(ident.model, s.q, target + rng.normal(0, ident.sigma_mm, target.shape))
+        else:
+            qb = polish(ident.model, s.q, target + np.c_[rng.normal(0, ident.sigma_mm, (s.m, 2)), np.zeros(s.m)])
+        rms.append(fit(replace(s, q=qb), nominal=ident.model, robust=False).rms_mm)
     return {
         "replicates": B,
+        "refits": n_refit,
         "best_stat": best.tolist(),
         "rms_mm": rms,
         "observed_best_stat": observed,
@@ -236,23 +296,24 @@ def bootstrap(session: Session, ident: Identification, exts: list, tau, observed
 
 
 def holdout(session: Session, fit, k: int = 5, seed: int = 0) -> np.ndarray:
-    """Cross-validated in-plane residuals (m, 2): ``fit(train) -> predict(test) -> (k, 2)``."""
+    """Cross-validated residuals (m, d): ``fit(train) -> predict(test) -> (k, d)``."""
     f = folds(session, k, seed)
-    out = np.empty((session.m, 2))
+    out = np.empty((session.m, 3 if session.measurement == "point" else 2))
     for i in range(k):
         test = f == i
         out[test] = fit(session.subset(~test))(session.subset(test))
     return out
 
 
-def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 60, seed: int = 0, k: int = 5, payload=None, effect: str | None = None) -> Diagnosis:
+def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 2000, seed: int = 0, k: int = 5, payload=None, effect: str | None = None, n_refit: int = 10) -> Diagnosis:
     """Find, name and fit the non-geometric effect the data carry (or 'none').
 
     Parameters
     ----------
     session : Session
     alpha : float, family-wise significance level of the decision
-    n_boot : int, parametric-bootstrap replicates (0 to skip)
+    n_boot : int, first-order parametric-bootstrap replicates (0 skips the bootstrap)
+    n_refit : int, full (nonlinear) simulations with refits, for the residual RMS distribution
     seed : int
     k : int, cross-validation folds (0 or 1: skip, report fit residuals instead)
     payload : (kg, (3,) mm), extra mass on the flange for the gravity model when torques are not logged
@@ -267,39 +328,40 @@ def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 60, seed: int
     rng = np.random.default_rng(seed)
     tau, tau_src = session_torques(session, payload)
     session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
-    geo = identify_lm(session)
-    exts = candidates(session.robot.n, list(dict.fromkeys(session.point)), tau is not None, session.t is not None and np.ptp(session.t) > 0)
+    geo = fit(session)
+    pts = [] if session.measurement == "point" else list(dict.fromkeys(session.point))
+    exts = candidates(session.robot.n, pts, tau is not None, session.t is not None and np.ptp(session.t) > 0)
     if effect is not None:
         exts = [e for e in exts if e.effect == effect]
         if not exts:
             raise ModelError(f"effect {effect!r} cannot be tested on this session (it needs {'torques' if effect == 'joint_compliance' else 'times'})")
-    tests = score_tests(session, geo, exts, tau)
+    tester = Tester(session, geo, exts, tau)
+    tests = tester.tests()
     best = tests[0]
     chosen = None
     if best.p_adjusted < alpha or effect is not None:
         chosen = best.extension
-        ext_fit = identify_lm(session, extension=chosen)
+        ext_fit = fit(session, chosen)
         if chosen.effect != "reference_point_offset":  # more joints of the same effect, while significant
             while True:
                 rest = [e for e in exts if e.effect == chosen.effect and e.joints[0] not in chosen.joints]
                 if not rest:
                     break
-                nxt = score_tests(session, ext_fit, rest, tau, base=[chosen])[0]
+                nxt = score_tests(session, ext_fit, rest, tau)[0]
                 if nxt.p_adjusted >= alpha:
                     break
                 chosen = Extension(chosen.effect, tuple(sorted(chosen.joints + nxt.extension.joints)), None, np.zeros(chosen.size + nxt.extension.size))
-                ext_fit = identify_lm(session, extension=chosen)
+                ext_fit = fit(session, chosen)
     ambiguous = tuple(t.label for t in tests[1:] if chosen is not None and t.rss_drop >= _AMBIGUOUS * best.rss_drop and t.p_adjusted < alpha)
-    boot = bootstrap(session, geo, exts, tau, -np.log10(max(best.p, 1e-300)), n_boot, rng) if n_boot else {}
+    boot = bootstrap(session, geo, tester, n_boot, n_refit, rng) if n_boot else {}
 
     def fit_geo(train):
-        model = identify_lm(train).model
-        return lambda test: spot_residuals(model, test.q, test.target)
+        g = fit(train)
+        return lambda test: residuals(g.model, None, test, g.extra.get("points"))
 
     def fit_ext(train):
-        fitted = identify_lm(train, extension=chosen)
-        e = fitted.extension
-        return lambda test: spot_residuals(fitted.model, e.true_q(test.q, test.t, test.tau), np.c_[test.target[:, :2] + e.target_offset(test.point), test.target[:, 2]])
+        e = fit(train, chosen)
+        return lambda test: residuals(e.model, e.extension, test, e.extra.get("points"))
 
     if k > 1:
         r_geo = holdout(session, fit_geo, k, seed)

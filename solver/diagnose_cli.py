@@ -5,6 +5,8 @@ import argparse
 import json
 import sys
 
+import numpy as np
+
 from .diagnose import ALPHA, diagnose
 from .session import load_session
 
@@ -15,7 +17,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--report", metavar="DIR", help="write the plots that make the case")
     p.add_argument("--alpha", type=float, default=ALPHA, help=f"family-wise significance level (default {ALPHA})")
-    p.add_argument("--bootstrap", type=int, default=60, help="parametric-bootstrap replicates (default 60; 0 skips)")
+    p.add_argument("--bootstrap", type=int, default=2000, help="first-order parametric-bootstrap replicates (default 2000; 0 skips)")
+    p.add_argument("--refits", type=int, default=10, help="full simulations of the experiment with refits (default 10)")
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_diagnose)
 
@@ -35,7 +38,9 @@ def format_diagnosis(d) -> str:
             lines.append("  (explains the data almost as well: " + ", ".join(d.ambiguous_with) + " -- more reference points would tell them apart)")
     b = d.bootstrap
     if b:
-        lines.append(f"simulation: {b['replicates']} re-runs of the experiment on the identified geometric robot; measured strongest-candidate statistic beats {100 * (1 - b['p_value']):.0f}% of them (bootstrap p = {b['p_value']:.3g})")
+        lines.append(f"simulation: {b['replicates']} first-order re-runs of the experiment on the identified geometric robot; the measured strongest-candidate statistic beats {100 * (1 - b['p_value']):.1f}% of them (bootstrap p = {b['p_value']:.3g})")
+        if b["rms_mm"]:
+            lines.append(f"  residual RMS: measured {b['observed_rms_mm']:.3f} mm, simulated {np.mean(b['rms_mm']):.3f} +- {np.std(b['rms_mm']):.3f} mm ({b['refits']} full refits)")
     h = o["holdout_rms_mm"]
     lines.append(f"held-out RMS: geometric {h['geometric']:.3f} mm, extended {h['extended']:.3f} mm, gain {o['gain_percent']:.1f}%  (torques: {d.torque_source})")
     lines.append("candidates (F test against the geometric model, Bonferroni over all):")
@@ -45,7 +50,7 @@ def format_diagnosis(d) -> str:
 
 
 def cmd_diagnose(args) -> int:
-    d = diagnose(load_session(args.session), alpha=args.alpha, n_boot=args.bootstrap, seed=args.seed)
+    d = diagnose(load_session(args.session), alpha=args.alpha, n_boot=args.bootstrap, seed=args.seed, n_refit=args.refits)
     if args.report:
         from .plots import diagnosis_plots
 

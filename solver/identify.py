@@ -214,7 +214,7 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
     return Identification(
         "lm", nominal, model, fit.converged, iterations, tuple(history), fit.residuals, fit.weights,
         tuple(int(i) for i in np.flatnonzero(fit.weights == 0)), fit.sigma, fit.identifiability, dict(zip(names, se_all.tolist())),
-        names, v, time.perf_counter() - t0, {"cov": cov}, fitted,
+        names, v, time.perf_counter() - t0, {"cov": cov, "span": fit.span, "constraint_span": fit.constraint_span, "constraint_residuals": fit.constraint_residuals}, fitted,
     )
 
 

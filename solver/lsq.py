@@ -110,6 +110,10 @@ class SubspaceFit:
     converged : bool
     iterations : int, Jacobian evaluations
     history : list of dict
+    span : (m, d, r) array, the Jacobian in the identifiable subspace at the solution: the
+        residual directions the fit could absorb (nested-model tests project on it)
+    constraint_span : (c, r) array, the same for the constraint rows (c = 0 without constraints)
+    constraint_residuals : (c,) array
     """
 
     v: np.ndarray
@@ -121,6 +125,9 @@ class SubspaceFit:
     converged: bool
     iterations: int
     history: list
+    span: np.ndarray
+    constraint_span: np.ndarray
+    constraint_residuals: np.ndarray
 
 
 def fit_subspace(
@@ -157,11 +164,9 @@ def fit_subspace(
         J = (jacobian(v) * sw[:, None, None]).reshape(m * d, p)
         return J if constraints is None else np.vstack([J, constraints(v)[1]])
 
-    ident, basis = identifiability(jrows(v0, np.ones(m)), names)
-    r = basis.shape[1]
     history, iterations = [], 0
 
-    def run(z, w):
+    def run(v0, basis, z, w):
         nonlocal iterations
         sw = np.sqrt(w)
         sol = optimize.least_squares(lambda z: rows(v0 + basis @ z, sw), z, lambda z: jrows(v0 + basis @ z, sw) @ basis,
@@ -171,15 +176,23 @@ def fit_subspace(
         history.append({"pass": len(history) + 1, "rms_mm": float(np.sqrt(np.mean(np.sum(res[w > 0] ** 2, 1)))), "iterations": int(sol.njev), "status": int(sol.status)})
         return sol, res
 
+    ident, basis = identifiability(jrows(v0, np.ones(m)), names)
+    sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
+    # A start can be singular where the solution is not (a tool point exactly on the last axis):
+    # if the identifiable subspace grew at the solution, continue in the larger one.
+    again, basis2 = identifiability(jrows(v0 + basis @ sol.x, np.sqrt(w)), names)
+    if again.rank > ident.rank:
+        v0, ident, basis = v0 + basis @ sol.x, again, basis2
+        sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
+    r = basis.shape[1]
     dof_ratio = max(1 - r / (d * m), 0.05)
-    sol, res = run(np.zeros(r), w)
     if robust:
         for _ in range(5):
             flags, _ = flag_outliers(res, w, dof_ratio)
             if np.array_equal(flags, w == 0):
                 break
             w = np.where(flags, 0.0, 1.0)
-            sol, res = run(sol.x, w)
+            sol, res = run(v0, basis, sol.x, w)
     v = v0 + basis @ sol.x
     used = w > 0
     dof = d * used.sum() - r + (0 if constraints is None else len(constraints(v)[0]))
@@ -190,4 +203,5 @@ def fit_subspace(
     sw = np.sqrt(w)
     sigma = float(np.sqrt(np.sum(rows(v, sw) ** 2) / dof))
     cov = basis @ covariance(jrows(v, sw) @ basis, sigma) @ basis.T
-    return SubspaceFit(v, cov, res, w, sigma, ident, bool(sol.status > 0), iterations, history)
+    rc, Jc = constraints(v) if constraints is not None else (np.zeros(0), np.zeros((0, p)))
+    return SubspaceFit(v, cov, res, w, sigma, ident, bool(sol.status > 0), iterations, history, jacobian(v) @ basis, Jc @ basis, rc)

@@ -61,12 +61,15 @@ class Layout:
         return kw
 
 
-def _points(d, path, key="points") -> dict:
+def _points(d, path, key="points", allow_unknown: bool = False) -> dict:
     pts = d.get(key)
     if not isinstance(pts, dict) or not pts:
         raise FormatError(path, f"'{key}' must be a mapping NAME: [x, y, z] (mm)", field=key)
     out = {}
     for name, xyz in pts.items():
+        if xyz is None and allow_unknown:  # point measurements: identified with the robot
+            out[str(name)] = None
+            continue
         try:
             a = np.array(xyz, dtype=float).ravel()
         except (TypeError, ValueError):
@@ -132,6 +135,9 @@ class Session:
     tau : (m, n) array or None, Nm
     extra : dict column -> (m,) array of str, kept and ignored
     lines : (m,) array of int, the CSV line of each capture
+    measurement : str, 'laser' (spot on a plane) or 'point' (a tool point held at a point)
+    tool_point : (3,) array or None, nominal tool point at q = 0 (point measurements), mm
+    distances : tuple of (A, B, mm), known distances between points (point measurements)
     """
 
     path: Path
@@ -148,6 +154,9 @@ class Session:
     tau: np.ndarray | None
     extra: dict
     lines: np.ndarray
+    measurement: str = "laser"
+    tool_point: np.ndarray | None = None
+    distances: tuple = ()
 
     @property
     def m(self) -> int:
@@ -160,6 +169,7 @@ class Session:
         return Session(
             self.path, self.meta, self.robot, self.plane_z, self.aperture_z, self.points, self.point[idx], self.target[idx],
             self.t[idx], self.q[idx], pick(self.dq), pick(self.tau), {k: v[idx] for k, v in self.extra.items()}, self.lines[idx],
+            self.measurement, self.tool_point, self.distances,
         )
 
 
@@ -239,8 +249,18 @@ def load_session(folder) -> Session:
     if "robot" not in meta:
         raise FormatError(ypath, "missing 'robot' (a name under data/robots/ or a path)", field="robot")
     robot = load_model(meta["robot"], base=folder)
-    points = _points(meta, ypath)
-    plane_z = _plane_z(meta, ypath)
+    measurement = meta.get("measurement", "laser")
+    if measurement not in ("laser", "point"):
+        raise FormatError(ypath, f"measurement must be 'laser' or 'point', got {measurement!r}", field="measurement")
+    points = _points(meta, ypath, allow_unknown=measurement == "point")
+    tool_point, distances = None, ()
+    if measurement == "point":
+        tool = meta.get("tool")
+        if not isinstance(tool, dict):
+            raise FormatError(ypath, "a point session needs 'tool: {point: [x, y, z]}' (mm, at q = 0)", field="tool")
+        tool_point = np.array(_points({"tool": {"point": tool.get("point")}}, ypath, "tool")["point"])
+        distances = _distances(meta, points, ypath)
+    plane_z = _plane_z(meta, ypath) if measurement == "laser" or meta.get("plane") is not None else float("nan")
     laser = meta.get("laser") or {}
     aperture_z = None
     if laser.get("aperture_z") is not None:
@@ -268,8 +288,27 @@ def load_session(folder) -> Session:
     known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
     extra = {h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known}
     names = np.array(names, dtype=object)
-    target = np.array([points[nm] for nm in names]).reshape(-1, 3)
-    return Session(folder, meta, robot, plane_z, aperture_z, points, names, target, t, q, dq, tau, extra, lines)
+    target = np.array([np.full(3, np.nan) if points[nm] is None else points[nm] for nm in names]).reshape(-1, 3)
+    return Session(folder, meta, robot, plane_z, aperture_z, points, names, target, t, q, dq, tau, extra, lines, measurement, tool_point, distances)
+
+
+def _distances(meta: dict, points: dict, path) -> tuple:
+    """``constraints: {distances: [[A, B, mm], ...]}``, validated."""
+    cons = meta.get("constraints") or {}
+    out = []
+    for i, row in enumerate(cons.get("distances", []) or []):
+        field = f"constraints.distances[{i}]"
+        if not isinstance(row, (list, tuple)) or len(row) != 3:
+            raise FormatError(path, "each distance is [A, B, mm]", field=field)
+        a, b, dist = row
+        if str(a) not in points or str(b) not in points:
+            raise FormatError(path, f"distance names unknown point(s) {a!r}, {b!r}", field=field)
+        try:
+            dist = float(dist)
+        except (TypeError, ValueError):
+            raise FormatError(path, f"distance must be a number (mm), got {dist!r}", field=field) from None
+        out.append((str(a), str(b), dist))
+    return tuple(out)
 
 
 def session_meta(robot_ref: str, layout: Layout, aperture_z: float | None, **extra) -> dict:

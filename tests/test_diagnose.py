@@ -69,13 +69,13 @@ def test_clean_data_give_none(tmp_path, seed):
 
 def test_gain_reaches_the_noise_floor_and_bootstrap_sees_the_disagreement(tmp_path):
     effect = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))
-    d = diagnose(sim(tmp_path, effect, 61), n_boot=30, k=5)
+    d = diagnose(sim(tmp_path, effect, 61), n_boot=1000, n_refit=3, k=5)
     floor = 0.5 * np.sqrt(2)  # 2-D RMS of 0.5 mm per-axis aiming noise
     assert d.holdout_rms["geometric"] > 1.2 * floor
     assert d.holdout_rms["extended"] < 1.1 * floor
     assert d.gain_percent > 15
     assert d.bootstrap["p_value"] < 0.05  # the measured statistic beats the simulated ones
-    clean = diagnose(sim(tmp_path / "clean", None, 62), n_boot=30, k=0)
+    clean = diagnose(sim(tmp_path / "clean", None, 62), n_boot=1000, n_refit=0, k=0)
     assert clean.bootstrap["p_value"] > 0.05
 
 
@@ -84,7 +84,7 @@ def test_cli_diagnose_json_solve_extend_and_predict(tmp_path, capsys):
     assert main(["simulate", "panda_thesis_identified", "--layout", str(DATA_DIR / "layouts" / "thesis.yaml"), "--per-point", "50", "--aim-noise", "0.5",
                  "--effect", "joint_compliance", "--effect-joints", "2", "--effect-size", "1.2e-4", "--seed", "7", "-o", str(s)]) == 0
     capsys.readouterr()
-    assert main(["diagnose", str(s), "--json", "--bootstrap", "10", "--report", str(tmp_path / "rep")]) == 0
+    assert main(["diagnose", str(s), "--json", "--bootstrap", "500", "--refits", "3", "--report", str(tmp_path / "rep")]) == 0
     o = json.loads(capsys.readouterr().out)
     assert set(o) >= {"effect", "joints", "point", "parameters", "p_value", "holdout_rms_mm", "gain_percent"}
     assert o["effect"] == "joint_compliance" and o["joints"] == [2] and o["point"] is None

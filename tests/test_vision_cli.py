@@ -61,7 +61,7 @@ def test_spots_json_shape_and_mm(files, capsys):
         assert e["plane"]["z_mm"] == -8 and e["plane"]["mm_per_px"] == pytest.approx(0.3, abs=0.003)
         s = e["spots"][0]
         assert set(s) == {"u", "v", "sigma_u", "sigma_v", "x_mm", "y_mm", "sigma_x_mm", "sigma_y_mm", "peak",
-                          "saturated", "area"}
+                          "saturated", "area", "on_ink"}
     got = np.array([[s["x_mm"], s["y_mm"]] for s in doc[1]["spots"]])
     for p in XY:
         assert np.min(np.hypot(*(got - p).T)) < 0.1

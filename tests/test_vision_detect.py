@@ -164,3 +164,21 @@ def test_opencv_and_imagej_conventions():
     a, b = s.to_dict("opencv"), s.to_dict("imagej")
     assert b["u"] - a["u"] == pytest.approx(0.5) and b["v"] - a["v"] == pytest.approx(0.5)
     assert abs(a["u"] - 150.0) < 0.05
+
+
+def test_spot_on_a_printed_cross_is_found_and_flagged():
+    # Aiming at a printed reference cross puts ink under the spot: it must still be found,
+    # and flagged, since ink swallows light unevenly (see README: a few tenths of a pixel).
+    errs = []
+    for i, off in enumerate([(0.0, 0.0), (0.3, 2.5), (2.5, -0.3)]):
+        centre = np.array([449.0 + i, 1.0 - i])
+        uv = VIEW.project(centre + off)[0]
+        img = render(Photo(VIEW, prints=(cross_print(centre, 12, 0.5),),
+                           spots=(LaserSpot(*uv, 2.5, 4.0, speckle=0.2),), **HARSH), i)
+        spots, warnings = detect_spots(img)
+        assert len(spots) == 1 and spots[0].on_ink and "printed ink" in warnings[0]
+        errs.append(np.hypot(spots[0].u - uv[0], spots[0].v - uv[1]))
+    assert max(errs) < 0.6
+    clear = detect_spots(render(Photo(VIEW, prints=(cross_print((430, -20), 12),),
+                                      spots=(LaserSpot(160, 120, 2.5, 4.0),), **HARSH), 0))
+    assert not clear[0][0].on_ink and not clear[1]

@@ -6,23 +6,25 @@ of the photo. ImageJ reports the same point at ``(u + 0.5, v + 0.5)``.
 
 Detection, on a red (or green) laser on white paper under room light:
 
-1. candidates: the laser's *colour excess* (its channel minus the brighter of the
-   other two) is ~0 on white paper, black ink and white glare alike, and positive
-   only on light of the laser's colour. It is taken on a 1/f-size block average
-   (fast on 12-megapixel photos), its smooth background is removed, and it is
-   thresholded at 6 robust sigmas. A saturated white core still leaves a coloured
-   ring, so saturated spots are found too.
+1. candidates: on a 1/f-size block average (fast on 12-megapixel photos), the
+   paper level (a tile percentile, so black markers do not sink it) is removed
+   from the laser's channel and from its *colour excess* (the channel minus the
+   brighter other one: ~0 on white paper, black ink and white glare alike). Laser
+   light is both brighter than the paper and coloured; both must pass 6 robust
+   sigmas. A saturated white core keeps a coloured rim, so it is found too.
 2. each candidate, at full resolution: a plane fitted to the box border is the
-   local background; the spot must be brighter than the paper in the laser's
-   channel (rejects red ink) and coloured on its unsaturated pixels (rejects white
-   reflections).
+   local background. Rejected: blobs not clearly brighter than the paper (red ink,
+   JPEG colour fringes beside ink), not laser-coloured on their unsaturated pixels
+   (white reflections), or dark at their own centre (fringe rings).
 3. centroid (``precise``): background-subtracted intensity-weighted centroid of the
    laser's channel in a circular window re-centred until it settles, excluding
    other spots' pixels. Clipping a symmetric spot keeps it symmetric, so
    saturated pixels take part at their clipped value and do not bias the centre.
+   Where printed ink lies under an unsaturated spot, a Gaussian is fitted (in
+   linear intensity) to the pixels off the ink instead; spots on ink are flagged.
 
 With a laser-off reference photo the candidates come from the difference image,
-which holds nothing but laser light.
+which holds nothing but laser light, and fainter spots are believed.
 """
 from __future__ import annotations
 
@@ -30,11 +32,13 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
 
 from .errors import NoSpotError, SpotCountError, VisionError
 from .images import full_scale
 
 CHANNEL = {"red": 2, "green": 1}  # BGR index of each laser's colour
+LUMA = np.array([0.114, 0.587, 0.299])  # BGR weights of JPEG's luma (ITU-R BT.601)
 MAX_CANDIDATES = 50
 
 
@@ -52,6 +56,8 @@ class Spot:
     area : int, pixels in the spot's blob
     x_mm, y_mm : float or None, position on the table plane, base frame, mm
     sigma_x_mm, sigma_y_mm : float or None, the centre's uncertainty mapped to mm
+    on_ink : bool, printed ink (a mark) lies under the spot: it swallows laser light
+        unevenly and may bias the centre by a few tenths of a pixel
     """
 
     u: float
@@ -65,6 +71,7 @@ class Spot:
     y_mm: float | None = None
     sigma_x_mm: float | None = None
     sigma_y_mm: float | None = None
+    on_ink: bool = False
 
     def to_dict(self, convention: str = "opencv") -> dict:
         """JSON-ready dict; ``convention="imagej"`` adds 0.5 px to u and v."""
@@ -74,7 +81,8 @@ class Spot:
                 "sigma_u": r(self.sigma_u, 4), "sigma_v": r(self.sigma_v, 4),
                 "x_mm": r(self.x_mm, 4), "y_mm": r(self.y_mm, 4),
                 "sigma_x_mm": r(self.sigma_x_mm, 4), "sigma_y_mm": r(self.sigma_y_mm, 4),
-                "peak": r(self.peak, 1), "saturated": bool(self.saturated), "area": int(self.area)}
+                "peak": r(self.peak, 1), "saturated": bool(self.saturated), "area": int(self.area),
+                "on_ink": bool(self.on_ink)}
 
 
 @dataclass(frozen=True)
@@ -101,16 +109,17 @@ class Rejection:
     v: float
 
 
-def _excess(img: np.ndarray, ch: int) -> np.ndarray:
-    """The laser's colour excess: its channel minus the brighter other one, clipped at 0."""
+def _channels(img: np.ndarray, ch: int) -> tuple[np.ndarray, np.ndarray]:
+    """The laser's channel and its colour excess (the channel minus the brighter
+    other one, clipped at 0); a grey image is both."""
     if img.ndim == 2:
-        return img
-    others = [c for c in range(3) if c != ch]
-    return cv2.subtract(img[..., ch], cv2.max(img[..., others[0]], img[..., others[1]]))
+        return img, img
+    laser, a, b = (cv2.extractChannel(img, c) for c in (ch, *(c for c in range(3) if c != ch)))
+    return laser, cv2.subtract(laser, cv2.max(a, b))
 
 
 def _robust_sigma(x: np.ndarray) -> float:
-    x = x.ravel()[:: max(1, x.size // 200_000)]  # a sample is plenty for a noise level
+    x = x.ravel()[:: max(1, x.size // 50_000)]  # a sample is plenty for a noise level
     return 1.4826 * float(np.median(np.abs(x - np.median(x))))
 
 
@@ -123,9 +132,14 @@ def _highpass(small: np.ndarray, tile: int = 24) -> np.ndarray:
     than their surroundings" as they would be against a local median.
     """
     h, w = small.shape
+    if min(h, w) < 4:
+        return small - np.median(small)
     ty, tx = max(h // tile, 1), max(w // tile, 1)
-    tiles = small[:ty * (h // ty), :tx * (w // tx)].reshape(ty, h // ty, tx, w // tx)
-    level = np.percentile(tiles, 90, axis=(1, 3)).astype(np.float32)
+    th, tw = (h // ty) // 2, (w // tx) // 2
+    sub = small[:ty * th * 2:2, :tx * tw * 2:2]  # every other pixel: plenty for a percentile
+    tiles = sub.reshape(ty, th, tx, tw).transpose(0, 2, 1, 3).reshape(ty, tx, -1)
+    k = int(0.9 * (tiles.shape[2] - 1))
+    level = np.ascontiguousarray(np.partition(tiles, k, axis=2)[..., k], np.float32)
     if min(ty, tx) >= 3:
         level = cv2.medianBlur(level, 3)
     return small - cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -151,20 +165,25 @@ def find_candidates(img: np.ndarray, colour: str = "red", reference: np.ndarray 
     src = cv2.subtract(img, reference) if reference is not None else img
     f = max(1, min(h, w) // 750)  # block size: ~750 rows keep spots of sigma >= 1 px visible
     floor = 0.03 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
-    mask = None
-    for plane in ([_excess(src, ch)] + ([src[..., ch]] if src.ndim == 3 else [])):
-        hp = _highpass(cv2.resize(plane, (w // f, h // f), interpolation=cv2.INTER_AREA).astype(np.float32))
+    # Block-average first: the colour excess of block means is close enough for finding
+    # spots, and it spares full-resolution passes over 12-megapixel photos.
+    small = cv2.resize(src, (w // f, h // f), interpolation=cv2.INTER_AREA) if f > 1 else src
+    laser, excess = _channels(small, ch)
+    strength = _highpass(excess.astype(np.float32))
+    mask = strength > max(k_sigma * _robust_sigma(strength), floor)
+    if src.ndim == 3:
         # Laser light is both coloured and brighter than its surroundings; JPEG colour
         # fringes at ink edges are coloured but not brighter, red ink neither.
-        above = hp > max(k_sigma * _robust_sigma(hp), floor)
-        mask, strength = (above, hp) if mask is None else (mask & above, strength)
+        bright = _highpass(laser.astype(np.float32))
+        mask &= bright > max(k_sigma * _robust_sigma(bright), floor)
     # Speckle and JPEG blocks break a spot's mask into pieces: join pieces a few pixels apart.
     mask = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8))
     n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 1:
         return []
-    best = np.zeros(n)
-    np.maximum.at(best, labels.ravel(), strength.ravel())
+    on = labels > 0  # few pixels: a scatter-max over them is cheap
+    best = np.full(n, -np.inf)
+    np.maximum.at(best, labels[on], strength[on])
     order = np.argsort(-best[1:])[:MAX_CANDIDATES] + 1
     out = []
     for i in order:
@@ -207,8 +226,8 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return bg.astype(np.float32), noise
 
 
-def _weighted_centroid(sig: np.ndarray, start: tuple[float, float], radius: float,
-                       exclude: np.ndarray, iterations: int = 30) -> tuple[float, float, np.ndarray]:
+def _weighted_centroid(sig: np.ndarray, start: tuple[float, float], radius: float, exclude: np.ndarray,
+                       iterations: int = 30) -> tuple[float, float, np.ndarray]:
     """Intensity-weighted centroid in a circular window re-centred until it settles.
 
     Parameters
@@ -241,6 +260,59 @@ def _weighted_centroid(sig: np.ndarray, start: tuple[float, float], radius: floa
     return u, v, wgt
 
 
+def _ink(roi: np.ndarray, bg: np.ndarray, ch: int) -> np.ndarray | None:
+    """Printed pixels in the box, or None when there are none.
+
+    The laser only adds light to the other two channels (cross-talk), so a pixel much
+    darker than the paper in both of them is ink. Grown by 2 px: the lens blurs ink
+    edges into their neighbours.
+    """
+    others = np.delete(roi, ch, axis=2) / np.maximum(np.delete(bg, ch, axis=2), 1)
+    ink = others.max(axis=2) < 0.6
+    if not ink.any():
+        return None
+    return cv2.dilate(ink.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+
+
+def _fit_gaussian(raw: np.ndarray, bg: np.ndarray, valid: np.ndarray, start: tuple[float, float], r_eq: float,
+                  full: float, gamma: float) -> tuple[float, float, float, float] | None:
+    """Elliptical Gaussian fitted in linear intensity to the ``valid`` pixels.
+
+    Parameters
+    ----------
+    raw : (h, w) array, the laser's channel as recorded, DN
+    bg : (h, w) array, its paper background, DN
+    valid : (h, w) bool array, pixels to fit (not ink, not clipped)
+    start : (u, v), first guess of the centre, px
+    r_eq : float, radius of the spot's blob, px
+    full : float, full scale, DN
+    gamma : float, encoding gamma of the photo
+
+    Returns
+    -------
+    (u, v, sigma_u, sigma_v) px, or None when too few pixels are left to fit
+    """
+    yy, xx = np.nonzero(valid)
+    if len(xx) < 12:
+        return None
+    lin = lambda x: full * np.clip(x / full, 0, None) ** gamma  # noqa: E731
+    d = lin(raw[yy, xx]) - lin(bg[yy, xx])
+
+    def resid(p):
+        dx, dy = xx - p[0], yy - p[1]
+        l11, l22 = np.exp(p[3]), np.exp(p[4])
+        return p[2] * np.exp(-0.5 * ((l11 * dx) ** 2 + (p[5] * dx + l22 * dy) ** 2)) - d
+
+    s0 = -np.log(max(r_eq / 2, 0.7))
+    p0 = np.array([start[0], start[1], max(d.max(), 1.0) * 2, s0, s0, 0.0])
+    res = least_squares(resid, p0, loss="soft_l1", f_scale=max(np.std(d) / 4, 1.0), x_scale="jac")
+    if not res.success or np.hypot(res.x[0] - start[0], res.x[1] - start[1]) > 2 * r_eq + 2:
+        return None
+    dof = max(len(d) - 6, 1)
+    cov = np.linalg.pinv(res.jac.T @ res.jac) * (res.fun @ res.fun / dof)
+    return float(res.x[0]), float(res.x[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
+
+
 def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tuple[float, float]:
     """1-sigma error of a weighted centroid, from the spot's own asymmetry.
 
@@ -266,7 +338,7 @@ def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tup
 
 
 def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", reference: np.ndarray | None = None,
-                 others: list[Candidate] = ()) -> Spot | Rejection:
+                 others: list[Candidate] = (), gamma: float = 2.2, luma: bool = False) -> Spot | Rejection:
     """Measure one candidate with the precise method.
 
     Parameters
@@ -276,6 +348,9 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
     colour : "red" or "green"
     reference : laser-off photo like ``img``, or None
     others : the other candidates, whose pixels are kept out of the window
+    gamma : float, the photo's encoding gamma (for the fit when ink lies under the spot)
+    luma : bool, centroid on the luma instead of the laser's channel: a JPEG with
+        chroma subsampling keeps only the luma at full resolution
 
     Returns
     -------
@@ -305,14 +380,27 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
         return Rejection("dim", cand.u, cand.v)
     thr = max(4 * noise[ch], 0.15 * peak_d)
     smooth = cv2.GaussianBlur(sig, (0, 0), 1.0)  # speckle would split a spot into several blobs
-    n, labels = cv2.connectedComponents((smooth > thr).astype(np.uint8), connectivity=8)
+    bright = (smooth > thr).astype(np.uint8)
+    plain = img[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)  # the photo itself, not a difference
+    plain_bg = bg if reference is None else _plane_background(plain)[0]
+    ink = _ink(plain, plain_bg, ch) if img.ndim == 3 else None
+    if ink is not None:
+        # A printed cross under the spot cuts it into pieces: bridge them over the ink.
+        bright |= (ink & cv2.dilate(bright, np.ones((7, 7), np.uint8)).astype(bool)).astype(np.uint8)
+    n, labels = cv2.connectedComponents(bright, connectivity=8)
     if n <= 1:
         return Rejection("dim", cand.u, cand.v)
     iy, ix = np.unravel_index(np.argmax(np.where(labels > 0, smooth, -np.inf)), sig.shape)
     blob = labels == labels[iy, ix]
     if blob.sum() < 4:
         return Rejection("dim", cand.u, cand.v)  # a lone bright pixel: JPEG ringing or noise, not a spot
-    raw = img[y0:y1, x0:x1].reshape(roi.shape)[..., ch].astype(np.float32)
+    if img.ndim == 3 and reference is None and peak_d < 0.15 * full:
+        # JPEG's coarse colour planes leave a faint laser-coloured fringe beside ink: a
+        # weak blob next to pixels darker than the paper in the other channels is one.
+        around = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
+        if np.max(np.delete(delta, ch, axis=2), axis=2)[around].min() < -0.15 * full:
+            return Rejection("dim", cand.u, cand.v)
+    raw = plain[..., ch]
     clipped = raw >= 0.985 * full
     if img.ndim == 3:
         # Colour test on unsaturated pixels near the blob: a white reflection has as
@@ -334,12 +422,26 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
     r_eq = np.sqrt(blob.sum() / np.pi)
     m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
     start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
-    u, v, wgt = _weighted_centroid(sig, start, 1.1 * r_eq + 1, exclude)
+    cen = delta @ LUMA if luma and img.ndim == 3 else sig
+    u, v, wgt = _weighted_centroid(cen, start, 1.1 * r_eq + 1, exclude)
     # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
-    if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max():
+    if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max() and ink is None:
         return Rejection("dim", cand.u, cand.v)
-    su, sv = _centroid_sigma(sig, wgt, u, v)
-    return Spot(u + x0, v + y0, su, sv, float(raw[blob].max()), bool(clipped[blob].any()), int(blob.sum()))
+    Y, X = np.mgrid[:sig.shape[0], :sig.shape[1]]
+    window = np.hypot(X - u, Y - v) <= 1.5 * r_eq + 2
+    on_ink = ink is not None and bool((ink & window).any())
+    saturated = bool(clipped[blob].any())
+    if on_ink and not saturated:
+        # Printed ink under the spot swallows laser light on one side: fit the spot's
+        # shape to the pixels off the ink instead. (Clipped, blooming spots are not
+        # Gaussian enough for this; they keep the centroid, and a warning.)
+        fit = _fit_gaussian(raw, plain_bg[..., ch], window & ~ink & ~exclude, (u, v), r_eq, full, gamma)
+        if fit is None:
+            return Rejection("dim", cand.u, cand.v)
+        u, v, su, sv = fit
+    else:
+        su, sv = _centroid_sigma(cen, wgt, u, v)
+    return Spot(u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink)
 
 
 def _dedupe(spots: list[Spot]) -> list[Spot]:
@@ -353,7 +455,8 @@ def _dedupe(spots: list[Spot]) -> list[Spot]:
 
 def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", reference: np.ndarray | None = None,
                  expect: int | None = 1, method: str = "precise", imagej_mode: str = "centroid",
-                 imagej_threshold: str = "default", imagej_box: int = 64) -> tuple[list[Spot], list[str]]:
+                 imagej_threshold: str = "default", imagej_box: int = 64,
+                 gamma: float = 2.2, luma: bool = False) -> tuple[list[Spot], list[str]]:
     """Find and measure the laser spots of one photo.
 
     Parameters
@@ -365,6 +468,8 @@ def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", refe
     expect : int or None, the number of spots expected; None accepts any number
     method : "precise" or "imagej"
     imagej_mode, imagej_threshold, imagej_box : see :func:`vision.imagej.measure`
+    gamma : float, the photo's encoding gamma (2.2 camera JPEG, 1 linear)
+    luma : bool, precise centroid on the luma (for JPEGs with subsampled chroma)
 
     Returns
     -------
@@ -384,7 +489,7 @@ def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", refe
     cands = find_candidates(img, colour, reference)
     found, rejected = [], []
     for c in cands:
-        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c])
+        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c], gamma, luma)
         (rejected if isinstance(r, Rejection) else found).append(r)
     spots = _dedupe(found)
     warnings = []
@@ -401,6 +506,10 @@ def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", refe
         raise SpotCountError(f"{name}: {len(spots)} spots found where {expect} "
                              f"{'is' if expect == 1 else 'are'} expected, at px {where}"
                              f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several spots)")
+    for sp in spots:
+        if sp.on_ink:
+            warnings.append(f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
+                            "light: its centre may be off by a few tenths of a pixel (aim beside the mark)")
     if expect is not None and len(spots) < expect:
         warnings.append(f"{len(spots)} spot{'s' * (len(spots) != 1)} found where {expect} are expected")
     if method == "imagej":

@@ -26,7 +26,7 @@ class Options:
     imagej_box: int = 64  # side of the box drawn around a spot, px; 0: the whole photo
     colour: str = "red"
     expect: int | None = 1  # None: any number of spots
-    gamma: float = 2.2  # the photos' encoding gamma, for marker corners
+    gamma: float = 2.2  # the photos' encoding gamma, for marker corners and spots on ink
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,7 @@ def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout:
     if camera is not None:
         camera.check_size(size, name)
     spots, warnings = detect_spots(img, name, opts.colour, reference, opts.expect, opts.method,
-                                   opts.imagej_mode, opts.imagej_threshold, opts.imagej_box)
+                                   opts.imagej_mode, opts.imagej_threshold, opts.imagej_box, opts.gamma)
     plane = None
     if layout is not None:
         fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)

@@ -3,8 +3,9 @@
 A backend reads the arm's joint state; the session flow (``collector.capture``,
 ``collector.validate``) decides when to capture. Backends that can move the arm say so
 (``can_move``) and implement :meth:`RobotAdapter.move_to`; the others leave motion to
-the operator. Robot SDKs are imported lazily inside each backend through
-:func:`import_extra`, so a missing SDK costs nothing until that backend is chosen.
+the operator. Each backend imports its robot SDK when it is constructed, through
+:func:`import_extra`, so a missing SDK costs nothing until that backend is chosen, and
+is reported before a session folder is made.
 """
 from __future__ import annotations
 
@@ -92,7 +93,7 @@ class RobotAdapter:
     clock: Clock = Clock()
 
     def connect(self) -> None:
-        """Open the connection. Raises RobotConnectionError when the robot cannot be reached."""
+        """Open the connection (a no-op when open). Raises RobotConnectionError when the robot cannot be reached."""
         raise NotImplementedError
 
     def read(self) -> JointState:

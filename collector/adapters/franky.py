@@ -9,12 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import RobotConnectionError
+from ..errors import MissingExtraError, RobotConnectionError
 from .base import JointState, PilotButtons, RobotAdapter, import_extra
-
-
-def _franky():
-    return import_extra("franky", "the franky backend", "franky-control", "franky")
 
 
 class FrankyPilot(PilotButtons):
@@ -48,11 +44,14 @@ class FrankyRobot(RobotAdapter):
     extra_columns = ("robot_mode",)
 
     def __init__(self, host: str, dynamics: float = 0.1, desk: tuple | None = None):
+        self.franky = import_extra("franky", "the franky backend", "franky-control", "franky")
         self.host, self.dynamics, self.desk = host, dynamics, desk
         self._robot = None
 
     def connect(self) -> None:
-        franky = _franky()
+        if self._robot is not None:
+            return
+        franky = self.franky
         try:
             self._robot = franky.Robot(self.host, realtime_config=franky.RealtimeConfig.Ignore)
             self._robot.relative_dynamics_factor = self.dynamics
@@ -67,17 +66,17 @@ class FrankyRobot(RobotAdapter):
         return JointState(np.array(s.q), np.array(s.dq), np.array(s.tau_J), self.clock.now(), {"robot_mode": s.robot_mode.name})
 
     def move_to(self, q: np.ndarray) -> None:
-        franky = _franky()
         try:
-            self._robot.move(franky.JointMotion([float(v) for v in q]))
+            self._robot.move(self.franky.JointMotion([float(v) for v in q]))
         except Exception as e:
             raise RobotConnectionError(f"franky: the move to {np.round(q, 4).tolist()} failed ({e})") from None
 
     def pilot_buttons(self) -> PilotButtons | None:
         if self.desk is None:
             return None
-        franky = _franky()
-        desk = franky.Desk(self.host, *self.desk)
+        if not hasattr(self.franky, "Desk"):
+            raise MissingExtraError("the pilot-button trigger", "franky-control>=2.0", "franky")
+        desk = self.franky.Desk(self.host, *self.desk)
         try:
             desk.open()
         except Exception as e:

@@ -14,10 +14,6 @@ from ..errors import RobotConnectionError
 from .base import JointState, PilotButtons, RobotAdapter, import_extra
 
 
-def _panda_py():
-    return import_extra("panda_py", "the panda-py backend", "panda-python", "panda")
-
-
 class PandaPyPilot(PilotButtons):
     """Pilot buttons through panda-py's Desk listener (a thread feeding a queue)."""
 
@@ -61,13 +57,15 @@ class PandaPyRobot(RobotAdapter):
     extra_columns = ("robot_mode",)
 
     def __init__(self, host: str, speed: float = 0.1, desk: tuple | None = None):
+        self.panda_py = import_extra("panda_py", "the panda-py backend", "panda-python", "panda")
         self.host, self.speed, self.desk = host, speed, desk
         self._panda = None
 
     def connect(self) -> None:
-        panda_py = _panda_py()
+        if self._panda is not None:
+            return
         try:
-            self._panda = panda_py.Panda(self.host)
+            self._panda = self.panda_py.Panda(self.host)
             self._panda.teaching_mode(True)
         except Exception as e:
             raise RobotConnectionError(f"panda-py: cannot connect to the robot at {self.host} ({e})") from None
@@ -77,7 +75,8 @@ class PandaPyRobot(RobotAdapter):
             s = self._panda.get_state()
         except Exception as e:
             raise RobotConnectionError(f"panda-py: the robot at {self.host} stopped answering ({e})") from None
-        return JointState(np.array(s.q), np.array(s.dq), np.array(s.tau_J), self.clock.now(), {"robot_mode": str(s.robot_mode).rsplit(".", 1)[-1]})
+        mode = str(s.robot_mode).rsplit(".", 1)[-1]  # 'RobotMode.kIdle' -> 'kIdle'
+        return JointState(np.array(s.q), np.array(s.dq), np.array(s.tau_J), self.clock.now(), {"robot_mode": mode})
 
     def move_to(self, q: np.ndarray) -> None:
         try:
@@ -91,9 +90,8 @@ class PandaPyRobot(RobotAdapter):
     def pilot_buttons(self) -> PilotButtons | None:
         if self.desk is None:
             return None
-        panda_py = _panda_py()
         try:
-            return PandaPyPilot(panda_py.Desk(self.host, *self.desk))
+            return PandaPyPilot(self.panda_py.Desk(self.host, *self.desk))
         except Exception as e:
             raise RobotConnectionError(f"panda-py: cannot open the Desk session at {self.host} ({e})") from None
 

@@ -44,13 +44,16 @@ class RosRobot(RobotAdapter):
     def __init__(self, host: str, port: int = 9090, n: int = 7, joints: list | None = None, topic: str = "/joint_states",
                  stale: float = 1.0, clock: Clock = Clock()):
         self.host, self.port, self.n, self.joints, self.topic_name, self.stale = host, port, n, joints, topic, stale
+        self.roslibpy = import_extra("roslibpy", "the ros backend", "roslibpy", "ros")
         self.clock = clock
         self._ros = self._topic = self._msg = None
         self._received = threading.Event()
         self._lock = threading.Lock()
 
     def connect(self) -> None:
-        roslibpy = import_extra("roslibpy", "the ros backend", "roslibpy", "ros")
+        if self._ros is not None:
+            return
+        roslibpy = self.roslibpy
         try:
             self._ros = roslibpy.Ros(host=self.host, port=self.port)
             self._ros.run(timeout=5)

@@ -1,0 +1,226 @@
+"""End to end: the real ``franky`` adapter against the franky-sim simulator, which speaks libfranka's protocol.
+
+Only loopback is used. The simulator and the adapter run in a child process inside a
+private network namespace (``unshare --net``: nothing but a loopback interface) where the
+machine allows it; in any case the simulator's UDP state socket, which binds 0.0.0.0 by
+default, is pinned to the run's own 127.0.0.x address (libfranka always dials port 1337,
+so parallel simulators need distinct addresses). The operator is emulated by writing the
+simulator's joint positions in a step callback.
+
+Run as a script, this file is that harness: ``serve HOST`` runs a simulator,
+``scenario DIR HOST [--netns]`` drives it and prints a JSON report.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+# ----------------------------------------------------------------------------- simulator side
+def serve(host: str) -> None:
+    """Run one franky-sim robot on ``host`` until stdin closes.
+
+    stdin lines: a JSON list of 7 joint positions holds the arm there (the emulated
+    operator's hand); ``free`` lets the simulator's own control move it again.
+    """
+    import socket
+    import threading
+
+    import franky_sim
+    from franky_sim import franka_server
+    from franky_sim.mujoco_simulator import MujocoSimulator
+
+    class PinnedSocket(socket.socket):
+        def bind(self, address):  # franky-sim binds its UDP state socket to 0.0.0.0: keep it on loopback
+            if isinstance(address, tuple) and address[0] in ("0.0.0.0", ""):
+                address = (host, address[1])
+            super().bind(address)
+
+    class SocketModule:
+        socket = PinnedSocket
+
+        def __getattr__(self, name):
+            return getattr(socket, name)
+
+    franka_server.socket = SocketModule()
+    hold: list = [None]
+    done = threading.Event()
+
+    def read_commands():
+        for line in sys.stdin:
+            hold[0] = None if line.strip() == "free" else np.array(json.loads(line))
+        done.set()
+
+    with MujocoSimulator() as sim:
+        robot = sim.add_robot()
+
+        def operator(_sim):
+            if hold[0] is not None:
+                for a, v in zip(robot._qpos_addrs, hold[0]):
+                    robot.data.qpos[a] = v
+                for a in robot._dof_addrs:
+                    robot.data.qvel[a] = 0.0
+
+        sim.register_post_step_callback(operator)
+        with franky_sim.SimulationServer(sim, hostname_candidates=[host]) as server:
+            threading.Thread(target=read_commands, daemon=True).start()
+            print("READY", flush=True)
+            server.run_async()
+            done.wait()
+
+
+# ----------------------------------------------------------------------------- adapter side
+def _loopback_up() -> None:
+    """Bring up ``lo`` in a fresh network namespace (SIOCGIFFLAGS / SIOCSIFFLAGS)."""
+    import fcntl
+    import socket
+    import struct
+
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    flags = struct.unpack("16sH", fcntl.ioctl(s, 0x8913, struct.pack("16sH", b"lo", 0))[:18])[1]
+    fcntl.ioctl(s, 0x8914, struct.pack("16sH", b"lo", flags | 0x1))
+    s.close()
+
+
+def scenario(workdir: str, host: str) -> dict:
+    """Read joint positions, run a capture session, move, and lose the robot; report what happened."""
+    sys.path.insert(0, str(ROOT))
+    from collector.adapters.franky import FrankyRobot
+    from collector.capture import CaptureOptions, run_capture
+    from collector.errors import RobotConnectionError
+    from collector.store import CaptureStore
+    from collector.triggers import Trigger
+    from solver.aim import aim
+    from solver.model import DATA_DIR, load_model
+    from solver.session import load_layout, load_session, session_meta
+
+    report: dict = {}
+    t0 = time.monotonic()
+    server = subprocess.Popen([sys.executable, __file__, "serve", host], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert server.stdout.readline().strip() == "READY"
+        report["start_s"] = time.monotonic() - t0
+
+        def hold(q) -> None:
+            server.stdin.write((json.dumps([float(v) for v in q]) if q is not None else "free") + "\n")
+            server.stdin.flush()
+
+        nominal = load_model("panda")
+        layout = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+        rng = np.random.default_rng(4)
+        poses = {nm: aim(nominal, layout.points[nm], 2, rng, **layout.aim_kwargs()) for nm in ("P1", "P2")}
+
+        robot = FrankyRobot(host, dynamics=0.5)
+        t = time.monotonic()
+        robot.connect()
+        report["connect_s"] = time.monotonic() - t
+        start = robot.read().q
+        target = start + np.array([0.3, 0.2, -0.2, -0.3, 0.2, 0.3, -0.2])  # a short move clear of the floor
+        t = time.monotonic()
+        robot.move_to(target)
+        report["move_s"] = time.monotonic() - t
+        time.sleep(1.0)  # the simulator's position control settles (its dq then chatters at ~0.08 rad/s: no standstill wait here)
+        report["move_error"] = float(np.abs(robot.read().q - target).max())
+
+        q_set = poses["P1"][0]
+        hold(q_set)
+        time.sleep(0.1)
+        s = robot.read()
+        report["read_error"] = float(np.abs(s.q - q_set).max())
+        report["read_dq"] = float(np.abs(s.dq).max())
+        report["robot_mode"] = s.extra["robot_mode"]
+
+        class Operator(Trigger):
+            """Puts the arm on the next pose, then triggers (what a person at the pilot would do)."""
+
+            hint = "emulated operator"
+
+            def __init__(self):
+                self.queue = [q for nm in ("P1", "P2") for q in poses[nm]]
+
+            def wait(self) -> str:
+                hold(self.queue.pop(0))
+                time.sleep(0.05)
+                return "capture"
+
+        meta = session_meta("panda", layout, None)
+        meta["requested"] = ["P1", "P2"]
+        store = CaptureStore.create(Path(workdir) / "session", meta, 7, robot.extra_columns)
+        t = time.monotonic()
+        res = run_capture(store, robot, Operator(), nominal, CaptureOptions(2, hold=0.2), out=open(os.devnull, "w"))
+        report["session_s"] = time.monotonic() - t
+        report["complete"] = res.complete
+        session = load_session(store.folder)
+        report["session_error"] = float(np.abs(session.q - np.concatenate([poses["P1"], poses["P2"]])).max())
+        report["session_points"] = list(session.point)
+        report["session_modes"] = sorted(set(session.extra["robot_mode"]))
+
+        robot.connect()  # run_capture closed it
+        server.kill()
+        server.wait()
+        t = time.monotonic()
+        try:
+            robot.read()
+            report["disconnect"] = "not noticed"
+        except RobotConnectionError as e:
+            report["disconnect"] = str(e)
+        report["disconnect_s"] = time.monotonic() - t
+        robot.close()
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    report["total_s"] = time.monotonic() - t0
+    return report
+
+
+def _netns_available() -> bool:
+    try:
+        return subprocess.run(["unshare", "--net", "true"], capture_output=True, timeout=10).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+
+
+def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path):
+    pytest.importorskip("franky", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-control missing")
+    pytest.importorskip("franky_sim", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-sim missing")
+    host = f"127.0.0.{2 + os.getpid() % 250}"
+    cmd = [sys.executable, __file__, "scenario", str(tmp_path), host]
+    netns = _netns_available()
+    if netns:
+        cmd = ["unshare", "--net", "--"] + cmd + ["--netns"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=180, cwd=ROOT)
+    assert run.returncode == 0, run.stderr[-3000:]
+    r = json.loads(run.stdout.strip().splitlines()[-1])
+    print("franky-sim end to end:", {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()}, "netns", netns)
+    # franky reads the positions the simulator holds (the wire carries them exactly; MuJoCo rounds nothing)
+    assert r["read_error"] < 1e-6
+    assert r["read_dq"] < 1e-6
+    assert r["robot_mode"] == "Idle"
+    # a whole capture session through the adapter logs exactly the emulated operator's poses
+    assert r["complete"]
+    assert r["session_points"] == ["P1", "P1", "P2", "P2"]
+    assert r["session_error"] < 1e-6
+    # a commanded move (0.3 rad on the largest joint) gets there, to the simulator's position-control accuracy
+    assert r["move_error"] < 5e-3
+    # a robot that goes away is noticed within a few seconds, with the adapter's message
+    assert r["disconnect"].startswith(f"franky: the robot at {host} stopped answering")
+    assert r["disconnect_s"] < 5
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "serve":
+        serve(sys.argv[2])
+    else:
+        if "--netns" in sys.argv:
+            _loopback_up()
+        print(json.dumps(scenario(sys.argv[2], sys.argv[3])))
