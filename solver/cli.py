@@ -14,7 +14,9 @@ from .diagnose_cli import format_diagnosis
 from .effects import JOINT_EFFECTS, Extension, extension_from_model
 from .errors import FormatError, IdentificationError
 from .gravity import gravity_torques
-from .identify import identify, predict_spots
+from .identify import predict_spots
+from .measurement import fit
+from .point import tips
 from .model import load_model, load_yaml, resolve_robot_path
 from .session import load_configs, load_layout, load_session, session_meta, write_session
 from .simulate import simulate_captures
@@ -65,16 +67,27 @@ def print_report(rep: dict, out=None) -> None:
     for u in idf["unidentifiable"]:
         w(f"  not seen by the data (held at nominal): {u}\n")
     if rep["outliers"]:
-        w("outlier captures (left out): " + ", ".join(f"#{o['index']} (line {o['line']}, {o['point']})" for o in rep["outliers"]) + "\n")
+        w(f"outlier captures (left out): {len(rep['outliers'])}: " + ", ".join(f"#{o['index']} (line {o['line']}, {o['point']})" for o in rep["outliers"][:20]) + ("..." if len(rep["outliers"]) > 20 else "") + "\n")
+    if rep.get("measurement") == "point":
+        w(f"\n{'point':24} {'spread RMS before':>18} {'after':>8}   (mm, tool points about their mean)\n")
+        for nm, b in rep["before"]["points"].items():
+            w(f"{nm:24} {b['spread_rms_mm']:18.3f} {rep['after']['points'].get(nm, {}).get('spread_rms_mm', float('nan')):8.3f}\n")
+        for nm, b in rep["before"]["distances"].items():
+            w(f"|d - d0| {nm}: before {b:.3f} mm, after {rep['after']['distances'].get(nm, float('nan')):.3f} mm\n")
+    else:
+        _print_points(rep, w)
+    cv = rep.get("cross_validation")
+    if cv:
+        w(f"\n{cv['folds']}-fold cross-validated prediction error: RMS {cv['holdout_rms_mm']:.3f} mm, mean {cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS {cv['nominal_rms_mm']:.3f})\n")
+
+
+def _print_points(rep: dict, w) -> None:
     w(f"\n{'point':8} {'':7} {'n':>4} {'scatter mean':>13} {'scatter std':>12} {'error mean':>11} {'error max':>10}   (mm)\n")
     for nm, d in rep["points"].items():
         for lab in ("before", "after"):
             s = d[lab]
             if s:
                 w(f"{nm:8} {lab:7} {s['n']:4d} {s['scatter_mean']:13.3f} {s['scatter_std']:12.3f} {s['error_mean']:11.3f} {s['error_max']:10.3f}\n")
-    cv = rep.get("cross_validation")
-    if cv:
-        w(f"\n{cv['folds']}-fold cross-validated prediction error: RMS {cv['holdout_rms_mm']:.3f} mm, mean {cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS {cv['nominal_rms_mm']:.3f})\n")
 
 
 def cmd_solve(args) -> int:
@@ -87,7 +100,9 @@ def cmd_solve(args) -> int:
         ident = diagnosis.extended or diagnosis.geometric
         session = diagnosis.session
     else:
-        ident = identify(session, args.method, **({"robust": not args.no_robust} if args.method == "lm" else {}))
+        if session.measurement == "point" and args.method != "lm":
+            raise IdentificationError("point sessions are identified by --method lm")
+        ident = fit(session, method=args.method, robust=not args.no_robust)
     cv = cross_validate(session, args.method, args.folds) if args.folds and args.folds > 1 else None
     rep = solve_report(session, ident, cv)
     if diagnosis is not None:
@@ -111,9 +126,12 @@ def cmd_solve(args) -> int:
 def cmd_predict(args) -> int:
     model = load_model(args.model)
     cfg = load_configs(args.configs, model)
+    point = model.identification.get("measurement") == "point"
     z = args.plane_z if args.plane_z is not None else model.plane_z
-    if z is None:
+    if z is None and not point:
         raise FormatError(args.model, "the model has no plane; pass --plane-z", field="plane")
+    if point and model.tool_point is None:
+        raise FormatError(args.model, "a point model needs a tool point (tool: {point: [...]})", field="tool")
     ext = extension_from_model(model.extensions, args.model, model.n)
     q = cfg.q
     if ext is not None:
@@ -123,8 +141,13 @@ def cmd_predict(args) -> int:
         if "t" in ext.needs() and cfg.t is None:
             raise FormatError(args.configs, f"the model's {ext.effect} extension needs a 't' column (s)", line=1, field="t")
         q = ext.true_q(q, cfg.t, tau)
-    spots, length = predict_spots(model, q, z)
     w = csv.writer(sys.stdout, lineterminator="\n")
+    if point:
+        w.writerow(cfg.header + ["tip_x", "tip_y", "tip_z"])
+        for row, p in zip(cfg.rows, tips(model, q)):
+            w.writerow(row + [f"{c:.6f}" for c in p])
+        return 0
+    spots, length = predict_spots(model, q, z)
     w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length"])
     for row, s, t in zip(cfg.rows, spots, length):
         w.writerow(row + [f"{s[0]:.6f}", f"{s[1]:.6f}", f"{t:.6f}"])

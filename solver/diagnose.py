@@ -31,9 +31,10 @@ from .aim import polish
 from .effects import Extension, candidates
 from .errors import ModelError
 from .gravity import gravity_torques
-from .identify import Identification, identify_lm, spot_residuals
+from .identify import Identification
 from .laser import spot_joint_jacobian
-from .point import identify_point, polish_point, session_targets, tip_joint_jacobian, tips
+from .measurement import fit, residuals
+from .point import polish_point, session_targets, tip_joint_jacobian
 from .session import Session
 from .stats import folds
 
@@ -140,24 +141,6 @@ def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, 
     if session.robot.links:
         return gravity_torques(session.robot, session.q, payload), "gravity model"
     return None, "none"
-
-
-def fit(session: Session, extension: Extension | None = None, nominal=None, robust: bool = True) -> Identification:
-    """The lm identification for the session's measurement type."""
-    if session.measurement == "point":
-        return identify_point(session, nominal, robust, extension)
-    return identify_lm(session, nominal, robust, extension)
-
-
-def residuals(model, ext: Extension | None, session: Session, points: dict | None = None) -> np.ndarray:
-    """Residuals (m, d) of a model (and its extension) on captures: spot or tip minus target, mm."""
-    q = ext.true_q(session.q, session.t, session.tau) if ext else session.q
-    if session.measurement == "point":
-        return tips(model, q) - session_targets(session, points or {})
-    target = session.target.copy()
-    if ext is not None:
-        target[:, :2] += ext.target_offset(session.point)
-    return spot_residuals(model, q, target)
 
 
 def _joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:

@@ -15,8 +15,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .identify import Identification, identify, predict_spots
+from .identify import Identification, predict_spots
+from .measurement import fit, residuals
 from .model import RobotModel
+from .point import tips
 from .session import Session
 
 
@@ -95,8 +97,8 @@ class CrossValidation:
         }
 
 
-def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int = 0, fit=None) -> CrossValidation:
-    """Held-out in-plane error of each capture, predicted by a model fitted on the other folds.
+def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int = 0) -> CrossValidation:
+    """Held-out error of each capture, predicted by a model fitted on the other folds.
 
     Parameters
     ----------
@@ -104,29 +106,42 @@ def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int =
     method : str, identification method
     k : int, number of folds
     seed : int, fold assignment seed
-    fit : callable(Session) -> RobotModel, optional override of the identification
 
     Returns
     -------
-    CrossValidation
+    CrossValidation (in-plane spot errors, or tool-point errors against the training fit's points)
     """
-    fit = fit or (lambda s: identify(s, method).model)
     f = folds(session, k, seed)
     err = np.empty(session.m)
     for i in range(k):
         test = f == i
-        model = fit(session.subset(~test))
-        spots, _ = predict_spots(model, session.q[test], session.target[test, 2])
-        err[test] = np.linalg.norm(spots[:, :2] - session.target[test, :2], axis=1)
-    spots0, _ = predict_spots(session.robot, session.q, session.target[:, 2])
-    return CrossValidation(k, err, f, np.linalg.norm(spots0[:, :2] - session.target[:, :2], axis=1))
+        train = fit(session.subset(~test), method=method)
+        r = residuals(train.model, train.extension, session.subset(test), train.extra.get("points"))
+        err[test] = np.linalg.norm(r, axis=1)
+    return CrossValidation(k, err, f, np.linalg.norm(residuals(session.robot, None, session), axis=1))
+
+
+def point_session_stats(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:
+    """Per point: spread of the model's tool points about their mean (RMS, mean; mm); per known
+    distance: |d - d0| between the mean tool points (mm). MUKCa's self-consistency metrics."""
+    mask = np.ones(session.m, bool) if mask is None else mask
+    p = tips(model, session.q[mask], model.tool_point if model.tool_point is not None else session.tool_point)
+    names = session.point[mask]
+    centre, out = {}, {"points": {}, "distances": {}}
+    for nm in dict.fromkeys(names):
+        x = p[names == nm]
+        centre[nm] = x.mean(axis=0)
+        r = np.linalg.norm(x - centre[nm], axis=1)
+        out["points"][nm] = {"n": int(len(x)), "spread_rms_mm": round(float(np.sqrt(np.mean(r**2))), 6), "spread_mean_mm": round(float(r.mean()), 6)}
+    for a, b, d0 in session.distances:
+        if a in centre and b in centre:
+            out["distances"][f"{a}-{b}"] = round(float(abs(np.linalg.norm(centre[a] - centre[b]) - d0)), 6)
+    return out
 
 
 def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
     """The statistics ``lasercal solve`` prints, as a JSON-ready mapping."""
-    before = per_point(ident.nominal, session)
     used = ident.weights > 0
-    after = per_point(ident.model, session, used)
     idf = ident.identifiability
     rep = {
         "method": ident.method,
@@ -140,8 +155,16 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
         "identifiability": {
             "parameters": idf.n_params, "rank": idf.rank, "condition": round(idf.condition, 3), "unidentifiable": idf.unidentifiable,
         },
-        "points": {nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None} for nm in before},
     }
+    if session.measurement == "point":
+        nominal = ident.nominal if ident.nominal.tool_point is not None else ident.nominal.replace(tool_point=session.tool_point)
+        rep["measurement"] = "point"
+        rep["before"] = point_session_stats(nominal, session)
+        rep["after"] = point_session_stats(ident.model, session, used)
+        rep["identified_points"] = {k: [round(x, 4) for x in v] for k, v in ident.extra.get("points", {}).items()}
+    else:
+        before, after = per_point(ident.nominal, session), per_point(ident.model, session, used)
+        rep["points"] = {nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None} for nm in before}
     if ident.std_errors:
         rep["std_errors"] = {k: float(f"{v:.4g}") for k, v in ident.std_errors.items()}
     if cv is not None:
