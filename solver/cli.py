@@ -108,7 +108,7 @@ def cmd_solve(args) -> int:
     if diagnosis is not None:
         rep["diagnosis"] = diagnosis.as_dict()
     meta = {k: rep[k] for k in ("method", "converged", "iterations", "captures", "fit_rms_mm", "sigma_mm", "identifiability")}
-    meta.update({"session": str(Path(args.session).resolve()), "units": "mm, rad", "std_errors": rep.get("std_errors", {})})
+    meta.update({"measurement": session.measurement, "session": str(Path(args.session).resolve()), "units": "mm, rad", "std_errors": rep.get("std_errors", {})})
     for k in ("cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
