@@ -40,13 +40,9 @@ from itertools import combinations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .errors import LasercalError
+from .errors import CirclePointError
 
 _COLLINEAR = 1e-6  # twice the largest triangle area below this fraction of d_max^2: collinear points
-
-
-class CirclePointError(LasercalError):
-    """Points that cannot define a rotation plane and circle (too few, coincident, collinear)."""
 
 
 def _check(points: np.ndarray) -> np.ndarray:

@@ -33,3 +33,7 @@ class IdentificationError(LasercalError):
 
 class AimingError(LasercalError):
     """No in-limit configuration was found that aims the beam at the requested point."""
+
+
+class CirclePointError(LasercalError):
+    """Points that cannot define a rotation plane and circle (too few, coincident, collinear)."""

@@ -40,12 +40,12 @@ from scipy.spatial.transform import Rotation
 
 from .circlepoint import frame_errors, target_frame
 from .errors import IdentificationError, LasercalError, ModelError
+from .lsq import Identifiability, identifiability
 from .fullpose_io import CirclePointData
 from .minimal import link_frame, normalise_screw, screw_from_eta
 from .model import Link, RobotModel
 from .poe import adjoint, dexp_A, exp6, fk, inv_T, log6, poe_chain, skew
 
-_RANK_RTOL = 1e-6  # singular values of the column-scaled Jacobian below this fraction of the largest: unidentifiable
 SIGMA_START = (1e-3, 1.0)  # rad, mm: noise guesses for the first pass; only their ratio matters there
 _MAX_PASSES = 8  # re-weighting passes until the noise estimates settle (within 2 %)
 _MAX_PAIRS = 20000  # hand-eye pairs used by the closed-form frame estimate
@@ -147,49 +147,6 @@ def _error_jacobian(y: np.ndarray, J: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------- identifiability
-@dataclass(frozen=True)
-class Identifiability:
-    """What the data can and cannot see (SVD of the column-scaled whitened Jacobian).
-
-    Attributes
-    ----------
-    n_params : int
-    rank : int
-    condition : float, s_max / s_min over the identifiable subspace
-    singular_values : (n_params,) array
-    unidentifiable : tuple of str, each null-space direction by its largest parameter components
-    """
-
-    n_params: int
-    rank: int
-    condition: float
-    singular_values: np.ndarray
-    unidentifiable: tuple
-
-
-def identifiability(J: np.ndarray, names: list) -> tuple[Identifiability, np.ndarray]:
-    """SVD identifiability report of a (rows, p) Jacobian, and the basis of the identifiable subspace.
-
-    Columns are scaled to unit norm first, so that the rank decision does not depend
-    on units (rad-like eta, mm). The basis maps subspace coordinates z to parameter
-    steps: dx = basis @ z.
-
-    Returns
-    -------
-    Identifiability, and (p, rank) array
-    """
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale < 1e-9 * scale.max()] = 1.0  # a column of round-off: do not blow it up to unit norm
-    _, s, Vt = np.linalg.svd(J / scale, full_matrices=True)
-    s_full = np.zeros(J.shape[1])
-    s_full[: len(s)] = s
-    rank = int(np.sum(s_full > _RANK_RTOL * s_full[0]))
-    null = tuple(
-        " ".join(f"{v[k]:+.2f}*{names[k]}" for k in np.argsort(-np.abs(v))[:3] if abs(v[k]) > 0.05) for v in Vt[rank:]
-    )
-    return Identifiability(J.shape[1], rank, float(s_full[0] / s_full[rank - 1]), s_full, null), Vt[:rank].T / scale[:, None]
-
-
 # ----------------------------------------------------------------------- accuracy (Table 4)
 @dataclass(frozen=True)
 class Accuracy:
