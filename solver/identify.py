@@ -79,7 +79,7 @@ class Identification:
 
     @property
     def rms_mm(self) -> float:
-        """RMS in-plane residual over the captures used, mm."""
+        """RMS residual (in the plane, or 3-D for point sessions) over the captures used, mm."""
         w = self.weights > 0
         return float(np.sqrt(np.mean(np.sum(self.residuals[w] ** 2, axis=1))))
 
@@ -124,7 +124,7 @@ def _aperture_gauge(P: LaserParams, v: np.ndarray, cov: np.ndarray, aperture_z: 
     return gauge(v), G @ cov @ G.T
 
 
-def identify_lm(session: Session, nominal: RobotModel | None = None, robust: bool = True, extension: Extension | None = None, tau: np.ndarray | None = None) -> Identification:
+def identify_lm(session: Session, nominal: RobotModel | None = None, robust: bool = True, extension: Extension | None = None) -> Identification:
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
 
     Parameters
@@ -133,8 +133,7 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
     nominal : RobotModel, start model (default: the session's robot)
     robust : bool, flag outliers and refit without them
     extension : Extension, optional non-geometric effect identified jointly with the geometry
-        (its parameters start at zero)
-    tau : (m, n) array, joint torques for a compliance extension (default: the session's)
+        (its parameters start at zero; a compliance extension uses the session's torques)
 
     Returns
     -------
@@ -144,8 +143,7 @@ def identify_lm(session: Session, nominal: RobotModel | None = None, robust: boo
     nominal = nominal or session.robot
     start = _start(nominal, session)
     P = LaserParams(start)
-    q, target, t = session.q, session.target, session.t
-    tau = session.tau if tau is None else tau
+    q, target, t, tau = session.q, session.target, session.t, session.tau
     m, p = len(q), P.size
     k = extension.size if extension else 0
     if extension:

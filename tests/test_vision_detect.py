@@ -182,3 +182,16 @@ def test_spot_on_a_printed_cross_is_found_and_flagged():
     clear = detect_spots(render(Photo(VIEW, prints=(cross_print((430, -20), 12),),
                                       spots=(LaserSpot(160, 120, 2.5, 4.0),), **HARSH), 0))
     assert not clear[0][0].on_ink and not clear[1]
+
+
+def test_luma_centroid_beats_the_red_channel_on_chroma_subsampled_jpeg():
+    # JPEG keeps colour at half resolution: the red channel is rebuilt from it, the luma is not.
+    rng = np.random.default_rng(8)
+    err = {False: [], True: []}
+    for i in range(20):
+        u, v = rng.uniform(130, 190), rng.uniform(90, 150)
+        img = render(Photo(VIEW, spots=(LaserSpot(u, v, 2.0, 3.0),), paper=0.5, jpeg=90, gamma=2.2, bloom=0.3), i)
+        for luma in err:
+            s = detect_spots(img, luma=luma)[0][0]
+            err[luma].append(np.hypot(s.u - u, s.v - v))
+    assert rms(np.array(err[True])) < 0.06 and rms(np.array(err[True])) < 0.7 * rms(np.array(err[False]))

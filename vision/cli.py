@@ -22,7 +22,7 @@ import numpy as np
 from .beamcheck import fit_circle, tilt
 from .camera import calibrate, load_camera, save_camera
 from .errors import CalibrationError, VisionError
-from .images import read_image, to_gray
+from .images import chroma_subsampled, read_image, to_gray
 from .measure import Options, measure_photo, median_reference, spot_dicts
 from .overlay import draw, write
 from .plane import load_layout
@@ -75,7 +75,10 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
                    help=f"spots expected per photo; more is an error for that photo (default {expect_default})")
     p.add_argument("--color", dest="colour", choices=("red", "green"), default="red", help="laser colour")
     p.add_argument("--gamma", type=float, default=2.2,
-                   help="encoding gamma of the photos, for marker corners (2.2 camera JPEG, 1 linear)")
+                   help="encoding gamma of the photos (2.2 camera JPEG, 1 linear data)")
+    p.add_argument("--channel", choices=("auto", "laser", "luma"), default="auto",
+                   help="precise centroid on the laser's colour channel or the luma; auto: luma for JPEGs "
+                        "with subsampled colour, else the laser's channel")
 
 
 def register(subparsers) -> None:
@@ -112,7 +115,7 @@ def register(subparsers) -> None:
 
 def _options(args) -> Options:
     return Options(args.method, args.imagej_mode, args.imagej_threshold, args.imagej_box, args.colour,
-                   args.expect, args.gamma)
+                   args.expect, args.gamma, args.channel)
 
 
 def _context(args):
@@ -138,7 +141,7 @@ def _measure_all(args):
                  "method": opts.method, "convention": args.convention}
         try:
             img = read_image(path)
-            res = measure_photo(img, path, opts, layout, camera, reference)
+            res = measure_photo(img, path, opts, layout, camera, reference, chroma_subsampled(path))
         except VisionError as exc:
             entry["error"] = str(exc)
             entry["warnings"].append(str(exc))

@@ -62,3 +62,31 @@ def to_gray(img: np.ndarray) -> np.ndarray:
     """Grey uint8 copy for marker and pattern detection."""
     g = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     return g if g.dtype == np.uint8 else (g >> 8).astype(np.uint8)
+
+
+_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+
+
+def chroma_subsampled(path) -> bool:
+    """Whether a file is a JPEG that keeps its colour planes at lower resolution than
+    its luma (4:2:0, 4:2:2: what most cameras write). False for anything else.
+
+    Such a photo's red channel is rebuilt from half-resolution colour, so the precise
+    centroid uses the luma, the only plane kept at full resolution.
+    """
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(2) != b"\xff\xd8":
+                return False
+            while True:
+                marker = fh.read(2)
+                if len(marker) < 2 or marker[0] != 0xFF:
+                    return False
+                size = int.from_bytes(fh.read(2), "big")
+                if marker[1] in _SOF:
+                    seg = fh.read(size - 2)
+                    factors = {seg[7 + 3 * i] for i in range(seg[5])}  # (H << 4 | V) per component
+                    return len(factors) > 1
+                fh.seek(size - 2, 1)
+    except (OSError, IndexError):
+        return False

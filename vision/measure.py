@@ -27,6 +27,7 @@ class Options:
     colour: str = "red"
     expect: int | None = 1  # None: any number of spots
     gamma: float = 2.2  # the photos' encoding gamma, for marker corners and spots on ink
+    channel: str = "auto"  # precise centroid on: laser | luma | auto (luma for chroma-subsampled JPEGs)
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,8 @@ class PhotoResult:
 
 
 def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout: MarkerLayout | None = None,
-                  camera: Camera | None = None, reference: np.ndarray | None = None) -> PhotoResult:
+                  camera: Camera | None = None, reference: np.ndarray | None = None,
+                  subsampled: bool = False) -> PhotoResult:
     """Detect and measure the spots of one photo, on the plane when the layout has markers.
 
     Parameters
@@ -51,6 +53,7 @@ def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout:
     layout : MarkerLayout or None
     camera : Camera or None, lens distortion to undo before the homography
     reference : laser-off photo like ``img`` or None
+    subsampled : bool, the photo is a JPEG with chroma subsampling (see ``images.chroma_subsampled``)
 
     Raises
     ------
@@ -60,8 +63,9 @@ def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout:
     size = (img.shape[1], img.shape[0])
     if camera is not None:
         camera.check_size(size, name)
+    luma = opts.channel == "luma" or (opts.channel == "auto" and subsampled)
     spots, warnings = detect_spots(img, name, opts.colour, reference, opts.expect, opts.method,
-                                   opts.imagej_mode, opts.imagej_threshold, opts.imagej_box, opts.gamma)
+                                   opts.imagej_mode, opts.imagej_threshold, opts.imagej_box, opts.gamma, luma)
     plane = None
     if layout is not None:
         fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
