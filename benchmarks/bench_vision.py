@@ -20,15 +20,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from vision.camera import Camera  # noqa: E402
 from vision.detect import detect_spots  # noqa: E402
 from vision.errors import VisionError  # noqa: E402
 from vision.imagej import measure as imagej_measure  # noqa: E402
 from vision.images import to_gray  # noqa: E402
 from vision.measure import Options, measure_photo  # noqa: E402
 from vision.plane import MarkerLayout, find_fiducials  # noqa: E402
-from vision.camera import Camera  # noqa: E402
-from vision.render import (Glare, LaserSpot, Photo, cross_print, ink_dot, look_down, marker_prints,  # noqa: E402
-                           marker_sheet, render)
+from vision.render import (  # noqa: E402
+    Glare, LaserSpot, Photo, cross_print, ink_dot, look_down, marker_prints, marker_sheet, render)
 
 IMAGEJ = [(t, m) for t in ("default", "otsu") for m in ("centroid", "com")]
 CLEAN = dict(paper=0.5)
@@ -115,7 +115,8 @@ def big_photo(rng, seed, n_spots=1, clutter=True, dist=(0, 0, 0, 0, 0)):
 
 def section_plane(rng, n):
     print(f"\n## Spot on the plane, 12-MP photos at 0.3 mm/px with four markers ({n} photos x 5 spots)")
-    for label, dist in (("no lens distortion", (0, 0, 0, 0, 0)), ("distortion k1=-0.08, camera YAML", (-0.08, 0.02, 0, 0, 0))):
+    for label, dist in (("no lens distortion", (0, 0, 0, 0, 0)),
+                        ("distortion k1=-0.08, camera YAML", (-0.08, 0.02, 0, 0, 0))):
         errs = {"precise": [], "imagej otsu com": []}
         h_rms = []
         for i in range(n):

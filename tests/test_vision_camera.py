@@ -54,7 +54,8 @@ def test_chessboard_calibration_recovers_the_intrinsics():
         fit = cv2.perspectiveTransform(plane[inside].reshape(-1, 1, 2), H).reshape(-1, 2)
         return np.sqrt(np.mean(np.sum((fit - pts[inside]) ** 2, 1)))
 
-    assert homography_rms(undistort(uv, cam.K, cam.dist)) < 0.1 < 1.0 < homography_rms(uv)
+    assert homography_rms(undistort(uv, cam.K, cam.dist)) < 0.1
+    assert homography_rms(uv) > 1.0  # the distortion the camera model removes
 
 
 def test_charuco_calibration():

@@ -1,7 +1,8 @@
 """Spot detection and the precise centroid, against the renderer's known truth (px)."""
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from vision.detect import detect_spots, find_candidates
 from vision.errors import NoSpotError, SpotCountError

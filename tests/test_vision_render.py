@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from vision.render import (FULL, LaserSpot, Photo, Print, _speckle, aruco_print, look_down, render,
-                           square_corners)
+from vision.render import FULL, LaserSpot, Photo, Print, _speckle, aruco_print, look_down, render, square_corners
 
 
 def test_look_down_scale_orientation_and_round_trip():

@@ -218,12 +218,12 @@ def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -
         board = cv2.aruco.CharucoBoard((pattern["cols"], pattern["rows"]), pattern["square"],
                                        pattern["marker"], aruco_dictionary(pattern["dictionary"]))
         detector = cv2.aruco.CharucoDetector(board)
-        find = lambda g: charuco_points(g, detector)  # noqa: E731
-    else:
-        find = lambda g: chessboard_points(g, pattern["cols"], pattern["rows"], pattern["square"])  # noqa: E731
     obj, img = [], []
     for name, gray in images:
-        found = find(gray)
+        if pattern["type"] == "charuco":
+            found = charuco_points(gray, detector)
+        else:
+            found = chessboard_points(gray, pattern["cols"], pattern["rows"], pattern["square"])
         if found is None:
             warn(f"{name}: calibration pattern not found, photo skipped")
             continue

@@ -160,8 +160,8 @@ def _measure_all(args):
                               "z_mm": layout.plane_z}
         if args.overlay:
             name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
-            title = f"{path}  [{opts.method}{'' if opts.method == 'precise' else ' ' + opts.imagej_threshold + ' ' + opts.imagej_mode}]"
-            write(name, draw(img, res.spots, res.plane, title, args.convention))
+            how = opts.method if opts.method == "precise" else f"imagej {opts.imagej_threshold} {opts.imagej_mode}"
+            write(name, draw(img, res.spots, res.plane, f"{path}  [{how}]", args.convention))
         results.append((entry, res))
     return results
 
@@ -225,7 +225,10 @@ def beam_check_command(args) -> int:
     for w in warnings:
         _warn(w)
     shift = 0.5 if args.convention == "imagej" else 0.0
-    r4 = lambda x: None if x is None or not np.isfinite(x) else round(float(x), 4)  # noqa: E731
+
+    def r4(x):
+        return None if x is None or not np.isfinite(x) else round(float(x), 4)
+
     out = {
         "images": [e["image"] for e, _ in results],
         "spots": [{"image": e["image"], **e["spots"][0]} for e, _ in results],

@@ -76,7 +76,10 @@ class Spot:
     def to_dict(self, convention: str = "opencv") -> dict:
         """JSON-ready dict; ``convention="imagej"`` adds 0.5 px to u and v."""
         shift = 0.5 if convention == "imagej" else 0.0
-        r = lambda x, n: None if x is None else round(float(x), n)  # noqa: E731
+
+        def r(x, n):
+            return None if x is None else round(float(x), n)
+
         return {"u": r(self.u + shift, 4), "v": r(self.v + shift, 4),
                 "sigma_u": r(self.sigma_u, 4), "sigma_v": r(self.sigma_v, 4),
                 "x_mm": r(self.x_mm, 4), "y_mm": r(self.y_mm, 4),
@@ -295,8 +298,7 @@ def _fit_gaussian(raw: np.ndarray, bg: np.ndarray, valid: np.ndarray, start: tup
     yy, xx = np.nonzero(valid)
     if len(xx) < 12:
         return None
-    lin = lambda x: full * np.clip(x / full, 0, None) ** gamma  # noqa: E731
-    d = lin(raw[yy, xx]) - lin(bg[yy, xx])
+    d = full * (np.clip(raw[yy, xx] / full, 0, None) ** gamma - np.clip(bg[yy, xx] / full, 0, None) ** gamma)
 
     def resid(p):
         dx, dy = xx - p[0], yy - p[1]
@@ -408,9 +410,8 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
         near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~clipped
         near &= sig > thr / 2
         colour_ex = cv2.blur(sig - np.max(np.delete(delta, ch, axis=2), axis=2), (3, 3))
-        if near.sum() >= 3:
-            if colour_ex[near].sum() < 0.3 * sig[near].sum():
-                return Rejection("white", cand.u, cand.v)
+        if near.sum() >= 3 and colour_ex[near].sum() < 0.3 * sig[near].sum():
+            return Rejection("white", cand.u, cand.v)
         # JPEG ringing beside black ink is faintly coloured; laser light is strongly so.
         if colour_ex[near | blob].max(initial=0) < max(6 * noise[ch], contrast / 2):
             return Rejection("white", cand.u, cand.v)
@@ -496,7 +497,8 @@ def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", refe
     if img.ndim == 2:
         warnings.append("grey photo: white reflections cannot be told from laser light")
     if not spots:
-        why = {"dim": "not brighter than the paper (printed marks?)", "white": "white, not laser-coloured (reflections?)"}
+        why = {"dim": "not brighter than the paper (printed marks?)",
+               "white": "white, not laser-coloured (reflections?)"}
         kinds = [k for k in why if any(r.kind == k for r in rejected)]
         detail = "; rejected: " + ", ".join(f"{sum(r.kind == k for r in rejected)} {why[k]}" for k in kinds) \
             if kinds else ""

@@ -2,9 +2,9 @@
 
 Drawn on the photo: the mm grid of the plane (blue, labelled in mm), the detected
 markers (green outlines with ids; fiducials that disagree with the layout as red
-crosses), each spot (magenta circle and cross, numbered) and, along the top, a
-zoomed inset of every spot with its sub-pixel centre. Pixels in OpenCV's
-convention; lengths in mm.
+crosses), each spot (magenta circle and cross, numbered) and, along the top and
+clear of the corners, a zoomed inset of every spot with its sub-pixel centre.
+Pixels in OpenCV's convention; lengths in mm.
 """
 from __future__ import annotations
 
@@ -99,7 +99,7 @@ def draw(img: np.ndarray, spots: list[Spot], plane: PlaneMap | None = None, titl
 def _insets(out: np.ndarray, img: np.ndarray, spots: list[Spot], k: float) -> None:
     """Zoomed crops of the spots along the top edge, centre marked at sub-pixel accuracy."""
     side = int(round(180 * k)) | 1  # odd: the centre pixel is the middle one
-    x = int(round(10 * k))
+    x = int(round(0.15 * out.shape[1]))  # clear of a marker in the top-left corner
     src = img if img.dtype == np.uint8 else (img >> 8).astype(np.uint8)
     src = cv2.cvtColor(src, cv2.COLOR_GRAY2BGR) if src.ndim == 2 else src
     for n, s in enumerate(spots[:8], 1):

@@ -335,7 +335,7 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
         img = FULL * (img / FULL) ** (1 / photo.gamma)
     out = np.round(img).astype(np.uint8)
     if photo.jpeg is not None:
-        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(photo.jpeg)])
+        _, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(photo.jpeg)])
         out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     return out
 
