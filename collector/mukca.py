@@ -4,7 +4,9 @@ A ball on the Franka hand sits in one of two conical sockets 50 mm apart while t
 hand-guided; each ``<robot>/<position>/hole_k.csv`` holds joint angles (rad, no header, in
 recording order) that all put the ball centre at one unknown point. One session per robot:
 points ``<position>/hole_0``, ``<position>/hole_1`` (unknown, identified), a 50 mm distance
-per position, ``t`` = recording order (a count, not seconds: the data have no times).
+per position, ``t`` = recording order (a count, not seconds: the data have no times). The order
+is chronological within a socket file only: positions follow in alphabetical order, so a drift
+found on these data is weak evidence.
 """
 from __future__ import annotations
 

@@ -143,7 +143,7 @@ def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, 
     return None, "none"
 
 
-def _joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
+def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
     """d(residual)/dq (m, d, n) of the fitted model: spot in the plane, or tool point."""
     if session.measurement == "point":
         return tip_joint_jacobian(model, q)[1]
@@ -189,7 +189,7 @@ class Tester:
     def __init__(self, session: Session, ident: Identification, exts: list, tau):
         used = ident.weights > 0
         qt = ident.extension.true_q(session.q, session.t, tau) if ident.extension else session.q
-        Jq = _joint_jacobian(session, ident.model, qt)
+        Jq = joint_jacobian(session, ident.model, qt)
         d = ident.residuals.shape[1]  # 2 (spot in the plane) or 3 (tool point)
         # What the fit could absorb: its Jacobian in its own identifiable subspace (extension included),
         # with its constraint rows -- without them a world scaling, which scales every residual, would

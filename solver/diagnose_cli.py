@@ -8,6 +8,7 @@ import sys
 import numpy as np
 
 from .diagnose import ALPHA, diagnose
+from .errors import FormatError
 from .session import load_session
 
 
@@ -20,7 +21,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bootstrap", type=int, default=2000, help="first-order parametric-bootstrap replicates (default 2000; 0 skips)")
     p.add_argument("--refits", type=int, default=10, help="full simulations of the experiment with refits (default 10)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--payload", metavar="KG,X,Y,Z", help="mass (kg) and centre of mass at q = 0 (mm) carried by the flange, for the gravity model when torques are not logged")
     p.set_defaults(func=cmd_diagnose)
+
+
+def parse_payload(text: str | None):
+    """'KG,X,Y,Z' -> (kg, (3,) mm), or None."""
+    if not text:
+        return None
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != 4:
+        raise FormatError("--payload", f"expected KG,X,Y,Z (kg and mm), got {text!r}")
+    return vals[0], np.array(vals[1:])
 
 
 def format_diagnosis(d) -> str:
@@ -50,7 +65,7 @@ def format_diagnosis(d) -> str:
 
 
 def cmd_diagnose(args) -> int:
-    d = diagnose(load_session(args.session), alpha=args.alpha, n_boot=args.bootstrap, seed=args.seed, n_refit=args.refits)
+    d = diagnose(load_session(args.session), alpha=args.alpha, n_boot=args.bootstrap, seed=args.seed, n_refit=args.refits, payload=parse_payload(args.payload))
     if args.report:
         from .plots import diagnosis_plots
 

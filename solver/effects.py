@@ -7,6 +7,10 @@ Each effect adds a few parameters and is linear in them:
 * ``drift``                 q_true_i = q_logged_i + r_i t                 (r: rad/s)
 * ``reference_point_offset`` the true point is the session's point + (dx, dy)    (mm)
 
+Sign convention: tau is the torque that holds the arm still against gravity, tau = dV/dq
+(:mod:`solver.gravity`, libfranka's ``tau_J`` at standstill). A joint that yields under load
+turns down the gradient, so a physical sag has c < 0 and the joint's stiffness is k = -1/c.
+
 A joint effect is written as q_true = q_logged + sum_k p_k g_k e_{j_k}: parameter k acts
 on joint j_k through the regressor g_k(q, t, tau) (m,). The spot's derivative with respect
 to p_k is then the spot's joint Jacobian column j_k times g_k.

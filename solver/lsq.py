@@ -178,12 +178,6 @@ def fit_subspace(
 
     ident, basis = identifiability(jrows(v0, np.ones(m)), names)
     sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
-    # A start can be singular where the solution is not (a tool point exactly on the last axis):
-    # if the identifiable subspace grew at the solution, continue in the larger one.
-    again, basis2 = identifiability(jrows(v0 + basis @ sol.x, np.sqrt(w)), names)
-    if again.rank > ident.rank:
-        v0, ident, basis = v0 + basis @ sol.x, again, basis2
-        sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
     r = basis.shape[1]
     dof_ratio = max(1 - r / (d * m), 0.05)
     if robust:

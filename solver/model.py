@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .errors import FormatError, ModelError
+from .errors import FormatError
 from .minimal import normalise_screw
 
 FORMAT = "lasercal-robot/1"

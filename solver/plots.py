@@ -47,11 +47,10 @@ def diagnosis_plots(d, out) -> list[Path]:
         ax.legend()
         ax.set_title("geometric-fit residuals per reference point")
     else:
-        idx, G = ext.regressors(s.q, s.t, s.tau)
-        from .laser import spot_joint_jacobian
+        from .diagnose import joint_jacobian
 
-        _, Jq = spot_joint_jacobian(geo.model, s.q, s.target[:, 2])
-        col = Jq[:, :, idx[0]]
+        idx, G = ext.regressors(s.q, s.t, s.tau)
+        col = joint_jacobian(s, geo.model, s.q)[:, :, idx[0]]
         along = -np.sum(res * col, axis=1) / np.maximum(np.linalg.norm(col, axis=1) ** 2, 1e-12)  # rad of joint motion that would remove it
         ax.scatter(G[:, 0], 1e3 * along, s=8, label="captures")
         if d.extension is not None:

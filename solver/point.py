@@ -183,13 +183,11 @@ def identify_point(session: Session, nominal: RobotModel | None = None, robust: 
         _, Jq = tip_joint_jacobian(P.to_model(v[:p]), qt)
         return np.concatenate([J, Jq[:, :, idx] * G[:, None, :]], axis=2)
 
-    constraints = None
-    if session.distances:
-        def constraints(v):
-            r, J = P.distance_rows(v[:p], session)
-            return r, np.hstack([J, np.zeros((len(r), k))])
+    def constraints(v):
+        r, J = P.distance_rows(v[:p], session)
+        return r, np.hstack([J, np.zeros((len(r), k))])
 
-    fit = fit_subspace(residual, jacobian, np.r_[P.x0(session), np.zeros(k)], names, robust, constraints=constraints)
+    fit = fit_subspace(residual, jacobian, np.r_[P.x0(session), np.zeros(k)], names, robust, constraints=constraints if session.distances else None)
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     meta = {"method": "lm", "measurement": "point", "converged": fit.converged, "iterations": fit.iterations, "rank": fit.identifiability.rank, "n_params": p + k}
     fitted = extension.with_params(fit.v[p:], se[p:]) if extension else None

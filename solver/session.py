@@ -166,10 +166,14 @@ class Session:
     def subset(self, idx) -> "Session":
         """The same session restricted to captures idx (bool mask or indices)."""
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
+        seen = set(self.point[idx])
+        # an unknown point with no capture left cannot be identified: drop it and its distances
+        points = {k: v for k, v in self.points.items() if v is not None or k in seen}
+        distances = tuple(d for d in self.distances if d[0] in points and d[1] in points)
         return Session(
-            self.path, self.meta, self.robot, self.plane_z, self.aperture_z, self.points, self.point[idx], self.target[idx],
+            self.path, self.meta, self.robot, self.plane_z, self.aperture_z, points, self.point[idx], self.target[idx],
             self.t[idx], self.q[idx], pick(self.dq), pick(self.tau), {k: v[idx] for k, v in self.extra.items()}, self.lines[idx],
-            self.measurement, self.tool_point, self.distances,
+            self.measurement, self.tool_point, distances,
         )
 
 

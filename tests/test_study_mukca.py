@@ -1,0 +1,168 @@
+"""The MUKCa real-data study (issue 6): its statistics on synthetic numbers, and the study on the real data.
+
+The data tests use ../shared/data/mukca (CI has it) and skip with the reason where it is absent.
+The full four-robot study takes ~90 s on two cores (benchmarks/bench_study_mukca.py); here a
+--quick study of panda_4 runs once through the CLI and the tests read its report.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from collector.cli import main
+from collector.study_mukca import (
+    consistency, homogeneity, jackknife_se, load_robot, outlier_audit, position_of, stiffness, summarise,
+)
+from solver.measurement import fit
+from solver.session import load_session
+
+MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
+
+needs_data = pytest.mark.skipif(not (MUKCA / "panda_4").is_dir(), reason=f"MUKCa data not found at {MUKCA} (see PROVENANCE.md there)")
+
+
+# ------------------------------------------------------------------ no data needed
+def test_homogeneity_accepts_agreeing_and_rejects_disagreeing_estimates():
+    rng = np.random.default_rng(0)
+    cov = np.tile(np.diag([1.0, 4.0]), (4, 1, 1))
+    agree = np.array([10.0, -5.0]) + rng.normal(0, [1.0, 2.0], (4, 2))
+    h = homogeneity(agree, cov)
+    assert h["dof"] == 6 and h["p"] > 0.01
+    np.testing.assert_allclose(h["mean"], agree.mean(axis=0))  # equal covariances: the plain mean
+    flipped = agree * np.array([[1, 1], [-1, 1], [1, 1], [-1, 1]])  # sign differences between robots
+    assert homogeneity(flipped, cov)["p"] < 1e-6
+
+
+def test_stiffness_is_minus_inverse_compliance_with_propagated_error():
+    k, sk = stiffness([-2e-5, 1e-5], [1e-6, 1e-6])
+    np.testing.assert_allclose(k, [5e4, -1e5])  # a sag (c < 0) is a positive stiffness
+    np.testing.assert_allclose(sk, [2.5e3, 1e4])
+
+
+def test_jackknife_se_of_a_mean_is_the_standard_error():
+    x = np.random.default_rng(1).normal(size=20)
+    loo = np.array([np.delete(x, i).mean() for i in range(20)])
+    np.testing.assert_allclose(jackknife_se(loo[:, None])[0], x.std(ddof=1) / np.sqrt(20))
+
+
+class _Pts:
+    """The two fields of a Session that consistency() reads."""
+
+    def __init__(self, point, distances):
+        self.point, self.distances = np.asarray(point), distances
+
+
+def test_consistency_matches_mukca_definitions():
+    rng = np.random.default_rng(2)
+    a = rng.normal([0, 0, 0], 0.3, (30, 3))
+    b = rng.normal([50.4, 0, 0], 0.5, (40, 3))
+    c = consistency(np.vstack([a, b]), _Pts(["p/hole_0"] * 30 + ["p/hole_1"] * 40, (("p/hole_0", "p/hole_1", 50.0),)))
+    da, db = np.linalg.norm(a - a.mean(0), axis=1), np.linalg.norm(b - b.mean(0), axis=1)
+    s = c["sockets"]["p/hole_1"]
+    assert s["n"] == 40 and s["rms_mm"] == pytest.approx(np.sqrt(np.mean(db**2))) and s["mean_mm"] == pytest.approx(db.mean())
+    pos = c["positions"]["p"]
+    assert pos["distance_error_mm"] == pytest.approx(abs(np.linalg.norm(a.mean(0) - b.mean(0)) - 50.0))
+    # calibrate_fk/utils.py evaluate_model: N-weighted mean absolute error and RMS over both sockets, in metres
+    assert pos["mukca_mae_m"] == pytest.approx(1e-3 * (30 * da.mean() + 40 * db.mean()) / 70)
+    assert pos["mukca_sigma_m"] == pytest.approx(1e-3 * np.sqrt((np.sum(np.var(a, 0)) * 30 + np.sum(np.var(b, 0)) * 40) / 70))
+    assert summarise(c)["spread_mean_mm"] == pytest.approx((da.mean() + db.mean()) / 2)
+
+
+# ------------------------------------------------------------------ the real data
+@pytest.fixture(scope="module")
+def quick_report(tmp_path_factory):
+    """The CLI's --quick study of panda_4 (and its cleaned subset), run once."""
+    if not (MUKCA / "panda_4").is_dir():
+        pytest.skip(f"MUKCa data not found at {MUKCA}")
+    out = tmp_path_factory.mktemp("study")
+    assert main(["study-mukca", str(MUKCA), "-o", str(out), "--robots", "panda_4", "--quick"]) == 0
+    return out, json.loads((out / "report.json").read_text())
+
+
+@needs_data
+def test_study_cli_writes_tables_and_plots(quick_report):
+    out, rep = quick_report
+    for name in ("report.json", "report.md", "residuals_vs_regressor.png", "measured_vs_simulated.png", "stiffness.png", "loto_positions.png"):
+        assert (out / name).stat().st_size > 500, name
+    md = (out / "report.md").read_text()
+    for section in ("## 1.", "## 2.", "## 3.", "## 4.", "## 5.", "8.28e-03 -> 1.68e-04"):
+        assert section in md
+    assert (out / "sessions" / "panda_4" / "session.yaml").is_file()
+
+
+@needs_data
+def test_calibration_by_leaving_positions_out(quick_report):
+    x = quick_report[1]["robots"]["panda_4"]["calibration"]
+    assert [f["held_out"] for f in x["folds"]] == ["front", "left", "right", "very-front"]
+    test = x["test"]
+    assert test["nominal"]["spread_rms_mm"] > 5.0  # the nominal Panda: millimetres
+    assert test["geometric"]["spread_rms_mm"] < 0.35  # calibrated, on positions the fit never saw
+    assert test["geometric"]["distance_error_mm"] < 0.3 < test["nominal"]["distance_error_mm"]
+    assert x["train"]["geometric"]["spread_rms_mm"] < test["geometric"]["spread_rms_mm"]
+    assert test["geometric"]["mukca_mae_m"] == pytest.approx(1e-3 * test["geometric"]["spread_mean_mm"], rel=0.05)
+
+
+@needs_data
+def test_diagnosis_simulation_and_extension(quick_report):
+    x = quick_report[1]["robots"]["panda_4"]
+    d = x["diagnosis"]
+    assert d["effect"] == "joint_compliance" and 2 in d["joints"] and d["p_value"] < 1e-6
+    sim = x["simulation"]
+    assert sim["size"]["measured_rms_mm"] == pytest.approx(sim["size"]["simulated_rms_mm"][0], rel=0.05)  # by construction
+    assert sim["lag1"]["measured"] > sim["lag1"]["simulated_95"]  # structure the simulation lacks
+    assert sim["regressors"][0]["partial_r2"] > 5 * sim["regressors"][0]["simulated_r2_95"]
+    assert x["extension"]["gain_percent"]["nested"] > 3.0  # held out, effect chosen without the held-out position
+    cm = x["extension"]["compliance"]
+    assert cm["joints"] == [2, 3, 4] and len(cm["folds_rad_per_nm"]) == 4
+    assert cm["c_rad_per_nm"][2] < -2 * cm["se_rad_per_nm"][2]  # joint 4 sags
+
+
+@needs_data
+def test_outliers_against_the_authors_cleaning_panda_4(quick_report):
+    a = quick_report[1]["robots"]["panda_4"]["outliers"]
+    assert a["removed_by_authors"] == ["left"]
+    cf = a["confusion"]
+    assert sum(cf.values()) == 269 and cf["removed_flagged"] + cf["removed_not_flagged"] == 62
+    assert a["clean"]["rows_match_raw"]
+
+
+@needs_data
+def test_robust_loss_finds_the_corrupted_panda_2_position(tmp_path):
+    """The authors removed panda_2/high by hand; the robust fit flags its rows and the position screen names it."""
+    s = load_robot(MUKCA, "panda_2", tmp_path)
+    g = fit(s)
+    a = outlier_audit(s, g, ["high"], 0.01, {})
+    cf = a["confusion"]
+    assert cf["removed_flagged"] >= 20 and cf["kept_flagged"] <= 6
+    assert a["screened"] == ["high"]
+
+
+@needs_data
+def test_subset_drops_points_without_captures(tmp_path):
+    s = load_robot(MUKCA, "panda_4", tmp_path)
+    sub = s.subset(position_of(s) != "left")
+    assert set(sub.points) == set(sub.point) and "left/hole_0" not in sub.points
+    assert [d[0] for d in sub.distances] == ["front/hole_0", "right/hole_0", "very-front/hole_0"]
+
+
+@needs_data
+def test_import_mukca_cli_still_works(tmp_path):
+    assert main(["import-mukca", str(MUKCA / "panda_4"), "-o", str(tmp_path / "s"), "--positions", "front,left"]) == 0
+    s = load_session(tmp_path / "s")
+    assert set(position_of(s)) == {"front", "left"} and s.m == 129 and len(s.distances) == 2
+
+
+def test_study_cli_reports_a_missing_robot_folder(tmp_path, capsys):
+    assert main(["study-mukca", str(tmp_path), "-o", str(tmp_path / "r"), "--robots", "panda_9"]) == 2
+    assert "panda_9" in capsys.readouterr().err
+
+
+@needs_data
+def test_study_needs_two_tool_positions(tmp_path, capsys):
+    (tmp_path / "solo").mkdir()
+    (tmp_path / "solo" / "front").symlink_to(MUKCA / "panda_4" / "front")
+    assert main(["study-mukca", str(tmp_path), "-o", str(tmp_path / "r"), "--robots", "solo", "--quick"]) == 2
+    assert "two positions" in capsys.readouterr().err
