@@ -104,7 +104,7 @@ def main():
             if smallest is None and rate >= 0.95:
                 smallest = (size, np.mean(shifts))
         print(f"  smallest size found >= 95 %: {smallest[0]:g} ({smallest[1]:.2f} mm)" if smallest else "  not reached in this grid")
-    print("\n== speed: diagnose on 150 captures with the default 60-replicate bootstrap and 5-fold CV")
+    print("\n== speed: diagnose on 150 captures with the defaults (2000 first-order bootstrap replicates, 10 full refits, 5-fold CV)")
     s, _ = session(make("joint_compliance", 1e-4, np.random.default_rng(0)), 7)
     t = time.perf_counter()
     d = diagnose(s)
