@@ -13,7 +13,7 @@ import sys
 from solver.errors import LasercalError
 
 # Packages whose ``cli.register(subparsers)`` adds subcommands, in help order.
-_REGISTRARS = ("collector.demo_cli", "solver.cli", "collector.capture_cli", "solver.diagnose_cli", "collector.study_cli", "solver.fullpose_cli", "vision.cli")
+_REGISTRARS = ("collector.demo_cli", "collector.report_cli", "solver.cli", "collector.capture_cli", "solver.diagnose_cli", "collector.study_cli", "solver.fullpose_cli", "vision.cli")
 
 
 def _user_errors() -> tuple:

@@ -1,69 +1,344 @@
-"""``lasercal demo``: the thesis's Panda experiment (Section 4.3) on the built-in simulated robot.
+"""``lasercal demo``: the whole workflow on the built-in simulated Panda, no robot, camera or keyboard.
 
-The truth is the thesis's identified Panda (Table 4.3); an operator with 1 mm aiming
-noise captures 15 configurations at each of P1-P3; both methods calibrate; the P4
-validation of the thesis (60 configurations computed by each model, spots of the true
-robot) gives the before/after statistics, printed beside the thesis's.
+The story of the thesis's Panda experiment (Section 4.3), with one thing the thesis did
+not model hidden in the robot:
+
+1. Truth: the thesis's identified Panda (Table 4.3) whose joint 2 also bends under its
+   gravity load (joint compliance, c_2 = 1.2e-4 rad/Nm): its encoders read the true joint
+   angle minus c_2 tau_2 (:class:`EffectRobot`).
+2. Capture: the simulated operator aims at P1-P3 through the collector's capture session
+   (``collector.capture.run_capture``), which logs joint angles and torques.
+3. Calibration by both methods (``lm`` and ``thesis``), and the diagnosis, which should
+   name the hidden effect and fit it with the geometry.
+4. Validation at P4 (``collector.validate.run_validation``): each model computes the
+   configurations, the fake robot goes there, a fake camera photographs the true spot and
+   ``vision`` measures the photo. The extended model is validated behind a controller
+   that applies its correction (:class:`Compensated`).
+5. The report (``collector.report``).
 """
 from __future__ import annotations
 
+import io
 import json
+import time
+from dataclasses import asdict, dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from solver.diagnose import diagnose
+from solver.effects import Extension
+from solver.gravity import gravity_torques
 from solver.identify import identify
-from solver.model import load_model
-from solver.session import load_layout, load_session, session_meta, write_session
-from solver.simulate import simulate_captures, validation_spots
+from solver.model import DATA_DIR, RobotModel, load_model
+from solver.session import Layout, load_layout, load_session, session_meta
 from solver.stats import spot_stats
+
+from .adapters.base import FakeClock, JointState, RobotAdapter
+from .adapters.fake import FakeOperator, FakeRobot
+from .capture import CaptureOptions, run_capture
+from .errors import SessionError
+from .report import load_validation, write_report
+from .store import CaptureStore
+from .triggers import AutoTrigger
+from .validate import FakeCamera, ValidateOptions, ValidationResult, fake_view, measure_known_view, run_validation
 
 # Thesis Section 4.3 / Figures 4.5-4.6, at P4 (mm).
 THESIS_P4 = {"before": {"scatter_mean": 6.86, "scatter_std": 5.016, "error_mean": 9.76, "error_max": 26.993},
              "after": {"scatter_mean": 1.11, "scatter_std": 1.00, "error_mean": 1.057, "error_max": 4.92}}
+TRUTH = "panda_thesis_identified"
+NOMINAL = "panda"
+COMPLIANCE = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))  # rad/Nm: a few mrad under the Panda's gravity load
+_FIXED_POINT = 6  # iterations of the effect's fixed points: the corrections are milliradians
 
 
-def run_demo(out: Path, seed: int = 0, per_point: int = 15, aim_noise: float = 1.0, n_validation: int = 60, progress=None) -> dict:
-    """Run the simulated experiment, write its files under ``out`` and return the summary.
+@dataclass(frozen=True)
+class DemoOptions:
+    """What the demo simulates.
+
+    Attributes
+    ----------
+    seed : int, seed of the operator, the robot's motion and sensor noise, the photos and the fits
+    per_point : int, captures at each of P1-P3
+    aim_noise : float, the operator's aiming error per in-plane axis, mm
+    n_validation : int, configurations (photos) per validated model at P4
+    effect : Extension, the hidden joint effect with its true parameters
+    n_boot, n_refit : int, the diagnosis's bootstrap replicates and full refits
+    view_px : int, side of the square validation photos (0.1 mm per pixel, centred on P4)
+    """
+
+    seed: int = 0
+    per_point: int = 30
+    aim_noise: float = 0.5
+    n_validation: int = 60
+    effect: Extension = COMPLIANCE
+    n_boot: int = 2000
+    n_refit: int = 10
+    view_px: int = 800
+
+    def units(self) -> int:
+        """Progress units of a run: captures, photos of four models, three fits and the report."""
+        return 3 * self.per_point + 4 * self.n_validation + 4
+
+
+def encoder_reading(effect: Extension, q_true: np.ndarray, t: float, tau: np.ndarray) -> np.ndarray:
+    """The logged angles q (n,) whose effect-corrected angles are ``q_true``: ``effect.true_q(q) = q_true``.
+
+    Solved by fixed-point iteration, like :func:`solver.simulate.simulate_captures`.
+    """
+    q = np.array(q_true, dtype=float)
+    for _ in range(_FIXED_POINT):
+        q = q_true - (effect.true_q(q[None], np.array([t]), tau[None])[0] - q)
+    return q
+
+
+class EffectRobot(FakeRobot):
+    """The fake arm with a hidden joint effect: the true links sit at ``effect.true_q`` of the encoder angles.
+
+    The simulated motion, the operator and the camera act on the true links; :meth:`read`
+    reports what the encoders say (the torques are the measured ones); a commanded or guided
+    configuration is reached by the encoders, so the links go where the effect puts them.
+
+    Parameters
+    ----------
+    truth : RobotModel, the true geometry (with link masses: compliance bends under gravity)
+    clock : FakeClock
+    effect : Extension, a joint effect with its true parameters
+    operator : FakeOperator or None
+    seed : int
+    """
+
+    def __init__(self, truth: RobotModel, clock: FakeClock, effect: Extension, operator: FakeOperator | None = None, seed: int = 0):
+        super().__init__(truth, clock, operator, seed=seed)
+        self.effect = effect
+
+    def read(self) -> JointState:
+        s = super().read()
+        return replace(s, q=encoder_reading(self.effect, s.q, s.t, s.tau))
+
+    def _link(self, q: np.ndarray) -> np.ndarray:
+        """Where the links go when the encoders read q (the torques depend on that pose)."""
+        q = np.asarray(q, dtype=float)
+        t = np.array([self.clock.now()])
+        link = q
+        for _ in range(_FIXED_POINT):
+            link = self.effect.true_q(q[None], t, gravity_torques(self.truth, link[None]))[0]
+        return link
+
+    def move_to(self, q: np.ndarray) -> None:
+        super().move_to(self._link(q))
+
+    def prompt_configuration(self, q: np.ndarray) -> None:
+        super().prompt_configuration(self._link(q))
+
+
+class Compensated(RobotAdapter):
+    """A robot behind a controller that applies a model's non-geometric correction.
+
+    Asked to go to the configuration the model's geometry computed, it commands the
+    encoder angles that the model's extension maps onto it (compliance: with the model's
+    gravity torques at that pose). Everything else passes through.
+
+    Parameters
+    ----------
+    robot : RobotAdapter that can move
+    model : RobotModel, the model under test (its gravity model gives the torques)
+    extension : Extension, its fitted joint effect
+    """
+
+    def __init__(self, robot: RobotAdapter, model: RobotModel, extension: Extension):
+        self.robot, self.model, self.extension = robot, model, extension
+        self.name, self.can_move, self.clock = robot.name, robot.can_move, robot.clock
+        self.guidance, self.extra_columns = robot.guidance, robot.extra_columns
+
+    def connect(self) -> None:
+        self.robot.connect()
+
+    def read(self) -> JointState:
+        return self.robot.read()
+
+    def close(self) -> None:
+        self.robot.close()
+
+    def move_to(self, q: np.ndarray) -> None:
+        q = np.asarray(q, dtype=float)
+        self.robot.move_to(encoder_reading(self.extension, q, self.clock.now(), gravity_torques(self.model, q[None])[0]))
+
+
+class _Ticking(AutoTrigger):
+    """The simulated operator's trigger, reporting each capture to a progress callback."""
+
+    def __init__(self, tick):
+        super().__init__()
+        self.tick = tick
+
+    def wait(self) -> str:
+        self.tick()
+        return super().wait()
+
+
+class _TickingCamera(FakeCamera):
+    """The fake camera, reporting each photo to a progress callback."""
+
+    def __init__(self, tick, *args, **kw):
+        super().__init__(*args, **kw)
+        self.tick = tick
+
+    def photo(self) -> np.ndarray:
+        self.tick()
+        return super().photo()
+
+
+def thesis_layout() -> Layout:
+    """The thesis's layout: P1-P3 for calibration, P4 for validation."""
+    return load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+
+
+def capture_session(folder, truth: RobotModel, layout: Layout, opts: DemoOptions, tick=lambda: None) -> Path:
+    """An automatic capture session of the hidden-effect robot at the layout's calibration points.
 
     Returns
     -------
-    dict with 'p4' -> {'nominal', 'lm', 'thesis'} spot statistics (mm), 'thesis' (published),
-    and per-method 'iterations' and 'seconds'
+    Path of the session folder (session.yaml, captures.csv with joint angles, speeds and torques)
     """
-    step = progress or (lambda msg: None)
+    points = {k: layout.points[k] for k in layout.calibration}
+    operator = FakeOperator(truth, points, opts.per_point, opts.aim_noise, opts.seed, layout.aim_kwargs())
+    robot = EffectRobot(truth, FakeClock(), opts.effect, operator, seed=opts.seed)
+    hidden = {"name": opts.effect.effect, **opts.effect.to_dict()}
+    meta = session_meta(NOMINAL, layout, truth.aperture[2],
+                        simulated={"truth": truth.name, "aim_noise_mm": opts.aim_noise, "seed": opts.seed, "effect": hidden})
+    store = CaptureStore.create(folder, meta, truth.n, robot.extra_columns)
+    try:
+        run_capture(store, robot, _Ticking(tick), load_model(NOMINAL), CaptureOptions(opts.per_point, auto_discard=True), out=io.StringIO())
+    finally:
+        store.close()
+    return store.folder
+
+
+def validate_model(folder, model: RobotModel, model_ref: str, truth: RobotModel, layout: Layout, opts: DemoOptions,
+                   extension: Extension | None = None, tick=lambda: None) -> ValidationResult:
+    """A validation session at the layout's validation point on the hidden-effect robot, photos measured by ``vision``.
+
+    Parameters
+    ----------
+    folder : new folder (validation.yaml, validation.csv, photos/)
+    model : RobotModel under test; ``extension`` its fitted joint effect, applied by a :class:`Compensated` controller
+    model_ref : str, how validation.yaml names the model
+    truth, layout, opts : as for :func:`capture_session`
+    """
+    point = layout.validation[0]
+    robot = EffectRobot(truth, FakeClock(), opts.effect, seed=opts.seed)
+    view = fake_view(layout.points[point][:2], layout.plane_z, size=(opts.view_px, opts.view_px))
+    camera = _TickingCamera(tick, robot, view, layout.plane_z, seed=opts.seed)
+    arm = Compensated(robot, model, extension) if extension is not None else robot
+    return run_validation(folder, model, model_ref, layout, point, arm, camera, ValidateOptions(opts.n_validation, opts.seed),
+                          measure=lambda img, name: measure_known_view(img, name, view), out=io.StringIO())
+
+
+def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
+    """Run the whole story, write its files under ``out`` and return the summary (also in summary.json).
+
+    Files (``out`` must be new or empty): ``session/``, ``model_lm.yaml``, ``model_thesis.yaml``, ``model_extended.yaml``,
+    ``validation/{nominal,lm,thesis,extended}/``, ``report/index.html``, ``summary.json``.
+
+    Parameters
+    ----------
+    out : folder (created)
+    opts : DemoOptions
+    progress : callable(stage: str) or None, called once per progress unit (:meth:`DemoOptions.units`)
+
+    Returns
+    -------
+    dict with 'p4' -> {'nominal', 'lm', 'thesis', 'extended'} spot statistics (mm) measured from the
+    photos, 'thesis' (the published P4 figures), 'methods' (iterations, time, fit RMS), 'truth'
+    (the hidden effect), 'diagnosis' (:meth:`Diagnosis.as_dict`), 'found' (the diagnosis named the
+    hidden effect and joints), 'seconds' per stage and in total, 'report' (path)
+    """
+    step = progress or (lambda stage: None)
     out = Path(out)
+    if out.exists() and any(out.iterdir()):
+        raise SessionError(f"{out} is not empty (an earlier demo?): remove it or choose another folder with -o")
     out.mkdir(parents=True, exist_ok=True)
-    truth = load_model("panda_thesis_identified")
-    layout = load_layout(Path(__file__).resolve().parent.parent / "data" / "layouts" / "thesis.yaml")
-    rng = np.random.default_rng(seed)
-    step("capturing 15 configurations at each of P1-P3 (simulated operator, 1 mm aiming noise)")
-    c = simulate_captures(truth, layout, per_point, aim_noise, rng)
-    meta = session_meta("panda", layout, truth.aperture[2], simulated={"truth": truth.name, "aim_noise_mm": aim_noise, "seed": seed})
-    session = load_session(write_session(out / "session", meta, c.point, c.t, c.q))
-    p4 = layout.points[layout.validation[0]]
-    summary = {"p4": {}, "thesis": THESIS_P4, "methods": {}}
-    models = {"nominal": session.robot}
+    t_start = time.perf_counter()
+    seconds = {}
+    truth, layout = load_model(TRUTH), thesis_layout()
+
+    def timed(name, fn, *args, **kw):
+        t0 = time.perf_counter()
+        result = fn(*args, **kw)
+        seconds[name] = round(time.perf_counter() - t0, 2)
+        return result
+
+    session = load_session(timed("capture", capture_session, out / "session", truth, layout, opts, partial(step, "capture")))
+    idents = {}
     for method in ("lm", "thesis"):
-        step(f"calibrating by the {method} method")
-        ident = identify(session, method)
-        ident.model.save(out / f"model_{method}.yaml")
-        models[method] = ident.model
-        summary["methods"][method] = {"iterations": ident.iterations, "converged": ident.converged, "seconds": round(ident.seconds, 3), "fit_rms_mm": round(ident.rms_mm, 4)}
-    for name, model in models.items():
-        step(f"validating the {name} model at P4 (60 configurations)")
-        spots = validation_spots(truth, model, p4, n_validation, rng, **layout.aim_kwargs())
-        summary["p4"][name] = spot_stats(spots, p4).as_dict()
+        idents[method] = timed(method, identify, session, method)
+        idents[method].model.save(out / f"model_{method}.yaml")
+        step(f"calibrate ({method})")
+    d = timed("diagnose", diagnose, session, n_boot=opts.n_boot, n_refit=opts.n_refit, seed=opts.seed)
+    step("diagnose")
+    candidates = {"nominal": (session.robot, NOMINAL, None), "lm": (idents["lm"].model, "model_lm.yaml", None),
+                  "thesis": (idents["thesis"].model, "model_thesis.yaml", None)}
+    if d.extended is not None:
+        d.extended.model.save(out / "model_extended.yaml")
+        candidates["extended"] = (d.extended.model, "model_extended.yaml", d.extension)
+    validations = []
+    for name, (model, ref, ext) in candidates.items():
+        folder = out / "validation" / name
+        timed(f"validate {name}", validate_model, folder, model, ref, truth, layout, opts, ext, partial(step, f"validate {name}"))
+        validations.append(load_validation(folder))
+    reference = {f"thesis paper, {k}": v for k, v in THESIS_P4.items()}
+    report = timed("report", write_report, out / "report", session, idents["lm"], d, validations, reference,
+                   title=f"lasercal demo: the simulated Panda with a hidden {opts.effect.effect.replace('_', ' ')}")
+    step("report")
+    found = d.extension is not None and d.effect == opts.effect.effect and set(d.extension.joints) == set(opts.effect.joints)
+    summary = {
+        "p4": {v.label: spot_stats(v.spots, v.xyz).as_dict() for v in validations},
+        "thesis": THESIS_P4,
+        "methods": {m: {"iterations": i.iterations, "converged": i.converged, "seconds": round(i.seconds, 3), "fit_rms_mm": round(i.rms_mm, 4)}
+                    for m, i in idents.items()},
+        "truth": {"robot": truth.name, "effect": {"name": opts.effect.effect, **opts.effect.to_dict()}},
+        "options": {k: v for k, v in asdict(opts).items() if k != "effect"},
+        "captures": session.m,
+        "diagnosis": d.as_dict(),
+        "found": bool(found),
+        "seconds": {**seconds, "total": round(time.perf_counter() - t_start, 2)},
+        "report": str(report),
+    }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
 
 
 def format_summary(s: dict) -> str:
-    """The demo's printed table: P4 statistics beside the thesis's."""
+    """The demo's printed summary: P4 before/after beside the thesis, the effect found, the gain, the report."""
     rows = [f"{'P4 (441, 160, -8) mm':26} {'scatter mean':>12} {'scatter std':>11} {'error mean':>10} {'error max':>9}"]
-    for label, key, ref in (("nominal (before)", "nominal", "before"), ("lm (ours)", "lm", None), ("thesis method", "thesis", None), ("thesis paper, before", None, "before"), ("thesis paper, after", None, "after")):
+    labels = (("nominal (before)", "nominal", None), ("lm (ours)", "lm", None), ("thesis method", "thesis", None),
+              ("lm + effect (ours)", "extended", None), ("thesis paper, before", None, "before"), ("thesis paper, after", None, "after"))
+    for label, key, ref in labels:
+        if key is not None and key not in s["p4"]:
+            continue
         d = s["p4"][key] if key else s["thesis"][ref]
         rows.append(f"{label:26} {d['scatter_mean']:12.3f} {d['scatter_std']:11.3f} {d['error_mean']:10.3f} {d['error_max']:9.3f}")
     for m, d in s["methods"].items():
         rows.append(f"{m}: {d['iterations']} iterations, {d['seconds']} s, {'converged' if d['converged'] else 'stopped at the iteration cap'}")
+    truth = s["truth"]["effect"]
+    hidden = f"{truth['name']} at joint {', '.join(map(str, truth['joints']))}"
+    true_values = {k: v for k, v in truth.items() if isinstance(v, list) and k != "joints"}
+    rows.append(f"\nhidden in the robot: {hidden} ({', '.join(f'{k} = {v}' for k, v in true_values.items())} {truth['units']})")
+    dg = s["diagnosis"]
+    if dg["effect"] == "none":
+        rows.append(f"effect found: none (corrected p = {dg['p_value']:.3g})")
+    else:
+        where = f"point {dg['point']}" if dg["point"] else "joint " + ", ".join(map(str, dg["joints"]))
+        params = ", ".join(f"{k} = {v['value']:.3g} +- {v['std_error']:.2g} {v['units']}" for k, v in dg["parameters"].items())
+        rows.append(f"effect found: {dg['effect']} at {where}: {params} (corrected p = {dg['p_value']:.3g})"
+                    + ("" if s["found"] else "  -- not the hidden one"))
+    h = dg["holdout_rms_mm"]
+    gain = f"gain: held-out RMS {h['geometric']:.3f} -> {h['extended']:.3f} mm ({dg['gain_percent']:.1f}%)"
+    if "extended" in s["p4"]:
+        gain += f"; P4 error mean {s['p4']['lm']['error_mean']:.3f} -> {s['p4']['extended']['error_mean']:.3f} mm"
+    rows.append(gain)
+    rows.append(f"\n{s['captures']} captures, {4 * s['options']['n_validation']} photos, {s['seconds']['total']:.1f} s")
+    rows.append(f"report: {s['report']}")
     return "\n".join(rows)

@@ -94,7 +94,7 @@ def diagnosis_plots(d, out) -> list[Path]:
     ax.set_xlabel("held-out error x (mm)")
     ax.set_ylabel("held-out error y (mm)")
     ax.legend()
-    ax.set_title("cross-validated prediction errors, before/after the extension")
+    ax.set_title("held-out errors, before/after the extension", fontsize=10)
     fig.tight_layout()
     written.append(out / "before_after.png")
     fig.savefig(written[-1], dpi=110)

@@ -1,0 +1,213 @@
+"""lasercal report: the page's numbers are the library's, and a real browser renders it with its images."""
+from __future__ import annotations
+
+import csv
+import re
+import shutil
+import subprocess
+from html.parser import HTMLParser
+
+import cv2
+import numpy as np
+import pytest
+
+from collector.cli import main
+from collector.demo import TRUTH, DemoOptions, capture_session, thesis_layout, validate_model
+from collector.report import load_validation, parameter_table, write_report
+from solver.diagnose import diagnose
+from solver.diagnose_cli import format_diagnosis
+from solver.identify import identify
+from solver.laser import LaserParams
+from solver.model import load_model
+from solver.session import load_session
+from solver.stats import solve_report
+
+OPTS = DemoOptions(per_point=15, n_validation=8, n_boot=200, n_refit=2, seed=4)
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+class Tables(HTMLParser):
+    """Cell texts of every <table id=...>, row by row; and the <pre id=...> texts."""
+
+    def __init__(self, text: str):
+        super().__init__()
+        self.tables, self.pre, self._table, self._row, self._cell, self._pre = {}, {}, None, None, None, None
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "table":
+            self._table = self.tables.setdefault(a["id"], [])
+        elif tag == "tr" and self._table is not None:
+            self._row = []
+            self._table.append(self._row)
+        elif tag in ("td", "th") and self._row is not None:
+            self._cell = ""
+        elif tag == "pre":
+            self._pre = a["id"]
+            self.pre[self._pre] = ""
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append(self._cell)
+            self._cell = None
+        elif tag == "table":
+            self._table = None
+        elif tag == "pre":
+            self._pre = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell += data
+        if self._pre is not None:
+            self.pre[self._pre] += data
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory):
+    """A capture session, its calibration and diagnosis, and validations of the nominal and calibrated models at P4."""
+    root = tmp_path_factory.mktemp("report")
+    truth, layout = load_model(TRUTH), thesis_layout()
+    session = load_session(capture_session(root / "session", truth, layout, OPTS))
+    ident = identify(session, "lm")
+    ident.model.save(root / "model.yaml")
+    d = diagnose(session, n_boot=OPTS.n_boot, n_refit=OPTS.n_refit)
+    validate_model(root / "nominal", session.robot, "panda", truth, layout, OPTS)
+    validate_model(root / "calibrated", ident.model, str(root / "model.yaml"), truth, layout, OPTS)
+    validations = [load_validation(root / "nominal"), load_validation(root / "calibrated")]
+    reference = {"published": {"scatter_mean": 1.0, "scatter_std": 2.0, "error_mean": 3.0, "error_max": 4.0}}
+    index = write_report(root / "out", session, ident, d, validations, reference)
+    return root, session, ident, d, validations, index
+
+
+def test_validation_table_is_the_photos(experiment):
+    root, *_, index = experiment
+    rows = Tables(index.read_text()).tables["validation-stats"]
+    assert rows[0] == ["run", "model", "spots measured", "scatter mean", "scatter std", "error mean", "error max"]
+    assert [r[0] for r in rows[1:]] == ["nominal", "calibrated", "published"]
+    for row, name in zip(rows[1:], ("nominal", "calibrated")):
+        with open(root / name / "validation.csv") as f:  # straight from the file, not through load_validation
+            data = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
+        xy = np.array([[float(r["x_mm"]), float(r["y_mm"])] for r in data])
+        err = np.hypot(xy[:, 0] - 441, xy[:, 1] - 160)
+        radius = np.linalg.norm(xy - xy.mean(axis=0), axis=1)
+        assert row[2] == f"{len(xy)}/{OPTS.n_validation}"
+        assert row[3:] == [f"{v:.3f}" for v in (radius.mean(), radius.std(ddof=1), err.mean(), err.max())]
+    assert rows[3][3:] == ["1.000", "2.000", "3.000", "4.000"]
+    assert float(rows[1][5]) > 5 and float(rows[2][5]) < 2  # before: mm off; after: about the aiming noise
+
+
+def test_parameter_table_is_the_model_with_propagated_standard_errors(experiment):
+    _, _, ident, *_, index = experiment
+    rows = Tables(index.read_text()).tables["parameters"][1:]
+    n = ident.model.n
+    assert len(rows) == 2 * n + 2
+    values = np.array([[float(x) for x in r[2].split(", ")] for r in rows])
+    assert np.allclose(values[: 2 * n].reshape(n, 6), ident.model.screws, rtol=1e-5, atol=1e-8)
+    assert np.allclose(values[-2], ident.model.laser_dir, rtol=1e-5) and np.allclose(values[-1], ident.model.aperture, rtol=1e-5)
+    # Standard errors: the fit's covariance through a finite-difference Jacobian of the parametrisation.
+    P = LaserParams(ident.nominal)
+    x = ident.estimate[: P.size]
+
+    def flat(v):
+        m = P.to_model(v)
+        return np.r_[m.screws.ravel(), m.laser_dir, m.aperture]
+
+    D = np.empty((6 * n + 6, P.size))
+    for k in range(P.size):
+        h = np.zeros(P.size)
+        h[k] = 1e-7
+        D[:, k] = (flat(x + h) - flat(x - h)) / 2e-7
+    se = np.sqrt(np.diag(D @ ident.extra["cov"][: P.size, : P.size] @ D.T))
+    got = np.concatenate([r.std_error for r in parameter_table(ident)])
+    assert np.allclose(got, se, rtol=1e-4, atol=1e-9)
+    assert np.allclose([[float(x) for x in r[3].split(", ")] for r in rows], got.reshape(-1, 3), rtol=0.06, atol=1e-12)  # printed to 2 digits
+    assert got[-1] == 0.0  # the aperture height is the measured p_Mz: fixed, not estimated
+
+
+def test_points_identifiability_and_diagnosis_are_the_librarys(experiment):
+    _, session, ident, d, _, index = experiment
+    t = Tables(index.read_text())
+    rep = solve_report(session, ident)
+    expect = [[nm, when, str(s[when]["n"])] + [f"{s[when][k]:.3f}" for k in ("scatter_mean", "scatter_std", "error_mean", "error_max")]
+              for nm, s in rep["points"].items() for when in ("before", "after")]
+    assert t.tables["points"][1:] == expect
+    idf = {r[0]: r[1] for r in t.tables["identifiability"][1:]}
+    assert idf["rank"] == str(ident.identifiability.rank) and idf["parameters"] == str(ident.identifiability.n_params)
+    assert idf["not identifiable (1)"] == ident.identifiability.unidentifiable[0]
+    assert t.pre["diagnosis"] == format_diagnosis(d)
+
+
+def test_report_folder_is_self_contained(experiment):
+    *_, index = experiment
+    text = index.read_text()
+    srcs = re.findall(r'<img src="([^"]+)"', text)
+    assert len(srcs) == 6 and all("/" not in s and (index.parent / s).is_file() for s in srcs)
+    assert "http" not in text and "<script" not in text
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium to render the report headless (Debian: apt-get install chromium)")
+def test_report_renders_with_its_images_in_chromium(experiment, tmp_path):
+    *_, index = experiment
+    # The page under test plus a probe that records, once loaded, every image's decoded size.
+    probe = ('<script>window.addEventListener("load", function () { var s = [];'
+             ' for (var i = 0; i < document.images.length; i++) { var im = document.images[i];'
+             ' s.push(im.complete ? im.naturalWidth + "x" + im.naturalHeight : "0x0"); }'
+             ' document.body.setAttribute("data-images", s.join(" ")); });</script>')
+    page = index.with_name("probe.html")
+    page.write_text(index.read_text().replace("</body>", probe + "</body>"))
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+             "--disable-component-update", "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}"]
+    try:
+        dom = subprocess.run([CHROMIUM, *flags, "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
+                             capture_output=True, text=True, timeout=120, check=False).stdout
+        shot = tmp_path / "shot.png"
+        subprocess.run([CHROMIUM, *flags, f"--screenshot={shot}", "--window-size=1200,2400", "--hide-scrollbars", index.as_uri()],
+                       capture_output=True, timeout=120, check=False)
+    finally:
+        page.unlink()
+    sizes = re.search(r'data-images="([^"]*)"', dom).group(1).split()
+    files = [cv2.imread(str(index.parent / s)).shape for s in re.findall(r'<img src="([^"]+)"', index.read_text())]
+    assert sizes == [f"{w}x{h}" for h, w, _ in files]  # every image decoded, at its file's size
+    assert "Validation at P4" in dom and "Diagnosis" in dom
+    img = cv2.imread(str(shot))
+    assert img.shape[:2] == (2400, 1200) and img.std() > 20  # a page was painted, not a blank window
+
+
+def test_report_cli(experiment, tmp_path, capsys):
+    root = experiment[0]
+    out = tmp_path / "rep"
+    args = [str(root / "nominal"), str(root / "session"), str(root / "calibrated"), "-o", str(out), "--bootstrap", "50", "--refits", "1"]
+    assert main(["report", *args]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {out / 'index.html'}"
+    t = Tables((out / "index.html").read_text())
+    assert [r[0] for r in t.tables["validation-stats"][1:]] == ["nominal", "calibrated"]  # in the order given
+    first = Tables(experiment[-1].read_text())
+    assert t.tables["parameters"] == first.tables["parameters"]  # the same calibration as the library's
+    assert main(["report", str(root / "nominal"), "-o", str(out)]) == 2
+    assert "exactly one capture session folder (with session.yaml) among its folders, got 0" in capsys.readouterr().err
+
+
+def test_report_input_errors_name_the_file_and_line(experiment, tmp_path, capsys):
+    root = experiment[0]
+    bad = tmp_path / "bad"
+    shutil.copytree(root / "calibrated", bad, ignore=shutil.ignore_patterns("photos"))
+    lines = (bad / "validation.csv").read_text().splitlines()
+    header = lines[1].split(",")
+    cells = lines[3].split(",")
+    cells[header.index("y_mm")] = "abc"
+    lines[3] = ",".join(cells)
+    (bad / "validation.csv").write_text("\n".join(lines) + "\n")
+    assert main(["report", str(root / "session"), str(bad), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"lasercal: error: {bad / 'validation.csv'}, line 4, column 'y_mm': not a finite number: 'abc'"]
+    assert main(["report", str(root / "session"), str(tmp_path), "-o", str(tmp_path / "o")]) == 2
+    assert "neither a capture session" in capsys.readouterr().err
+    # Photos not measured yet: empty x_mm, y_mm are skipped, and none at all is an error.
+    for i in range(2, len(lines)):
+        cells = lines[i].split(",")
+        cells[header.index("x_mm")] = cells[header.index("y_mm")] = ""
+        lines[i] = ",".join(cells)
+    (bad / "validation.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(Exception, match="no measured spot"):
+        load_validation(bad)
