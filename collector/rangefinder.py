@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from .adapters.base import import_extra
+from .triggers import open_serial
 from .errors import DeviceError
 
 _READING = re.compile(rb"([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(mm|cm|m)?", re.IGNORECASE)
@@ -44,11 +44,7 @@ class SerialRangefinder:
 
     @classmethod
     def from_url(cls, url: str, query: bytes = b"", baudrate: int = 9600) -> "SerialRangefinder":
-        serial = import_extra("serial", "the rangefinder", "pyserial")
-        try:
-            return cls(serial.serial_for_url(url, baudrate=baudrate, timeout=0.2), query)
-        except (serial.SerialException, ValueError) as e:
-            raise DeviceError(f"rangefinder: cannot open {url}: {e}") from None
+        return cls(open_serial(url, baudrate, "rangefinder"), query)
 
     def measure(self) -> float:
         """One fresh reading, mm.

@@ -59,6 +59,15 @@ class EnterTrigger(Trigger):
             self.out.write(f"  ? {line.strip()!r}: {self.hint}\n")
 
 
+def open_serial(url: str, baudrate: int, what: str):
+    """A pyserial port at a URL (``/dev/ttyUSB0``, ``socket://...``, ``loop://``), 0.2 s read timeout."""
+    serial = import_extra("serial", f"the {what}", "pyserial")
+    try:
+        return serial.serial_for_url(url, baudrate=baudrate, timeout=0.2)
+    except (serial.SerialException, ValueError) as e:
+        raise DeviceError(f"{what}: cannot open {url}: {e}") from None
+
+
 class SerialTrigger(Trigger):
     """A button box or foot pedal speaking the serial protocol of this module.
 
@@ -76,11 +85,7 @@ class SerialTrigger(Trigger):
     @classmethod
     def from_url(cls, url: str, baudrate: int = 9600, out=sys.stdout) -> "SerialTrigger":
         """Open the device at a pyserial URL."""
-        serial = import_extra("serial", "the serial trigger", "pyserial")
-        try:
-            return cls(serial.serial_for_url(url, baudrate=baudrate, timeout=0.2), out)
-        except (serial.SerialException, ValueError) as e:
-            raise DeviceError(f"serial trigger: cannot open {url}: {e}") from None
+        return cls(open_serial(url, baudrate, "serial trigger"), out)
 
     def wait(self) -> str:
         while True:

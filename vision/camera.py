@@ -102,6 +102,16 @@ class Camera:
                 f"at {self.size[0]}x{self.size[1]} px (rotated or resized photo?)")
 
 
+def read_yaml(path: Path, what: str):
+    """Parse a YAML file; unreadable or invalid files raise LayoutError naming the file."""
+    try:
+        return yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise LayoutError(path, f"cannot read {what} ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        raise LayoutError(path, f"not valid YAML ({exc})") from None
+
+
 def load_camera(path) -> Camera:
     """Read a camera YAML (``format: lasercal-camera/1``).
 
@@ -111,12 +121,7 @@ def load_camera(path) -> Camera:
         The file is missing or malformed; the message names the file and field.
     """
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise LayoutError(path, f"cannot read camera file ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise LayoutError(path, f"not valid YAML ({exc})") from None
+    doc = read_yaml(path, "camera file")
     if not isinstance(doc, dict) or doc.get("format") != CAMERA_FORMAT:
         raise LayoutError(path, f"expected '{CAMERA_FORMAT}'", "format")
     try:

@@ -33,9 +33,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
-from .camera import Camera, distort
+from .camera import Camera, distort, read_yaml
 
 
 def distort_px(uv: np.ndarray, camera) -> np.ndarray:
@@ -151,12 +150,7 @@ def load_layout(path) -> MarkerLayout | None:
         Missing file, bad YAML or a malformed ``markers`` section (names the field).
     """
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise LayoutError(path, f"cannot read layout ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise LayoutError(path, f"not valid YAML ({exc})") from None
+    doc = read_yaml(path, "layout")
     if not isinstance(doc, dict):
         raise LayoutError(path, "expected a mapping at the top level")
     if doc.get("format", LAYOUT_FORMAT) != LAYOUT_FORMAT:
