@@ -13,9 +13,11 @@ Procedure (documented in README "Diagnosis"):
    effect are added while their conditional test (after refitting) stays significant.
    Otherwise the answer is ``none``.
 3. Show the disagreement by simulation: a parametric bootstrap re-runs the experiment on
-   the identified geometric robot (same poses, the estimated aiming noise), refits, and
-   recomputes the strongest candidate's statistic; the measured value's rank among the
-   simulated ones is a significance level that needs no F-distribution assumption.
+   the identified geometric robot (same poses, the estimated aiming noise) -- many
+   first-order replicates recompute the strongest candidate's statistic (the measured
+   value's rank among them is a significance level that needs no F-distribution
+   assumption), and a few full nonlinear re-simulations with refits give the residual
+   size the experiment should show.
 4. Fit the winning extension jointly with the geometry and measure the gain by
    cross-validation (the same stratified folds for both models).
 """
