@@ -103,7 +103,7 @@ def cmd_solve(args) -> int:
         if session.measurement == "point" and args.method != "lm":
             raise IdentificationError("point sessions are identified by --method lm")
         ident = fit(session, method=args.method, robust=not args.no_robust)
-    cv = cross_validate(session, args.method, args.folds) if args.folds and args.folds > 1 else None
+    cv = cross_validate(session, args.method, args.folds, inlier=ident.weights > 0) if args.folds and args.folds > 1 else None
     rep = solve_report(session, ident, cv)
     if diagnosis is not None:
         rep["diagnosis"] = diagnosis.as_dict()

@@ -73,7 +73,8 @@ class Diagnosis:
     p_value : float, Bonferroni-corrected p of the first selected candidate (or of the best one, for 'none')
     tests : list of CandidateTest, every candidate against the geometric model, best first
     geometric, extended : Identification
-    holdout_rms : dict 'geometric'/'extended' -> mm, K-fold cross-validated
+    holdout_rms : dict 'geometric'/'extended' -> mm, K-fold cross-validated, over the captures
+        the robust geometric fit does not flag as outliers
     bootstrap : dict, the simulated distribution of the best statistic and of the residual RMS
     torque_source : str, 'logged' or 'gravity model' or 'none'
     seconds : float
@@ -354,7 +355,8 @@ def diagnose(session: Session, alpha: float = ALPHA, n_boot: int = 2000, seed: i
     else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
         r_geo = geo.residuals
         r_ext = ext_fit.residuals if chosen else r_geo
-    rms = lambda r: float(np.sqrt(np.mean(np.sum(r**2, axis=1))))  # noqa: E731
+    inlier = geo.weights > 0  # captures the robust fit flags (mis-aims) are reported, not averaged in
+    rms = lambda r: float(np.sqrt(np.mean(np.sum(r[inlier] ** 2, axis=1))))  # noqa: E731
     return Diagnosis(
         chosen.effect if chosen else "none", ext_fit.extension if chosen else None, best.p_adjusted, tests, geo,
         ext_fit if chosen else None, {"geometric": rms(r_geo), "extended": rms(r_ext)}, boot, tau_src,

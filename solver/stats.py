@@ -79,17 +79,25 @@ def folds(session: Session, k: int, seed: int = 0) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """K-fold held-out prediction errors (mm): per capture and summarised."""
+    """K-fold held-out prediction errors (mm): per capture and summarised.
+
+    ``inlier`` marks the captures the summary counts: a capture the robust fit of the whole
+    session flags as an outlier (a mis-aim) says nothing about the model's accuracy and would
+    dominate an RMS, so it is reported as an outlier, not averaged in.
+    """
 
     k: int
     errors: np.ndarray
     fold: np.ndarray
     nominal_errors: np.ndarray
+    inlier: np.ndarray | None = None
 
     def as_dict(self) -> dict:
-        e, e0 = self.errors, self.nominal_errors
+        keep = np.ones(len(self.errors), bool) if self.inlier is None else self.inlier
+        e, e0 = self.errors[keep], self.nominal_errors[keep]
         return {
             "folds": self.k,
+            "captures_counted": int(keep.sum()),
             "holdout_rms_mm": float(np.sqrt(np.mean(e**2))),
             "holdout_mean_mm": float(e.mean()),
             "holdout_max_mm": float(e.max()),
@@ -97,7 +105,7 @@ class CrossValidation:
         }
 
 
-def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int = 0) -> CrossValidation:
+def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int = 0, inlier: np.ndarray | None = None) -> CrossValidation:
     """Held-out error of each capture, predicted by a model fitted on the other folds.
 
     Parameters
@@ -106,6 +114,7 @@ def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int =
     method : str, identification method
     k : int, number of folds
     seed : int, fold assignment seed
+    inlier : (m,) bool array, the captures the summary counts (default: all)
 
     Returns
     -------
@@ -118,7 +127,7 @@ def cross_validate(session: Session, method: str = "lm", k: int = 5, seed: int =
         train = fit(session.subset(~test), method=method)
         r = residuals(train.model, train.extension, session.subset(test), train.extra.get("points"))
         err[test] = np.linalg.norm(r, axis=1)
-    return CrossValidation(k, err, f, np.linalg.norm(residuals(session.robot, None, session), axis=1))
+    return CrossValidation(k, err, f, np.linalg.norm(residuals(session.robot, None, session), axis=1), inlier)
 
 
 def point_session_stats(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:

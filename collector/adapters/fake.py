@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.aim import aim, polish
+from solver.aim import aim, polish, spot_error
+from solver.errors import AimingError
 from solver.gravity import gravity_torques
 from solver.identify import predict_spots
 from solver.laser import LaserParams
@@ -97,9 +98,13 @@ class FakeOperator:
         """Where the operator brings the arm for capture ``index`` at ``name`` (try ``attempt``), (n,) rad."""
         rng = np.random.default_rng([self.seed, self.key(name), index, attempt])
         aimed = self.wrong.get((name, index), name) if attempt == 0 else name
-        q0 = self.poses(aimed)[index % self.per_point]
         hit = self.points[aimed] + np.r_[rng.normal(0.0, self.aim_noise, 2), 0.0]
-        return polish(self.truth, q0[None], hit)[0]
+        poses = self.poses(aimed)
+        for k in range(self.per_point):  # a pose whose polish does not land on the hit is passed over for the next
+            q = polish(self.truth, poses[(index + k) % self.per_point][None], hit)
+            if spot_error(self.truth, q, hit)[0] < 1e-6 and self.truth.within_limits(q)[0]:
+                return q[0]
+        raise AimingError(f"the simulated operator cannot aim at {aimed} with these poses")
 
 
 class FakeRobot(RobotAdapter):
