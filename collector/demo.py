@@ -85,12 +85,9 @@ class DemoOptions:
 def encoder_reading(effect: Extension, q_true: np.ndarray, t: float, tau: np.ndarray) -> np.ndarray:
     """The logged angles q (n,) whose effect-corrected angles are ``q_true``: ``effect.true_q(q) = q_true``.
 
-    Solved by fixed-point iteration, like :func:`solver.simulate.simulate_captures`.
+    Solved by :meth:`Extension.logged_q`, as in :func:`solver.simulate.simulate_captures`.
     """
-    q = np.array(q_true, dtype=float)
-    for _ in range(_FIXED_POINT):
-        q = q_true - (effect.true_q(q[None], np.array([t]), tau[None])[0] - q)
-    return q
+    return effect.logged_q(np.asarray(q_true, dtype=float)[None], np.array([t]), tau[None], _FIXED_POINT)[0]
 
 
 class EffectRobot(FakeRobot):

@@ -94,6 +94,16 @@ class Extension:
         np.add.at(dq.T, idx, (G * self.params).T)
         return q + dq
 
+    def logged_q(self, q_true: np.ndarray, t: np.ndarray | None = None, tau: np.ndarray | None = None, iterations: int = 6) -> np.ndarray:
+        """The logged angles (m, n) whose corrected angles are ``q_true``: the inverse of :meth:`true_q`.
+
+        Fixed-point iteration q = q_true - dq(q); it converges fast because dq is milliradians.
+        """
+        q = np.array(q_true, dtype=float)
+        for _ in range(iterations):
+            q = q_true - (self.true_q(q, t, tau) - q)
+        return q
+
     def target_offset(self, point_names: np.ndarray) -> np.ndarray:
         """(m, 2) mm added to the session's targets (only a reference_point_offset moves them)."""
         off = np.zeros((len(point_names), 2))

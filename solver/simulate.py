@@ -78,9 +78,7 @@ def simulate_captures(
     t = np.cumsum(rng.uniform(10.0, 30.0, len(q)))
     tau_true = gravity_torques(truth, q) if truth.links else None
     if effect is not None and effect.effect in JOINT_EFFECTS:
-        q_true, q = q, q.copy()
-        for _ in range(6):  # q_logged = q_true - dq(q_logged): converges fast, dq is milliradians
-            q = q_true - (effect.true_q(q, t, tau_true) - q)
+        q = effect.logged_q(q, t, tau_true)
     tau = None if tau_true is None else tau_true + rng.normal(0, tau_noise, tau_true.shape)
     return SimulatedCaptures(np.repeat(np.array(names, dtype=object), per_point), t, q, np.concatenate(hits), tau)
 
