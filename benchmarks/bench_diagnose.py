@@ -8,35 +8,49 @@ effect and size, N seeded trials; 'found' means the right effect AND the right j
 The smallest size found in >= 95 % of trials is reported; the false-alarm rate is the share
 of clean sessions with any finding.
 """
+
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from solver.diagnose import diagnose  # noqa: E402
-from solver.effects import Extension  # noqa: E402
-from solver.identify import predict_spots  # noqa: E402
-from solver.model import DATA_DIR, load_model  # noqa: E402
-from solver.session import Session, load_layout  # noqa: E402
-from solver.simulate import simulate_captures  # noqa: E402
+from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import Session, load_layout
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.effects import Extension
 
 TRUTH = load_model("panda_thesis_identified")
 NOMINAL = load_model("panda")
-LAYOUT = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
 LAYOUT4 = replace(LAYOUT, calibration=("P1", "P2", "P3", "P4"), validation=())
 
 
 def session(effect, seed, layout=LAYOUT, per_point=50):
     c = simulate_captures(TRUTH, layout, per_point, 0.5, np.random.default_rng(seed), effect=effect)
     target = np.array([layout.points[p] for p in c.point])
-    return Session(Path("."), {}, NOMINAL, layout.plane_z, TRUTH.aperture[2], layout.points, c.point, target, c.t, c.q, None, c.tau, {}, np.arange(len(c.q)) + 2), c
+    return Session(
+        Path("."),
+        {},
+        NOMINAL,
+        layout.plane_z,
+        TRUTH.aperture[2],
+        layout.points,
+        c.point,
+        target,
+        c.t,
+        c.q,
+        None,
+        c.tau,
+        {},
+        np.arange(len(c.q)) + 2,
+    ), c
 
 
 def spot_shift(effect, c, layout):
@@ -96,15 +110,24 @@ def main():
                 layout = LAYOUT4 if name == "reference_point_offset" else LAYOUT
                 s, c = session(eff, 2000 + seed, layout, 38 if name == "reference_point_offset" else 50)
                 d = diagnose(s, n_boot=0, k=0)
-                ok = d.effect == name and (d.extension.point == eff.point if eff.point else d.extension.joints == eff.joints)
+                ok = d.effect == name and (
+                    d.extension.point == eff.point if eff.point else d.extension.joints == eff.joints
+                )
                 hits += ok
                 shifts.append(spot_shift(eff, c, layout))
             rate = hits / n
             print(f"  size {size:g} ({np.mean(shifts):.2f} mm RMS spot shift): found {rate:.2f}")
             if smallest is None and rate >= 0.95:
                 smallest = (size, np.mean(shifts))
-        print(f"  smallest size found >= 95 %: {smallest[0]:g} ({smallest[1]:.2f} mm)" if smallest else "  not reached in this grid")
-    print("\n== speed: diagnose on 150 captures with the defaults (2000 first-order bootstrap replicates, 10 full refits, 5-fold CV)")
+        print(
+            f"  smallest size found >= 95 %: {smallest[0]:g} ({smallest[1]:.2f} mm)"
+            if smallest
+            else "  not reached in this grid"
+        )
+    print(
+        "\n== speed: diagnose on 150 captures with the defaults (2000 first-order bootstrap replicates, 10 "
+        "full refits, 5-fold CV)"
+    )
     s, _ = session(make("joint_compliance", 1e-4, np.random.default_rng(0)), 7)
     t = time.perf_counter()
     d = diagnose(s)

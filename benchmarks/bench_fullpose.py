@@ -10,27 +10,36 @@ Run from the repository: ``python benchmarks/bench_fullpose.py``. Prints
 3. the real FR3 camera data (``../shared/data/fr3-camera``): 5-fold cross-validated
    nominal vs calibrated accuracy, train and test.
 """
+
 from __future__ import annotations
 
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from lasercal.solver.formats.fullpose_io import read_pose_csv
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.identify.circlepoint import error_statistics
+from lasercal.solver.identify.fullpose import (
+    accuracy,
+    calibrate_fullpose,
+    cross_validate,
+    default_target,
+    format_table,
+    simulate_circlepoint,
+    with_target,
+)
+from lasercal.solver.kinematics.poe import fk
 
-from solver.circlepoint import error_statistics  # noqa: E402
-from solver.fullpose import accuracy, calibrate_fullpose, cross_validate, default_target, format_table, simulate_circlepoint, with_target  # noqa: E402
-from solver.fullpose_io import read_pose_csv  # noqa: E402
-from solver.model import load_model  # noqa: E402
-from solver.poe import fk  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 FR3 = Path(os.environ.get("LASERCAL_FR3_DATA", ROOT.parent / "shared" / "data" / "fr3-camera"))
-FLANGE = np.array([[1.0, 0, 0, 88], [0, -1, 0, 0], [0, 0, -1, 926], [0, 0, 0, 1]])  # Franka DH at q = 0, flange d = 107 mm
+FLANGE = np.array(
+    [[1.0, 0, 0, 88], [0, -1, 0, 0], [0, 0, -1, 926], [0, 0, 0, 1]]
+)  # Franka DH at q = 0, flange d = 107 mm
 STEP = np.radians(20.0)
 
 PAPER_T1 = {"mean": [0.0024074, 0.0012843, 0.0036070], "std": [0.0088443, 0.0117850, 0.0086101]}
@@ -51,10 +60,19 @@ def tables_1_2(radius: float = 50.0, runs: int = 200) -> None:
     st = once(2013)
     many = [once(s) for s in range(runs)]
     dt = time.perf_counter() - t0
-    print(f"== Tables 1-2: {{E}} (circle point) vs {{E'}} (forward kinematics); Puma (thesis Table 4.1 nominal), g = 30, m = 6, +20 deg, N(0, 0.01 mm); target {radius:g} mm off the axis")
-    print(f"   ours: seed 2013; 'typical': RMS over {runs} seeds of the mean, mean over them of the std; {dt:.2f} s for {runs + 1} runs")
+    print(
+        f"== Tables 1-2: {{E}} (circle point) vs {{E'}} (forward kinematics); Puma (thesis Table 4.1 "
+        f"nominal), g = 30, m = 6, +20 deg, N(0, 0.01 mm); target {radius:g} mm off the axis"
+    )
+    print(
+        f"   ours: seed 2013; 'typical': RMS over {runs} seeds of the mean, mean over them of the std; "
+        f"{dt:.2f} s for {runs + 1} runs"
+    )
     print(f"{'':22}{'x':>12}{'y':>12}{'z':>12}")
-    for name, key, paper in (("position [mm]", "position", PAPER_T1), ("Euler angle [deg]", "euler", PAPER_T2)):
+    for name, key, paper in (
+        ("position [mm]", "position", PAPER_T1),
+        ("Euler angle [deg]", "euler", PAPER_T2),
+    ):
         for stat in ("mean", "std"):
             ours = st[f"{key}_{stat}"]
             arr = np.array([s[f"{key}_{stat}"] for s in many])
@@ -75,11 +93,17 @@ def tables_1_2(radius: float = 50.0, runs: int = 200) -> None:
 
 
 def table_4(kind: str, g: int = 56) -> None:
-    nom_name, true_name = {"Puma": ("puma560", "puma560_thesis_actual"), "Panda": ("panda", "panda_thesis_identified")}[kind]
+    nom_name, true_name = {
+        "Puma": ("puma560", "puma560_thesis_actual"),
+        "Panda": ("panda", "panda_thesis_identified"),
+    }[kind]
     nom, tru = load_model(nom_name), load_model(true_name)
     tgt = default_target(nom)
     nom, tru = with_target(nom, tgt), with_target(tru, tgt)
-    print(f"\n== Table 4 form: {kind} ({nom_name} -> truth {true_name}), circle-point poses, g = {g} calibration (Q1) + {g} validation (Q2) configurations, m = 6, +20 deg")
+    print(
+        f"\n== Table 4 form: {kind} ({nom_name} -> truth {true_name}), circle-point poses, g = {g} "
+        f"calibration (Q1) + {g} validation (Q2) configurations, m = 6, +20 deg"
+    )
     for noise in (0.0, 0.001, 0.005, 0.01):
         rng = np.random.default_rng(7)
         q, T = simulate_circlepoint(tru, g, 6, STEP, noise, rng, tgt).poses()
@@ -91,9 +115,22 @@ def table_4(kind: str, g: int = 56) -> None:
         before_v = accuracy(Tv, fk(nom.screws, nom.ee_pose, qv))
         truth_err = accuracy(fk(tru.screws, tru.ee_pose, qv), fk(cal.model.screws, cal.model.ee_pose, qv))
         f = cal.fit
-        print(f"\n-- noise N(0, {noise} mm): rank {f.identifiability.rank}/{f.identifiability.n_params}, cond {f.identifiability.condition:.3g}, "
-              f"{f.iterations} iterations, {'converged' if f.converged else 'NOT converged'}, {dt:.2f} s")
-        print(format_table([("Q1 before", cal.before), ("Q1 after", cal.after), ("Q2 before", before_v), ("Q2 after", after_v), ("Q2 vs truth", truth_err)]))
+        print(
+            f"\n-- noise N(0, {noise} mm): rank {f.identifiability.rank}/{f.identifiability.n_params}, cond "
+            f"{f.identifiability.condition:.3g}, "
+            f"{f.iterations} iterations, {'converged' if f.converged else 'NOT converged'}, {dt:.2f} s"
+        )
+        print(
+            format_table(
+                [
+                    ("Q1 before", cal.before),
+                    ("Q1 after", cal.after),
+                    ("Q2 before", before_v),
+                    ("Q2 after", after_v),
+                    ("Q2 vs truth", truth_err),
+                ]
+            )
+        )
 
 
 def fr3() -> None:
@@ -110,13 +147,31 @@ def fr3() -> None:
     dt_cv = time.perf_counter() - t0
     al, f = cal.alignment, cal.fit
     eul = Rotation.from_matrix(al.tool[:3, :3]).as_euler("xyz", degrees=True)
-    print(f"\n== FR3 real data: {len(d.q)} camera poses in the board frame; nominal = Panda DH (FR3 shares it) with base and camera transforms fitted")
-    print(f"   camera from flange: ({al.tool[0, 3]:.2f}, {al.tool[1, 3]:.2f}, {al.tool[2, 3]:.2f}) mm, Euler xyz ({eul[0]:.2f}, {eul[1]:.2f}, {eul[2]:.2f}) deg "
-          "(hand-measured: 94.5, -9, 40.55 mm, 90 deg about z)")
-    print(f"   all poses: rank {f.identifiability.rank}/{f.identifiability.n_params}, cond {f.identifiability.condition:.3g}, {f.iterations} iterations, "
-          f"residual RMS {f.sigma[0] * 1e3:.3f} mrad, {f.sigma[1]:.3f} mm per component, {dt_all:.2f} s")
-    print(format_table([("nominal", cal.before), ("calibrated", cal.after)], "all 114 poses (fit = evaluation set)"))
-    rows = [("nominal train", cv.nominal_train), ("nominal test", cv.nominal_test), ("calibrated train", cv.calibrated_train), ("calibrated test", cv.calibrated_test)]
+    print(
+        f"\n== FR3 real data: {len(d.q)} camera poses in the board frame; nominal = Panda DH (FR3 shares it) "
+        "with base and camera transforms fitted"
+    )
+    print(
+        f"   camera from flange: ({al.tool[0, 3]:.2f}, {al.tool[1, 3]:.2f}, {al.tool[2, 3]:.2f}) mm, Euler "
+        f"xyz ({eul[0]:.2f}, {eul[1]:.2f}, {eul[2]:.2f}) deg "
+        "(hand-measured: 94.5, -9, 40.55 mm, 90 deg about z)"
+    )
+    print(
+        f"   all poses: rank {f.identifiability.rank}/{f.identifiability.n_params}, cond "
+        f"{f.identifiability.condition:.3g}, {f.iterations} iterations, "
+        f"residual RMS {f.sigma[0] * 1e3:.3f} mrad, {f.sigma[1]:.3f} mm per component, {dt_all:.2f} s"
+    )
+    print(
+        format_table(
+            [("nominal", cal.before), ("calibrated", cal.after)], "all 114 poses (fit = evaluation set)"
+        )
+    )
+    rows = [
+        ("nominal train", cv.nominal_train),
+        ("nominal test", cv.nominal_test),
+        ("calibrated train", cv.calibrated_train),
+        ("calibrated test", cv.calibrated_test),
+    ]
     print()
     print(format_table(rows, f"{cv.folds}-fold cross-validation (seed {cv.seed}), {dt_cv:.2f} s"))
 

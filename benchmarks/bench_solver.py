@@ -8,33 +8,47 @@ Jacobian at the captured poses, in the identifiable subspace); the held-out spot
 new pose then has expected square trace(J_new C J_new^T). Least squares under Gaussian
 aiming noise attains the bound asymptotically; we report actual / bound.
 """
+
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from solver.aim import aim  # noqa: E402
-from solver.identify import identify, predict_spots  # noqa: E402
-from solver.lsq import identifiability  # noqa: E402
-from solver.laser import LaserParams  # noqa: E402
-from solver.model import DATA_DIR, load_model  # noqa: E402
-from solver.session import Session, load_layout  # noqa: E402
-from solver.simulate import simulate_captures  # noqa: E402
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import Session, load_layout
+from lasercal.solver.identify.lsq import identifiability
+from lasercal.solver.identify.spot import identify, predict_spots
+from lasercal.solver.kinematics.aim import aim
+from lasercal.solver.kinematics.laser import LaserParams
 
 TRUTH = load_model("panda_thesis_identified")
 NOMINAL = load_model("panda")
-LAYOUT = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
 
 
 def session_from(c) -> Session:
     target = np.array([LAYOUT.points[p] for p in c.point])
     m = len(c.q)
-    return Session(Path("."), {}, NOMINAL, LAYOUT.plane_z, TRUTH.aperture[2], LAYOUT.points, c.point, target, c.t, c.q, None, None, {}, np.arange(2, m + 2))
+    return Session(
+        Path("."),
+        {},
+        NOMINAL,
+        LAYOUT.plane_z,
+        TRUTH.aperture[2],
+        LAYOUT.points,
+        c.point,
+        target,
+        c.t,
+        c.q,
+        None,
+        None,
+        {},
+        np.arange(2, m + 2),
+    )
 
 
 def captures(per_point, noise, seed):
@@ -43,7 +57,9 @@ def captures(per_point, noise, seed):
 
 def heldout(n=300, seed=99):
     rng = np.random.default_rng(seed)
-    q = np.concatenate([aim(TRUTH, LAYOUT.points[p], n // 3, rng, **LAYOUT.aim_kwargs()) for p in LAYOUT.calibration])
+    q = np.concatenate(
+        [aim(TRUTH, LAYOUT.points[p], n // 3, rng, **LAYOUT.aim_kwargs()) for p in LAYOUT.calibration]
+    )
     tgt = np.concatenate([np.repeat(LAYOUT.points[p][None], n // 3, 0) for p in LAYOUT.calibration])
     return q, tgt
 
@@ -69,7 +85,10 @@ def main():
         s = session_from(captures(50, 1.0, seed))
         t = time.perf_counter()
         r = identify(s, "lm")
-        print(f"  seed {seed}: {time.perf_counter() - t:.3f} s, {r.iterations} iterations (Jacobian evaluations, both stages), converged {r.converged}, fit RMS {r.rms_mm:.3f} mm")
+        print(
+            f"  seed {seed}: {time.perf_counter() - t:.3f} s, {r.iterations} iterations (Jacobian "
+            f"evaluations, both stages), converged {r.converged}, fit RMS {r.rms_mm:.3f} mm"
+        )
 
     print("\n== scaling (1 mm noise)")
     base = captures(50, 1.0, 7)
@@ -82,9 +101,15 @@ def main():
         t = time.perf_counter()
         r = identify(s, "lm", robust=False)
         dt = time.perf_counter() - t
-        print(f"  {m:6d} captures: {dt:.3f} s, {r.iterations} iterations, {1e3 * dt / r.iterations / m * 1000:.2f} us per capture-iteration")
+        print(
+            f"  {m:6d} captures: {dt:.3f} s, {r.iterations} iterations, "
+            f"{1e3 * dt / r.iterations / m * 1000:.2f} us per capture-iteration"
+        )
 
-    print("\n== held-out error vs the Cramer-Rao best achievable (1 mm aiming noise, 30 seeds; 300 noise-free held-out poses)")
+    print(
+        "\n== held-out error vs the Cramer-Rao best achievable (1 mm aiming noise, 30 seeds; 300 noise-free "
+        "held-out poses)"
+    )
     qh, th = heldout()
     for per_point in (15, 50):
         act, bound = [], []
@@ -97,7 +122,10 @@ def main():
             bound.append(crb_rms(c.q, s.target, qh, th, 1.0) ** 2)
         a, b = np.sqrt(np.mean(act)), np.sqrt(np.mean(bound))
         se = np.std(np.sqrt(act) / np.sqrt(bound), ddof=1) / np.sqrt(len(act))
-        print(f"  {3 * per_point:4d} captures: held-out RMS {a:.3f} mm, Cramer-Rao {b:.3f} mm, ratio {a / b:.3f} (+- {se:.3f} standard error over seeds)")
+        print(
+            f"  {3 * per_point:4d} captures: held-out RMS {a:.3f} mm, Cramer-Rao {b:.3f} mm, ratio "
+            f"{a / b:.3f} (+- {se:.3f} standard error over seeds)"
+        )
 
     print("\n== thesis vs lm (45 captures, the thesis's setup; 3 seeds; held-out on 300 noise-free poses)")
     for noise in (0.0, 1.0):
@@ -108,7 +136,10 @@ def main():
                 r = identify(s, method)
                 sp, _ = predict_spots(r.model, qh, th[:, 2])
                 e = np.linalg.norm(sp[:, :2] - th[:, :2], axis=1)
-                row.append(f"{method}: {r.iterations:3d} it {r.seconds:6.3f} s held-out RMS {np.sqrt(np.mean(e**2)):.4f} mm")
+                row.append(
+                    f"{method}: {r.iterations:3d} it {r.seconds:6.3f} s held-out RMS "
+                    f"{np.sqrt(np.mean(e**2)):.4f} mm"
+                )
             print(f"  noise {noise} seed {seed}: " + " | ".join(row))
 
 

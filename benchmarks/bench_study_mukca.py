@@ -1,21 +1,20 @@
 """Time the whole MUKCa study (issue 6): four robots, every fold, every candidate effect.
 
-Run: python benchmarks/bench_study_mukca.py [DATA_DIR] [--quick] [-o REPORT_DIR]   (prints numbers; no assertions)
+Run: python benchmarks/bench_study_mukca.py [DATA_DIR] [--quick] [-o REPORT_DIR]
+(prints numbers; no assertions)
 
 The issue's budget: the four-robot study under 5 minutes on the project machine (2 cores,
 shared). DATA_DIR defaults to ../shared/data/mukca next to the repository.
 """
+
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from collector.study_mukca import QUICK, ROBOTS, StudyOptions, run_study  # noqa: E402
+from lasercal.collector.studies.mukca import QUICK, ROBOTS, StudyOptions, run_study
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 

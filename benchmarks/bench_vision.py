@@ -9,26 +9,32 @@ Prints the numbers quoted in the README section. All photos come from
 ``vision.render`` with fixed seeds; pixels in OpenCV's convention, lengths in mm,
 times in ms of wall clock after decoding (the photo is already an array).
 """
+
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from vision.camera import Camera  # noqa: E402
-from vision.detect import detect_spots  # noqa: E402
-from vision.errors import VisionError  # noqa: E402
-from vision.imagej import measure as imagej_measure  # noqa: E402
-from vision.images import to_gray  # noqa: E402
-from vision.measure import Options, measure_photo  # noqa: E402
-from vision.plane import MarkerLayout, find_fiducials  # noqa: E402
-from vision.render import (  # noqa: E402
-    Glare, LaserSpot, Photo, cross_print, ink_dot, look_down, marker_prints, marker_sheet, render)
+from lasercal.vision.camera import Camera
+from lasercal.vision.detect import detect_spots
+from lasercal.vision.errors import VisionError
+from lasercal.vision.imagej import measure as imagej_measure
+from lasercal.vision.images import to_gray
+from lasercal.vision.measure import Options, measure_photo
+from lasercal.vision.plane import MarkerLayout, find_fiducials
+from lasercal.vision.render import (
+    Glare,
+    LaserSpot,
+    Photo,
+    cross_print,
+    ink_dot,
+    look_down,
+    marker_prints,
+    marker_sheet,
+    render,
+)
 
 IMAGEJ = [(t, m) for t in ("default", "otsu") for m in ("centroid", "com")]
 CLEAN = dict(paper=0.5)
@@ -37,7 +43,7 @@ HARSH = dict(paper=0.5, jpeg=90, gamma=2.2, bloom=0.3, gradient=0.2)
 
 def rms(e):
     e = np.asarray(e, float)
-    return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
+    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
 def centroid_trial(rng, n, spot_kw, photo_kw, seed0):
@@ -67,8 +73,10 @@ def centroid_trial(rng, n, spot_kw, photo_kw, seed0):
 
 
 def section_centroids(rng, n):
-    print(f"\n## Centroid error, px (RMS of the 2-D error over {n} spots; failures = threshold did not isolate "
-          "the spot; gross = error > 1 px)")
+    print(
+        f"\n## Centroid error, px (RMS of the 2-D error over {n} spots; failures = threshold did not isolate "
+        "the spot; gross = error > 1 px)"
+    )
     cases = {
         "clean, unsaturated (sigma 1.5-3 px)": (dict(sigma=(1.5, 3.0), peak=(0.25, 0.4)), CLEAN),
         "saturated + speckle 0.3 + JPEG q90": (dict(sigma=(1.5, 3.0), peak=(2.0, 6.0), speckle=0.3), HARSH),
@@ -90,13 +98,23 @@ def section_speckle(rng, n):
     print(f"{'contrast':>8} {'precise':>8} {'sigma':>8} {'imagej otsu com':>16}")
     for c in (0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0):
         res, fails = centroid_trial(rng, n, dict(sigma=(1.5, 3.0), peak=(2.0, 6.0), speckle=c), HARSH, 2000)
-        print(f"{c:8.1f} {rms(res['precise']):8.3f} {rms(res['sigma']):8.3f} {rms(res['imagej otsu com']):16.3f}")
+        print(
+            f"{c:8.1f} {rms(res['precise']):8.3f} {rms(res['sigma']):8.3f} "
+            f"{rms(res['imagej otsu com']):16.3f}"
+        )
 
 
 def big_photo(rng, seed, n_spots=1, clutter=True, dist=(0, 0, 0, 0, 0)):
     """A 12-MP (4000x3000) photo at 0.3 mm/px: four 50-mm markers, spots, and room-light clutter."""
-    view = look_down((4000, 3000), 0.3, centre=(450.0, 0.0), tilt_deg=tuple(rng.uniform(-1.5, 1.5, 2)),
-                     yaw_deg=rng.uniform(-15, 15), dist=dist, z=-8)
+    view = look_down(
+        (4000, 3000),
+        0.3,
+        centre=(450.0, 0.0),
+        tilt_deg=tuple(rng.uniform(-1.5, 1.5, 2)),
+        yaw_deg=rng.uniform(-15, 15),
+        dist=dist,
+        z=-8,
+    )
     markers = marker_sheet(view, side=50, inset=0.06)
     prints = marker_prints(markers)
     glares = ()
@@ -106,17 +124,31 @@ def big_photo(rng, seed, n_spots=1, clutter=True, dist=(0, 0, 0, 0, 0)):
         glares = (Glare(*rng.uniform([400, 400], [3600, 2600]), rng.uniform(4, 10), rng.uniform(1, 3)),)
     # Spots away from the clutter (printed marks under a spot bias any centroid: see the README).
     uv = rng.uniform([700, 600], [3300, 2400], (n_spots, 2))
-    spots = tuple(LaserSpot(u, v, rng.uniform(1.5, 3.5), rng.uniform(0.6, 6.0), speckle=rng.uniform(0, 0.4))
-                  for u, v in uv)
-    photo = Photo(view, prints, spots, glares, paper=rng.uniform(0.4, 0.65), gradient=rng.uniform(-0.3, 0.3),
-                  vignetting=rng.uniform(0, 0.25), jpeg=int(rng.integers(80, 96)), gamma=2.2, bloom=0.3)
+    spots = tuple(
+        LaserSpot(u, v, rng.uniform(1.5, 3.5), rng.uniform(0.6, 6.0), speckle=rng.uniform(0, 0.4))
+        for u, v in uv
+    )
+    photo = Photo(
+        view,
+        prints,
+        spots,
+        glares,
+        paper=rng.uniform(0.4, 0.65),
+        gradient=rng.uniform(-0.3, 0.3),
+        vignetting=rng.uniform(0, 0.25),
+        jpeg=int(rng.integers(80, 96)),
+        gamma=2.2,
+        bloom=0.3,
+    )
     return view, markers, photo, render(photo, seed)
 
 
 def section_plane(rng, n):
     print(f"\n## Spot on the plane, 12-MP photos at 0.3 mm/px with four markers ({n} photos x 5 spots)")
-    for label, dist in (("no lens distortion", (0, 0, 0, 0, 0)),
-                        ("distortion k1=-0.08, camera YAML", (-0.08, 0.02, 0, 0, 0))):
+    for label, dist in (
+        ("no lens distortion", (0, 0, 0, 0, 0)),
+        ("distortion k1=-0.08, camera YAML", (-0.08, 0.02, 0, 0, 0)),
+    ):
         errs = {"precise": [], "imagej otsu com": []}
         h_rms = []
         for i in range(n):
@@ -124,9 +156,13 @@ def section_plane(rng, n):
             lay = MarkerLayout("bench", "DICT_4X4_50", markers, 3)
             cam = Camera(view.size, view.K, view.dist) if any(dist) else None
             truth = view.unproject(photo.truth())
-            for key, opts in (("precise", Options(expect=None)),
-                              ("imagej otsu com", Options(method="imagej", imagej_threshold="otsu",
-                                                          imagej_mode="com", expect=None))):
+            for key, opts in (
+                ("precise", Options(expect=None)),
+                (
+                    "imagej otsu com",
+                    Options(method="imagej", imagej_threshold="otsu", imagej_mode="com", expect=None),
+                ),
+            ):
                 res = measure_photo(img, "bench", opts, lay, cam, subsampled=True)
                 got = np.array([[s.x_mm, s.y_mm] for s in res.spots])
                 errs[key] += [np.min(np.hypot(*(got - p).T)) for p in truth]
@@ -138,8 +174,11 @@ def section_plane(rng, n):
 
 
 def section_detection(rng, n):
-    print(f"\n## Detection without a reference photo, {n} 12-MP photos (crosses, red ink, a glare, JPEG q80-95, "
-          "1 spot each)")
+    print(
+        f"\n## Detection without a reference photo, {n} 12-MP photos (crosses, red ink, a glare, JPEG "
+        "q80-95, "
+        "1 spot each)"
+    )
     ok, times, ij_whole, ij_box = 0, [], {k: 0 for k in IMAGEJ}, {k: 0 for k in IMAGEJ}
     for i in range(n):
         view, markers, photo, img = big_photo(rng, 4000 + i)
@@ -160,11 +199,15 @@ def section_detection(rng, n):
                     store[(t_, m)] += np.hypot(s.u - u, s.v - v) > 1.0
                 except VisionError:
                     store[(t_, m)] += 1
-    print(f"precise: {ok}/{n} detected ({100 * ok / n:.1f} %), median {1e3 * np.median(times):.0f} ms, "
-          f"max {1e3 * np.max(times):.0f} ms per photo")
+    print(
+        f"precise: {ok}/{n} detected ({100 * ok / n:.1f} %), median {1e3 * np.median(times):.0f} ms, "
+        f"max {1e3 * np.max(times):.0f} ms per photo"
+    )
     for k in IMAGEJ:
-        print(f"imagej {k[0]:<8} {k[1]:<8}: failed or > 1 px off: {ij_box[k]}/{n} with a 64-px box, "
-              f"{ij_whole[k]}/{n} on the whole photo")
+        print(
+            f"imagej {k[0]:<8} {k[1]:<8}: failed or > 1 px off: {ij_box[k]}/{n} with a 64-px box, "
+            f"{ij_whole[k]}/{n} on the whole photo"
+        )
 
 
 def section_speed(rng, repeats):
@@ -182,11 +225,15 @@ def section_speed(rng, repeats):
         return 1e3 * np.median(ts)
 
     print(f"spot detection + precise centroid: {timed(lambda: detect_spots(img, luma=True)):.0f}")
-    print(f"imagej method (detection + emulation): "
-          f"{timed(lambda: detect_spots(img, method='imagej', imagej_threshold='otsu')):.0f}")
+    print(
+        f"imagej method (detection + emulation): "
+        f"{timed(lambda: detect_spots(img, method='imagej', imagej_threshold='otsu')):.0f}"
+    )
     print(f"markers (ArUco + edge-fitted corners): {timed(lambda: find_fiducials(to_gray(img), lay)):.0f}")
-    print(f"whole photo (spots + markers + homography): "
-          f"{timed(lambda: measure_photo(img, 'b', Options(), lay, subsampled=True)):.0f}")
+    print(
+        f"whole photo (spots + markers + homography): "
+        f"{timed(lambda: measure_photo(img, 'b', Options(), lay, subsampled=True)):.0f}"
+    )
 
 
 def main():

@@ -16,6 +16,7 @@ not model hidden in the robot:
    that applies its correction (:class:`Compensated`).
 5. The report (``collector.report``).
 """
+
 from __future__ import annotations
 
 import io
@@ -27,29 +28,41 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.diagnose import diagnose
-from solver.effects import Extension
-from solver.gravity import gravity_torques
-from solver.identify import identify
-from solver.model import DATA_DIR, RobotModel, load_model
-from solver.session import Layout, load_layout, load_session, session_meta
-from solver.stats import spot_stats
-
-from .adapters.base import FakeClock, JointState, RobotAdapter
-from .adapters.fake import FakeOperator, FakeRobot
-from .capture import CaptureOptions, run_capture
-from .errors import SessionError
-from .report import load_validation, write_report
-from .store import CaptureStore
-from .triggers import AutoTrigger
-from .validate import FakeCamera, ValidateOptions, ValidationResult, fake_view, measure_known_view, run_validation
+from lasercal.collector.errors import SessionError
+from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
+from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
+from lasercal.collector.hardware.triggers import AutoTrigger
+from lasercal.collector.report.html import load_validation, write_report
+from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+from lasercal.collector.sessions.store import CaptureStore
+from lasercal.collector.sessions.validate import (
+    FakeCamera,
+    ValidateOptions,
+    ValidationResult,
+    fake_view,
+    measure_known_view,
+    run_validation,
+)
+from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.analysis.stats import spot_stats
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import Layout, load_layout, load_session, session_meta
+from lasercal.solver.identify.spot import identify
+from lasercal.solver.kinematics.effects import Extension
+from lasercal.solver.kinematics.gravity import gravity_torques
+from lasercal.solver.kinematics.model import RobotModel
 
 # Thesis Section 4.3 / Figures 4.5-4.6, at P4 (mm).
-THESIS_P4 = {"before": {"scatter_mean": 6.86, "scatter_std": 5.016, "error_mean": 9.76, "error_max": 26.993},
-             "after": {"scatter_mean": 1.11, "scatter_std": 1.00, "error_mean": 1.057, "error_max": 4.92}}
+THESIS_P4 = {
+    "before": {"scatter_mean": 6.86, "scatter_std": 5.016, "error_mean": 9.76, "error_max": 26.993},
+    "after": {"scatter_mean": 1.11, "scatter_std": 1.00, "error_mean": 1.057, "error_max": 4.92},
+}
 TRUTH = "panda_thesis_identified"
 NOMINAL = "panda"
-COMPLIANCE = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))  # rad/Nm: a few mrad under the Panda's gravity load
+COMPLIANCE = Extension(
+    "joint_compliance", (2,), None, np.array([1.2e-4])
+)  # rad/Nm: a few mrad under the Panda's gravity load
 _FIXED_POINT = 6  # iterations of the effect's fixed points: the corrections are milliradians
 
 
@@ -106,7 +119,14 @@ class EffectRobot(FakeRobot):
     seed : int
     """
 
-    def __init__(self, truth: RobotModel, clock: FakeClock, effect: Extension, operator: FakeOperator | None = None, seed: int = 0):
+    def __init__(
+        self,
+        truth: RobotModel,
+        clock: FakeClock,
+        effect: Extension,
+        operator: FakeOperator | None = None,
+        seed: int = 0,
+    ):
         super().__init__(truth, clock, operator, seed=seed)
         self.effect = effect
 
@@ -160,7 +180,9 @@ class Compensated(RobotAdapter):
 
     def move_to(self, q: np.ndarray) -> None:
         q = np.asarray(q, dtype=float)
-        self.robot.move_to(encoder_reading(self.extension, q, self.clock.now(), gravity_torques(self.model, q[None])[0]))
+        self.robot.move_to(
+            encoder_reading(self.extension, q, self.clock.now(), gravity_torques(self.model, q[None])[0])
+        )
 
 
 class _Ticking(AutoTrigger):
@@ -189,7 +211,7 @@ class _TickingCamera(FakeCamera):
 
 def thesis_layout() -> Layout:
     """The thesis's layout: P1-P3 for calibration, P4 for validation."""
-    return load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+    return load_layout(builtin_dir("layouts") / "thesis.yaml")
 
 
 def capture_session(folder, truth: RobotModel, layout: Layout, opts: DemoOptions, tick=lambda: None) -> Path:
@@ -203,24 +225,45 @@ def capture_session(folder, truth: RobotModel, layout: Layout, opts: DemoOptions
     operator = FakeOperator(truth, points, opts.per_point, opts.aim_noise, opts.seed, layout.aim_kwargs())
     robot = EffectRobot(truth, FakeClock(), opts.effect, operator, seed=opts.seed)
     hidden = {"name": opts.effect.effect, **opts.effect.to_dict()}
-    meta = session_meta(NOMINAL, layout, truth.aperture[2],
-                        simulated={"truth": truth.name, "aim_noise_mm": opts.aim_noise, "seed": opts.seed, "effect": hidden})
+    meta = session_meta(
+        NOMINAL,
+        layout,
+        truth.aperture[2],
+        simulated={"truth": truth.name, "aim_noise_mm": opts.aim_noise, "seed": opts.seed, "effect": hidden},
+    )
     store = CaptureStore.create(folder, meta, truth.n, robot.extra_columns)
     try:
-        run_capture(store, robot, _Ticking(tick), load_model(NOMINAL), CaptureOptions(opts.per_point, auto_discard=True), out=io.StringIO())
+        run_capture(
+            store,
+            robot,
+            _Ticking(tick),
+            load_model(NOMINAL),
+            CaptureOptions(opts.per_point, auto_discard=True),
+            out=io.StringIO(),
+        )
     finally:
         store.close()
     return store.folder
 
 
-def validate_model(folder, model: RobotModel, model_ref: str, truth: RobotModel, layout: Layout, opts: DemoOptions,
-                   extension: Extension | None = None, tick=lambda: None) -> ValidationResult:
-    """A validation session at the layout's validation point on the hidden-effect robot, photos measured by ``vision``.
+def validate_model(
+    folder,
+    model: RobotModel,
+    model_ref: str,
+    truth: RobotModel,
+    layout: Layout,
+    opts: DemoOptions,
+    extension: Extension | None = None,
+    tick=lambda: None,
+) -> ValidationResult:
+    """A validation session at the layout's validation point on the hidden-effect robot, photos measured by
+    ``vision``.
 
     Parameters
     ----------
     folder : new folder (validation.yaml, validation.csv, photos/)
-    model : RobotModel under test; ``extension`` its fitted joint effect, applied by a :class:`Compensated` controller
+    model : RobotModel under test; ``extension`` its fitted joint effect, applied by a :class:`Compensated`
+    controller
     model_ref : str, how validation.yaml names the model
     truth, layout, opts : as for :func:`capture_session`
     """
@@ -229,14 +272,25 @@ def validate_model(folder, model: RobotModel, model_ref: str, truth: RobotModel,
     view = fake_view(layout.points[point][:2], layout.plane_z, size=(opts.view_px, opts.view_px))
     camera = _TickingCamera(tick, robot, view, layout.plane_z, seed=opts.seed)
     arm = Compensated(robot, model, extension) if extension is not None else robot
-    return run_validation(folder, model, model_ref, layout, point, arm, camera, ValidateOptions(opts.n_validation, opts.seed),
-                          measure=lambda img, name: measure_known_view(img, name, view), out=io.StringIO())
+    return run_validation(
+        folder,
+        model,
+        model_ref,
+        layout,
+        point,
+        arm,
+        camera,
+        ValidateOptions(opts.n_validation, opts.seed),
+        measure=lambda img, name: measure_known_view(img, name, view),
+        out=io.StringIO(),
+    )
 
 
 def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     """Run the whole story, write its files under ``out`` and return the summary (also in summary.json).
 
-    Files (``out`` must be new or empty): ``session/``, ``model_lm.yaml``, ``model_thesis.yaml``, ``model_extended.yaml``,
+    Files (``out`` must be new or empty): ``session/``, ``model_lm.yaml``, ``model_thesis.yaml``,
+    ``model_extended.yaml``,
     ``validation/{nominal,lm,thesis,extended}/``, ``report/index.html``, ``summary.json``.
 
     Parameters
@@ -255,7 +309,9 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     step = progress or (lambda stage: None)
     out = Path(out)
     if out.exists() and any(out.iterdir()):
-        raise SessionError(f"{out} is not empty (an earlier demo?): remove it or choose another folder with -o")
+        raise SessionError(
+            f"{out} is not empty (an earlier demo?): remove it or choose another folder with -o"
+        )
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     seconds = {}
@@ -267,7 +323,9 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
         seconds[name] = round(time.perf_counter() - t0, 2)
         return result
 
-    session = load_session(timed("capture", capture_session, out / "session", truth, layout, opts, partial(step, "capture")))
+    session = load_session(
+        timed("capture", capture_session, out / "session", truth, layout, opts, partial(step, "capture"))
+    )
     idents = {}
     for method in ("lm", "thesis"):
         idents[method] = timed(method, identify, session, method)
@@ -275,26 +333,60 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
         step(f"calibrate ({method})")
     d = timed("diagnose", diagnose, session, n_boot=opts.n_boot, n_refit=opts.n_refit, seed=opts.seed)
     step("diagnose")
-    candidates = {"nominal": (session.robot, NOMINAL, None), "lm": (idents["lm"].model, "model_lm.yaml", None),
-                  "thesis": (idents["thesis"].model, "model_thesis.yaml", None)}
+    candidates = {
+        "nominal": (session.robot, NOMINAL, None),
+        "lm": (idents["lm"].model, "model_lm.yaml", None),
+        "thesis": (idents["thesis"].model, "model_thesis.yaml", None),
+    }
     if d.extended is not None:
         d.extended.model.save(out / "model_extended.yaml")
         candidates["extended"] = (d.extended.model, "model_extended.yaml", d.extension)
     validations = []
     for name, (model, ref, ext) in candidates.items():
         folder = out / "validation" / name
-        timed(f"validate {name}", validate_model, folder, model, ref, truth, layout, opts, ext, partial(step, f"validate {name}"))
+        timed(
+            f"validate {name}",
+            validate_model,
+            folder,
+            model,
+            ref,
+            truth,
+            layout,
+            opts,
+            ext,
+            partial(step, f"validate {name}"),
+        )
         validations.append(load_validation(folder))
     reference = {f"thesis paper, {k}": v for k, v in THESIS_P4.items()}
-    report = timed("report", write_report, out / "report", session, idents["lm"], d, validations, reference,
-                   title=f"lasercal demo: the simulated Panda with a hidden {opts.effect.effect.replace('_', ' ')}")
+    report = timed(
+        "report",
+        write_report,
+        out / "report",
+        session,
+        idents["lm"],
+        d,
+        validations,
+        reference,
+        title=f"lasercal demo: the simulated Panda with a hidden {opts.effect.effect.replace('_', ' ')}",
+    )
     step("report")
-    found = d.extension is not None and d.effect == opts.effect.effect and set(d.extension.joints) == set(opts.effect.joints)
+    found = (
+        d.extension is not None
+        and d.effect == opts.effect.effect
+        and set(d.extension.joints) == set(opts.effect.joints)
+    )
     summary = {
         "p4": {v.label: spot_stats(v.spots, v.xyz).as_dict() for v in validations},
         "thesis": THESIS_P4,
-        "methods": {m: {"iterations": i.iterations, "converged": i.converged, "seconds": round(i.seconds, 3), "fit_rms_mm": round(i.rms_mm, 4)}
-                    for m, i in idents.items()},
+        "methods": {
+            m: {
+                "iterations": i.iterations,
+                "converged": i.converged,
+                "seconds": round(i.seconds, 3),
+                "fit_rms_mm": round(i.rms_mm, 4),
+            }
+            for m, i in idents.items()
+        },
         "truth": {"robot": truth.name, "effect": {"name": opts.effect.effect, **opts.effect.to_dict()}},
         "options": {k: v for k, v in asdict(opts).items() if k != "effect"},
         "captures": session.m,
@@ -308,34 +400,62 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
 
 
 def format_summary(s: dict) -> str:
-    """The demo's printed summary: P4 before/after beside the thesis, the effect found, the gain, the report."""
-    rows = [f"{'P4 (441, 160, -8) mm':26} {'scatter mean':>12} {'scatter std':>11} {'error mean':>10} {'error max':>9}"]
-    labels = (("nominal (before)", "nominal", None), ("lm (ours)", "lm", None), ("thesis method", "thesis", None),
-              ("lm + effect (ours)", "extended", None), ("thesis paper, before", None, "before"), ("thesis paper, after", None, "after"))
+    """The demo's printed summary: P4 before/after beside the thesis, the effect, the gain, the report."""
+    rows = [
+        f"{'P4 (441, 160, -8) mm':26} {'scatter mean':>12} {'scatter std':>11} {'error mean':>10} "
+        f"{'error max':>9}"
+    ]
+    labels = (
+        ("nominal (before)", "nominal", None),
+        ("lm (ours)", "lm", None),
+        ("thesis method", "thesis", None),
+        ("lm + effect (ours)", "extended", None),
+        ("thesis paper, before", None, "before"),
+        ("thesis paper, after", None, "after"),
+    )
     for label, key, ref in labels:
         if key is not None and key not in s["p4"]:
             continue
         d = s["p4"][key] if key else s["thesis"][ref]
-        rows.append(f"{label:26} {d['scatter_mean']:12.3f} {d['scatter_std']:11.3f} {d['error_mean']:10.3f} {d['error_max']:9.3f}")
+        rows.append(
+            f"{label:26} {d['scatter_mean']:12.3f} {d['scatter_std']:11.3f} {d['error_mean']:10.3f} "
+            f"{d['error_max']:9.3f}"
+        )
     for m, d in s["methods"].items():
-        rows.append(f"{m}: {d['iterations']} iterations, {d['seconds']} s, {'converged' if d['converged'] else 'stopped at the iteration cap'}")
+        rows.append(
+            f"{m}: {d['iterations']} iterations, {d['seconds']} s, "
+            f"{'converged' if d['converged'] else 'stopped at the iteration cap'}"
+        )
     truth = s["truth"]["effect"]
     hidden = f"{truth['name']} at joint {', '.join(map(str, truth['joints']))}"
     true_values = {k: v for k, v in truth.items() if isinstance(v, list) and k != "joints"}
-    rows.append(f"\nhidden in the robot: {hidden} ({', '.join(f'{k} = {v}' for k, v in true_values.items())} {truth['units']})")
+    rows.append(
+        f"\nhidden in the robot: {hidden} ({', '.join(f'{k} = {v}' for k, v in true_values.items())} "
+        f"{truth['units']})"
+    )
     dg = s["diagnosis"]
     if dg["effect"] == "none":
         rows.append(f"effect found: none (corrected p = {dg['p_value']:.3g})")
     else:
         where = f"point {dg['point']}" if dg["point"] else "joint " + ", ".join(map(str, dg["joints"]))
-        params = ", ".join(f"{k} = {v['value']:.3g} +- {v['std_error']:.2g} {v['units']}" for k, v in dg["parameters"].items())
-        rows.append(f"effect found: {dg['effect']} at {where}: {params} (corrected p = {dg['p_value']:.3g})"
-                    + ("" if s["found"] else "  -- not the hidden one"))
+        params = ", ".join(
+            f"{k} = {v['value']:.3g} +- {v['std_error']:.2g} {v['units']}"
+            for k, v in dg["parameters"].items()
+        )
+        rows.append(
+            f"effect found: {dg['effect']} at {where}: {params} (corrected p = {dg['p_value']:.3g})"
+            + ("" if s["found"] else "  -- not the hidden one")
+        )
     h = dg["holdout_rms_mm"]
     gain = f"gain: held-out RMS {h['geometric']:.3f} -> {h['extended']:.3f} mm ({dg['gain_percent']:.1f}%)"
     if "extended" in s["p4"]:
-        gain += f"; P4 error mean {s['p4']['lm']['error_mean']:.3f} -> {s['p4']['extended']['error_mean']:.3f} mm"
+        gain += (
+            f"; P4 error mean {s['p4']['lm']['error_mean']:.3f} -> {s['p4']['extended']['error_mean']:.3f} mm"
+        )
     rows.append(gain)
-    rows.append(f"\n{s['captures']} captures, {4 * s['options']['n_validation']} photos, {s['seconds']['total']:.1f} s")
+    rows.append(
+        f"\n{s['captures']} captures, {4 * s['options']['n_validation']} photos, {s['seconds']['total']:.1f} "
+        "s"
+    )
     rows.append(f"report: {s['report']}")
     return "\n".join(rows)

@@ -4,16 +4,21 @@ The ``lasercal`` command turns each into one line ``lasercal: error: <message>``
 code 2. A message says what to do next where there is something to do (the pip command
 of a missing extra, the command that resumes an interrupted session).
 """
+
 from __future__ import annotations
 
-from solver.errors import LasercalError
+from lasercal.solver.errors import LasercalError
 
 
 class MissingExtraError(LasercalError):
     """An optional dependency (robot SDK, serial library) is not installed."""
 
     def __init__(self, what: str, package: str, extra: str | None = None):
-        pip = f"pip install 'lasercal[{extra}]' (or pip install {package})" if extra else f"pip install {package}"
+        pip = (
+            f"pip install 'lasercal[{extra}]' (or pip install {package})"
+            if extra
+            else f"pip install {package}"
+        )
         super().__init__(f"{what} needs the Python package {package}, which is not installed: {pip}")
 
 

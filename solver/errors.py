@@ -3,6 +3,7 @@
 Every error raised on bad user input derives from :class:`LasercalError`; the CLI
 turns it into a one-line message and exit code 2, never a traceback.
 """
+
 from __future__ import annotations
 
 

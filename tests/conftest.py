@@ -1,4 +1,5 @@
 """Shared fixtures: simulated sessions with known truth (fixed seeds)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,17 +7,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from solver.model import DATA_DIR, load_model
-from solver.session import load_layout, load_session, session_meta, write_session
-from solver.simulate import simulate_captures
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
 
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 
 
-def make_session(tmp: Path, truth_name: str, layout_name: str, per_point: int, noise: float, seed: int, nominal: str):
+def make_session(
+    tmp: Path, truth_name: str, layout_name: str, per_point: int, noise: float, seed: int, nominal: str
+):
     """Simulate, write and reload a session (exercising the file format both ways)."""
     truth = load_model(truth_name)
-    layout = load_layout(DATA_DIR / "layouts" / f"{layout_name}.yaml")
+    layout = load_layout(builtin_dir("layouts") / f"{layout_name}.yaml")
     c = simulate_captures(truth, layout, per_point, noise, np.random.default_rng(seed))
     write_session(tmp, session_meta(nominal, layout, truth.aperture[2]), c.point, c.t, c.q)
     return load_session(tmp), truth, layout
@@ -25,10 +29,14 @@ def make_session(tmp: Path, truth_name: str, layout_name: str, per_point: int, n
 @pytest.fixture(scope="session")
 def puma_exact(tmp_path_factory):
     """Thesis Simulation 1: Puma 560, Table 4.1 actual values, 30 configurations per point, no noise."""
-    return make_session(tmp_path_factory.mktemp("puma"), "puma560_thesis_actual", "puma", 30, 0.0, 1, "puma560")
+    return make_session(
+        tmp_path_factory.mktemp("puma"), "puma560_thesis_actual", "puma", 30, 0.0, 1, "puma560"
+    )
 
 
 @pytest.fixture(scope="session")
 def panda_noisy(tmp_path_factory):
-    """The thesis's Panda experiment: Table 4.3 identified values as truth, 15 per point, 1 mm aiming noise."""
-    return make_session(tmp_path_factory.mktemp("panda"), "panda_thesis_identified", "thesis", 15, 1.0, 2, "panda")
+    """The thesis's Panda experiment: Table 4.3 identified as truth, 15 per point, 1 mm aiming noise."""
+    return make_session(
+        tmp_path_factory.mktemp("panda"), "panda_thesis_identified", "thesis", 15, 1.0, 2, "panda"
+    )

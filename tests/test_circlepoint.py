@@ -1,11 +1,15 @@
 """Circle-point full-pose measurement (Sensors 2013, Sections 2-3) and its CSV format."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from solver.circlepoint import (
+from lasercal.solver.errors import FormatError, LasercalError
+from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, write_circlepoint_csv
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.identify.circlepoint import (
     CirclePointError,
     circle_point_pose,
     collinear,
@@ -17,11 +21,8 @@ from solver.circlepoint import (
     plane_frame,
     target_frame,
 )
-from solver.errors import FormatError, LasercalError
-from solver.fullpose import default_target, simulate_circlepoint, with_target
-from solver.fullpose_io import read_circlepoint_csv, write_circlepoint_csv
-from solver.model import load_model
-from solver.poe import fk
+from lasercal.solver.identify.fullpose import default_target, simulate_circlepoint, with_target
+from lasercal.solver.kinematics.poe import fk
 
 
 def arc(R: np.ndarray, centre, radius, angles) -> np.ndarray:
@@ -52,15 +53,29 @@ def test_plane_and_circle_exact_on_a_steep_plane():
 def test_plane_fit_matches_total_least_squares_with_noise():
     rng = np.random.default_rng(3)
     R = Rotation.random(random_state=4).as_matrix()
-    pts = arc(R, np.array([10.0, 20.0, 30.0]), 60.0, np.radians(20.0 * np.arange(6))) + rng.normal(0, 0.01, (6, 3))
+    pts = arc(R, np.array([10.0, 20.0, 30.0]), 60.0, np.radians(20.0 * np.arange(6))) + rng.normal(
+        0, 0.01, (6, 3)
+    )
     n, _ = fit_plane(pts)
     tls = np.linalg.svd(pts - pts.mean(0))[2][2]  # the orthogonal-distance plane, an independent fit
-    assert np.degrees(np.arccos(min(abs(n @ tls), 1.0))) < 1e-3  # z-only residuals in a near-plane frame ~ orthogonal ones
+    assert (
+        np.degrees(np.arccos(min(abs(n @ tls), 1.0))) < 1e-3
+    )  # z-only residuals in a near-plane frame ~ orthogonal ones
 
 
 def test_vectorised_equals_one_by_one():
     rng = np.random.default_rng(0)
-    pts = np.stack([arc(Rotation.random(random_state=s).as_matrix(), rng.normal(0, 100, 3), 50.0, np.radians(20.0 * np.arange(6))) for s in range(5)])
+    pts = np.stack(
+        [
+            arc(
+                Rotation.random(random_state=s).as_matrix(),
+                rng.normal(0, 100, 3),
+                50.0,
+                np.radians(20.0 * np.arange(6)),
+            )
+            for s in range(5)
+        ]
+    )
     pts += rng.normal(0, 0.01, pts.shape)
     T = circle_point_pose(pts)
     for k in range(5):
@@ -100,9 +115,13 @@ def test_section3_evaluation_is_of_the_papers_order():
     q, T = d.poses()
     st = error_statistics(T, fk(puma.screws, with_target(puma, tgt).ee_pose, q))
     # Table 1: means 0.0024 0.0013 0.0036 mm, stds 0.0088 0.0118 0.0086 mm
-    assert np.all(np.abs(st["position_mean"]) < 0.008) and np.all((st["position_std"] > 0.005) & (st["position_std"] < 0.02))
+    assert np.all(np.abs(st["position_mean"]) < 0.008) and np.all(
+        (st["position_std"] > 0.005) & (st["position_std"] < 0.02)
+    )
     # Table 2: means 0.0074 -3.3e-5 0.0063 deg, stds 0.032 0.0058 0.035 deg
-    assert np.all(np.abs(st["euler_mean"]) < 0.03) and np.all((st["euler_std"] > 0.003) & (st["euler_std"] < 0.1))
+    assert np.all(np.abs(st["euler_mean"]) < 0.03) and np.all(
+        (st["euler_std"] > 0.003) & (st["euler_std"] < 0.1)
+    )
 
 
 # ------------------------------------------------------------------ bad input
@@ -166,13 +185,32 @@ def edit(path, line, col, value):
 @pytest.mark.parametrize(
     "change, message, line, field",
     [
-        (lambda p: p.write_text(p.read_text().replace("angle_index", "angle")), "missing column 'angle_index'", 2, "angle_index"),
+        (
+            lambda p: p.write_text(p.read_text().replace("angle_index", "angle")),
+            "missing column 'angle_index'",
+            2,
+            "angle_index",
+        ),
         (lambda p: edit(p, 4, "y", "abc"), "not a number", 4, "y"),
         (lambda p: edit(p, 5, "angle_index", "0"), "angle_index 0 twice", 5, "angle_index"),
         (lambda p: edit(p, 5, "q2", "1.0"), "locked joint q2 moved", 5, "q2"),
         (lambda p: edit(p, 5, "q6", "9.0"), "monotonically", 6, "q6"),
-        (lambda p: p.write_text("\n".join(l for i, l in enumerate(p.read_text().splitlines(), 1) if i not in (4, 5)) + "\n"), "2 point(s)", 3, "config"),
-        (lambda p: p.write_text("\n".join(l for i, l in enumerate(p.read_text().splitlines(), 1) if i != 18) + "\n"), "has 3 points but 'c001' has 4", 15, "config"),
+        (
+            lambda p: p.write_text(
+                "\n".join(ln for i, ln in enumerate(p.read_text().splitlines(), 1) if i not in (4, 5)) + "\n"
+            ),
+            "2 point(s)",
+            3,
+            "config",
+        ),
+        (
+            lambda p: p.write_text(
+                "\n".join(ln for i, ln in enumerate(p.read_text().splitlines(), 1) if i != 18) + "\n"
+            ),
+            "has 3 points but 'c001' has 4",
+            15,
+            "config",
+        ),
     ],
 )
 def test_csv_errors_name_file_line_column(tmp_path, change, message, line, field):
@@ -180,7 +218,12 @@ def test_csv_errors_name_file_line_column(tmp_path, change, message, line, field
     change(path)
     with pytest.raises(FormatError) as e:
         read_circlepoint_csv(path)
-    assert message in str(e.value) and e.value.line == line and e.value.field == field and str(path) in str(e.value)
+    assert (
+        message in str(e.value)
+        and e.value.line == line
+        and e.value.field == field
+        and str(path) in str(e.value)
+    )
 
 
 def test_csv_collinear_configuration_and_joint_count(tmp_path):

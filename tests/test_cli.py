@@ -1,4 +1,5 @@
 """The ``lasercal`` command end to end, and every malformed-file case: one line, exit code 2."""
+
 import csv
 import io
 import json
@@ -8,28 +9,53 @@ import numpy as np
 import pytest
 import yaml
 
-from collector.cli import main
-from solver.model import DATA_DIR, load_model
+from lasercal.collector.cli.main import main
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
 
-LAYOUT = str(DATA_DIR / "layouts" / "thesis.yaml")
+LAYOUT = str(builtin_dir("layouts") / "thesis.yaml")
 
 
 @pytest.fixture(scope="module")
 def session_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("cli") / "s"
-    assert main(["simulate", "panda_thesis_identified", "--layout", LAYOUT, "--per-point", "15", "--aim-noise", "0.5", "--seed", "4", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "panda_thesis_identified",
+                "--layout",
+                LAYOUT,
+                "--per-point",
+                "15",
+                "--aim-noise",
+                "0.5",
+                "--seed",
+                "4",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     return out
 
 
 def test_simulate_solve_predict_round_trip(session_dir, tmp_path, capsys):
     meta = yaml.safe_load((session_dir / "session.yaml").read_text())
-    assert meta["format"] == "lasercal-session/1" and meta["robot"] == "panda" and meta["laser"]["aperture_z"] == 825
+    assert (
+        meta["format"] == "lasercal-session/1"
+        and meta["robot"] == "panda"
+        and meta["laser"]["aperture_z"] == 825
+    )
     assert meta["units"] == {"length": "mm", "angle": "rad", "torque": "Nm", "time": "s"}
     capsys.readouterr()
     assert main(["solve", str(session_dir), "-o", str(tmp_path / "m.yaml"), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     assert rep["converged"] and rep["iterations"] < 15
-    assert rep["points"]["P1"]["before"]["error_mean"] > 5 and rep["points"]["P1"]["after"]["error_mean"] < 1.0
+    assert (
+        rep["points"]["P1"]["before"]["error_mean"] > 5 and rep["points"]["P1"]["after"]["error_mean"] < 1.0
+    )
     assert rep["cross_validation"]["holdout_rms_mm"] < 1.5
     model = load_model(tmp_path / "m.yaml")
     assert model.identification["method"] == "lm" and "joint7.qx" in model.identification["std_errors"]
@@ -45,13 +71,21 @@ def test_simulate_solve_predict_round_trip(session_dir, tmp_path, capsys):
     out = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert list(out[0])[-3:] == ["spot_x", "spot_y", "laser_length"] and out[0]["label"] == "P1"
     pts = {"P1": (521, 200), "P2": (436, 0), "P3": (521, -200)}
-    err = [np.hypot(float(o["spot_x"]) - pts[o["label"]][0], float(o["spot_y"]) - pts[o["label"]][1]) for o in out]
+    err = [
+        np.hypot(float(o["spot_x"]) - pts[o["label"]][0], float(o["spot_y"]) - pts[o["label"]][1])
+        for o in out
+    ]
     assert np.sqrt(np.mean(np.square(err))) < 1.0
     assert all(400 < float(o["laser_length"]) + 833 < 1500 for o in out)
 
 
 def test_solve_thesis_method_text_output(session_dir, tmp_path, capsys):
-    assert main(["solve", str(session_dir), "-o", str(tmp_path / "t.yaml"), "--method", "thesis", "--folds", "0"]) == 0
+    assert (
+        main(
+            ["solve", str(session_dir), "-o", str(tmp_path / "t.yaml"), "--method", "thesis", "--folds", "0"]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "method thesis" in out and "P2" in out and "not seen by the data" in out
 
@@ -81,11 +115,27 @@ def _set_cell(lines, row, col, value):
 @pytest.mark.parametrize(
     "edit_csv, edit_yaml, expect",
     [
-        (lambda L: _set_cell(L, 3, "point", "P9"), None, ["captures.csv, line 4, column 'point'", "unknown point 'P9'"]),
+        (
+            lambda L: _set_cell(L, 3, "point", "P9"),
+            None,
+            ["captures.csv, line 4, column 'point'", "unknown point 'P9'"],
+        ),
         (lambda L: _set_cell(L, 5, "q4", ""), None, ["captures.csv, line 6, column 'q4'", "missing value"]),
-        (lambda L: _set_cell(L, 6, "t", "abc"), None, ["captures.csv, line 7, column 't'", "not a finite number"]),
-        (lambda L: _set_cell(L, 7, "q4", "0.5"), None, ["captures.csv, line 8, column 'q4'", "outside its limits"]),
-        (lambda L: [L[0].replace("q7", "qq")] + L[1:], None, ["captures.csv, line 1, column 'q7'", "missing column"]),
+        (
+            lambda L: _set_cell(L, 6, "t", "abc"),
+            None,
+            ["captures.csv, line 7, column 't'", "not a finite number"],
+        ),
+        (
+            lambda L: _set_cell(L, 7, "q4", "0.5"),
+            None,
+            ["captures.csv, line 8, column 'q4'", "outside its limits"],
+        ),
+        (
+            lambda L: [L[0].replace("q7", "qq")] + L[1:],
+            None,
+            ["captures.csv, line 1, column 'q7'", "missing column"],
+        ),
         (lambda L: L[:4] + [L[4] + ",1"] + L[5:], None, ["captures.csv, line 5", "expected 16 values"]),
         (None, lambda m: m.update(format="other/2"), ["session.yaml, field 'format'"]),
         (None, lambda m: m["points"].update(P1=[1, 2]), ["session.yaml, field 'points.P1'"]),

@@ -1,4 +1,6 @@
-"""Robot adapters against stand-in SDK modules (the franky adapter meets a real simulator in test_collector_franky_sim)."""
+"""Robot adapters against stand-in SDK modules (the franky adapter meets a real simulator in
+test_collector_franky_sim)."""
+
 from __future__ import annotations
 
 import sys
@@ -7,15 +9,16 @@ import types
 import numpy as np
 import pytest
 
-from collector.adapters.base import FakeClock
-from collector.adapters.fake import FakeRobot, perturbed_model
-from collector.adapters.pandapy import PandaPyRobot
-from collector.adapters.ros import RosRobot, arm_joint_names
-from collector.errors import RobotConnectionError
-from solver.aim import aim
-from solver.identify import predict_spots
-from solver.model import DATA_DIR, load_model
-from solver.session import load_layout
+from lasercal.collector.errors import RobotConnectionError
+from lasercal.collector.hardware.base import FakeClock
+from lasercal.collector.hardware.fake import FakeRobot, perturbed_model
+from lasercal.collector.hardware.pandapy import PandaPyRobot
+from lasercal.collector.hardware.ros import RosRobot, arm_joint_names
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.aim import aim
 
 NAMES = ["panda_finger_joint1"] + [f"panda_joint{i}" for i in (3, 1, 2, 7, 4, 5, 6)] + ["panda_finger_joint2"]
 
@@ -53,8 +56,13 @@ def roslibpy(monkeypatch):
 
 def _msg(values, velocity=True):
     v = list(values)
-    return {"name": NAMES, "position": v, "velocity": [0.01 * x for x in v] if velocity else [], "effort": [10 * x for x in v],
-            "header": {"stamp": {"secs": 12, "nsecs": 500_000_000}}}
+    return {
+        "name": NAMES,
+        "position": v,
+        "velocity": [0.01 * x for x in v] if velocity else [],
+        "effort": [10 * x for x in v],
+        "header": {"stamp": {"secs": 12, "nsecs": 500_000_000}},
+    }
 
 
 def test_ros_joint_states_are_mapped_by_name_and_fingers_left_out(roslibpy):
@@ -97,7 +105,9 @@ def panda_py(monkeypatch):
             calls.append(("teaching", on))
 
         def get_state(self):
-            return types.SimpleNamespace(q=[0.1] * 7, dq=[0.0] * 7, tau_J=[1.0] * 7, robot_mode="RobotMode.kGuiding")
+            return types.SimpleNamespace(
+                q=[0.1] * 7, dq=[0.0] * 7, tau_J=[1.0] * 7, robot_mode="RobotMode.kGuiding"
+            )
 
         def move_to_joint_position(self, q, speed_factor):
             calls.append(("move", speed_factor))
@@ -117,8 +127,15 @@ def test_panda_py_guides_in_teaching_mode_and_leaves_it_to_move(panda_py):
     with pytest.raises(RobotConnectionError, match="did not reach"):
         robot.move_to(np.full(7, 2.0))
     robot.close()
-    assert panda_py.calls == [("connect", "127.0.0.1"), ("teaching", True), ("teaching", False), ("move", 0.2),
-                              ("teaching", False), ("move", 0.2), ("teaching", False)]
+    assert panda_py.calls == [
+        ("connect", "127.0.0.1"),
+        ("teaching", True),
+        ("teaching", False),
+        ("move", 0.2),
+        ("teaching", False),
+        ("move", 0.2),
+        ("teaching", False),
+    ]
 
 
 def test_perturbed_truth_is_seeded_and_millimetres_off():
@@ -126,7 +143,7 @@ def test_perturbed_truth_is_seeded_and_millimetres_off():
     a, b, c = perturbed_model(nominal, 5), perturbed_model(nominal, 5), perturbed_model(nominal, 6)
     np.testing.assert_array_equal(a.screws, b.screws)
     assert not np.array_equal(a.screws, c.screws)
-    layout = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+    layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
     q = aim(nominal, layout.points["P4"], 10, np.random.default_rng(0), **layout.aim_kwargs())
     err = np.linalg.norm(predict_spots(a, q, -8.0)[0][:, :2] - layout.points["P4"][:2], axis=1)
     assert 1 < err.mean() < 30  # like a real uncalibrated Panda (~10 mm)

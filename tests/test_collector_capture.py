@@ -1,4 +1,5 @@
 """The capture session on the fake backend: calibration quality, standstill, checks, discards, disconnects."""
+
 from __future__ import annotations
 
 import io
@@ -6,36 +7,60 @@ import io
 import numpy as np
 import pytest
 
-from collector.adapters.base import FakeClock
-from collector.adapters.fake import FakeOperator, FakeRobot, Motion
-from collector.capture import CaptureOptions, run_capture
-from collector.errors import RobotConnectionError
-from collector.rangefinder import FakeRangefinder
-from collector.store import CaptureStore
-from collector.triggers import AutoTrigger, EnterTrigger
-from solver.identify import identify, predict_spots
-from solver.model import DATA_DIR, load_model
-from solver.session import load_layout, load_session, session_meta
-from solver.stats import cross_validate, solve_report
+from lasercal.collector.errors import RobotConnectionError
+from lasercal.collector.hardware.base import FakeClock
+from lasercal.collector.hardware.fake import FakeOperator, FakeRobot, Motion
+from lasercal.collector.hardware.rangefinder import FakeRangefinder
+from lasercal.collector.hardware.triggers import AutoTrigger, EnterTrigger
+from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.analysis.stats import cross_validate, solve_report
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session, session_meta
+from lasercal.solver.identify.spot import identify, predict_spots
 
-LAYOUT = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
 TRUTH = load_model("panda_thesis_identified")
 NOMINAL = load_model("panda")
 POINTS = {k: LAYOUT.points[k] for k in LAYOUT.calibration}
 
 
-def fake_session(folder, per_point, seed=0, trigger=None, pool=None, wrong=None, disconnect_at=None, rangefinder=False,
-                 resume=False, **opts):
+def fake_session(
+    folder,
+    per_point,
+    seed=0,
+    trigger=None,
+    pool=None,
+    wrong=None,
+    disconnect_at=None,
+    rangefinder=False,
+    resume=False,
+    **opts,
+):
     """Run a capture session on the fake backend; returns (result, screen text, robot)."""
     op = FakeOperator(TRUTH, POINTS, pool or per_point, 1.0, seed, LAYOUT.aim_kwargs(), wrong)
     robot = FakeRobot(TRUTH, FakeClock(), op, seed=seed, disconnect_at=disconnect_at)
     cols = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder else [])
-    store = CaptureStore.open(folder) if resume else CaptureStore.create(folder, session_meta("panda", LAYOUT, 825.0), 7, cols)
+    store = (
+        CaptureStore.open(folder)
+        if resume
+        else CaptureStore.create(folder, session_meta("panda", LAYOUT, 825.0), 7, cols)
+    )
     out = io.StringIO()
     rf = FakeRangefinder(robot, LAYOUT.plane_z, seed=seed) if rangefinder else None
     opts = CaptureOptions(per_point, **{"auto_discard": trigger is None, **opts})
     try:
-        res = run_capture(store, robot, trigger or AutoTrigger(), NOMINAL, opts, out, rf, resume_hint=f"lasercal capture --resume {folder}")
+        res = run_capture(
+            store,
+            robot,
+            trigger or AutoTrigger(),
+            NOMINAL,
+            opts,
+            out,
+            rf,
+            resume_hint=f"lasercal capture --resume {folder}",
+        )
     finally:
         store.close()
     return res, out.getvalue(), robot
@@ -52,7 +77,8 @@ def full_session(tmp_path_factory):
 def test_auto_session_calibrates_the_fake_robot_to_its_aiming_noise(full_session):
     s, res, _, _ = full_session
     assert res.complete and res.counts == {"P1": 15, "P2": 15, "P3": 15}
-    # the simulated operator realised the aiming noise it was given: 1 mm per axis (true robot, independent of the solver)
+    # the simulated operator realised the aiming noise it was given: 1 mm per axis (true robot, independent of
+    # the solver)
     true_spots, _ = predict_spots(TRUTH, s.q, s.target[:, 2])
     assert 0.75 < np.std(true_spots[:, :2] - s.target[:, :2]) < 1.25
     ident = identify(s, "lm")
@@ -81,10 +107,19 @@ def test_captures_are_taken_only_at_standstill(full_session):
 
 
 def test_an_arm_that_never_settles_is_not_captured(tmp_path):
-    noisy = FakeRobot(TRUTH, FakeClock(), FakeOperator(TRUTH, POINTS, 1, 1.0, 0, LAYOUT.aim_kwargs()), Motion(dq_noise=0.02))
+    noisy = FakeRobot(
+        TRUTH, FakeClock(), FakeOperator(TRUTH, POINTS, 1, 1.0, 0, LAYOUT.aim_kwargs()), Motion(dq_noise=0.02)
+    )
     store = CaptureStore.create(tmp_path / "s", session_meta("panda", LAYOUT, 825.0), 7, noisy.extra_columns)
     out = io.StringIO()
-    res = run_capture(store, noisy, EnterTrigger(iter(["", "q"]).__next__), NOMINAL, CaptureOptions(1, still_timeout=5.0), out)
+    res = run_capture(
+        store,
+        noisy,
+        EnterTrigger(iter(["", "q"]).__next__),
+        NOMINAL,
+        CaptureOptions(1, still_timeout=5.0),
+        out,
+    )
     store.close()
     assert "did not come to rest within 5 s" in out.getvalue()
     assert not res.complete and load_session(tmp_path / "s").m == 0
@@ -121,7 +156,9 @@ def test_disconnect_keeps_captures_and_resume_ends_where_an_uninterrupted_sessio
     ref = load_session(tmp_path / "ref")
     with pytest.raises(RobotConnectionError) as e:
         fake_session(tmp_path / "s", 5, disconnect_at=ref.t[6] + 1.0)
-    assert "connection lost" in str(e.value) and f"resume with: lasercal capture --resume {tmp_path / 's'}" in str(e.value)
+    assert "connection lost" in str(
+        e.value
+    ) and f"resume with: lasercal capture --resume {tmp_path / 's'}" in str(e.value)
     cut = load_session(tmp_path / "s")
     assert cut.m == 7
     np.testing.assert_array_equal(cut.q, ref.q[:7])  # nothing on disk was touched by the failure

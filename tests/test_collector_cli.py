@@ -1,4 +1,6 @@
-"""``lasercal capture`` / ``lasercal validate`` end to end: kill-and-resume, bad input, missing extras, validation photos."""
+"""``lasercal capture`` / ``lasercal validate`` end to end: kill-and-resume, bad input, missing extras,
+validation photos."""
+
 from __future__ import annotations
 
 import subprocess
@@ -11,15 +13,16 @@ import numpy as np
 import pytest
 import yaml
 
-from collector.cli import main
-from collector.errors import DeviceError
-from collector.validate import OpenCVCamera
-from solver.identify import predict_spots
-from solver.model import DATA_DIR, load_model
-from solver.session import load_session
+from lasercal.collector.cli.main import main
+from lasercal.collector.errors import DeviceError
+from lasercal.collector.sessions.validate import OpenCVCamera
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_session
+from lasercal.solver.identify.spot import predict_spots
 
 ROOT = Path(__file__).resolve().parents[1]
-THESIS = str(DATA_DIR / "layouts" / "thesis.yaml")
+THESIS = str(builtin_dir("layouts") / "thesis.yaml")
 TRUTH = load_model("panda_thesis_identified")
 AUTO = ["capture", "--layout", THESIS, "--backend", "fake", "--per-point", "4", "--seed", "3", "--auto"]
 
@@ -34,15 +37,24 @@ def test_killed_at_random_moments_the_session_resumes_to_exactly_the_uninterrupt
     ref = _complete_rows(tmp_path / "ref" / "captures.csv")
     folder = tmp_path / "s"
     pace = ["--auto-pace", "0.05"]
-    runs = [AUTO + pace + ["-o", str(folder)], ["capture", "--resume", str(folder), "--auto"] + pace,
-            ["capture", "--resume", str(folder), "--auto"] + pace]
+    runs = [
+        AUTO + pace + ["-o", str(folder)],
+        ["capture", "--resume", str(folder), "--auto"] + pace,
+        ["capture", "--resume", str(folder), "--auto"] + pace,
+    ]
     rng = np.random.default_rng(1)
     kept = []
     for argv, at in zip(runs, (2, 5, 8)):
-        child = subprocess.Popen([sys.executable, "-m", "collector.cli"] + argv, cwd=ROOT,
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        child = subprocess.Popen(
+            [sys.executable, "-m", "lasercal.collector.cli.main"] + argv,
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
         end = time.monotonic() + 60
-        while len(_complete_rows(folder / "captures.csv")) < at if (folder / "captures.csv").exists() else True:
+        while (
+            len(_complete_rows(folder / "captures.csv")) < at if (folder / "captures.csv").exists() else True
+        ):
             assert child.poll() is None, child.stderr.read().decode()
             assert time.monotonic() < end
             time.sleep(0.005)
@@ -64,47 +76,128 @@ def test_killed_at_random_moments_the_session_resumes_to_exactly_the_uninterrupt
 def test_malformed_layout_is_one_line_naming_file_and_field(tmp_path, capsys):
     bad = tmp_path / "bad.yaml"
     bad.write_text("format: lasercal-layout/1\nplane: {z: -8}\npoints:\n  P1: [521, 200]\n")
-    assert main(["capture", "--layout", str(bad), "--backend", "fake", "--per-point", "3", "--auto", "-o", str(tmp_path / "s")]) == 2
+    assert (
+        main(
+            [
+                "capture",
+                "--layout",
+                str(bad),
+                "--backend",
+                "fake",
+                "--per-point",
+                "3",
+                "--auto",
+                "-o",
+                str(tmp_path / "s"),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"lasercal: error: {bad}, field 'points.P1':") and "\n" not in err
     bad.write_text("points: {P1: [1, 2, 3]\n")
-    assert main(["capture", "--layout", str(bad), "--backend", "fake", "--per-point", "3", "--auto", "-o", str(tmp_path / "s")]) == 2
+    assert (
+        main(
+            [
+                "capture",
+                "--layout",
+                str(bad),
+                "--backend",
+                "fake",
+                "--per-point",
+                "3",
+                "--auto",
+                "-o",
+                str(tmp_path / "s"),
+            ]
+        )
+        == 2
+    )
     assert f"{bad}, line" in capsys.readouterr().err
 
 
 def test_session_options_are_checked(tmp_path, capsys):
     assert main(["capture", "--layout", THESIS, "--per-point", "3", "-o", str(tmp_path / "s")]) == 2
     assert "a new session needs --backend" in capsys.readouterr().err
-    assert main(["capture", "--layout", THESIS, "--backend", "franky", "--host", "127.0.0.1", "--per-point", "3", "--auto",
-                 "-o", str(tmp_path / "s")]) == 2
+    assert (
+        main(
+            [
+                "capture",
+                "--layout",
+                THESIS,
+                "--backend",
+                "franky",
+                "--host",
+                "127.0.0.1",
+                "--per-point",
+                "3",
+                "--auto",
+                "-o",
+                str(tmp_path / "s"),
+            ]
+        )
+        == 2
+    )
     assert "--auto needs --backend fake" in capsys.readouterr().err
     assert main(AUTO + ["-o", str(tmp_path / "s")]) == 0
     assert main(AUTO + ["-o", str(tmp_path / "s")]) == 2
     assert "resume it with --resume" in capsys.readouterr().err
     assert main(["capture", "--resume", str(tmp_path / "s"), "--per-point", "5", "--auto"]) == 2
     assert "was started with per-point 4: it cannot change on resume" in capsys.readouterr().err
-    assert main(["capture", "--resume", str(tmp_path / "s"), "--auto"]) == 0  # complete already: nothing to do
+    assert (
+        main(["capture", "--resume", str(tmp_path / "s"), "--auto"]) == 0
+    )  # complete already: nothing to do
     assert load_session(tmp_path / "s").m == 12
 
 
-@pytest.mark.parametrize("backend, module, extra, package", [("franky", "franky", "franky", "franky-control"),
-                                                            ("panda-py", "panda_py", "panda", "panda-python"),
-                                                            ("ros", "roslibpy", "ros", "roslibpy")])
-def test_missing_robot_sdk_is_one_line_with_the_pip_command(tmp_path, capsys, monkeypatch, backend, module, extra, package):
+@pytest.mark.parametrize(
+    "backend, module, extra, package",
+    [
+        ("franky", "franky", "franky", "franky-control"),
+        ("panda-py", "panda_py", "panda", "panda-python"),
+        ("ros", "roslibpy", "ros", "roslibpy"),
+    ],
+)
+def test_missing_robot_sdk_is_one_line_with_the_pip_command(
+    tmp_path, capsys, monkeypatch, backend, module, extra, package
+):
     monkeypatch.setitem(sys.modules, module, None)  # as if not installed
-    argv = ["capture", "--layout", THESIS, "--backend", backend, "--host", "127.0.0.1", "--per-point", "3", "-o", str(tmp_path / "s")]
+    argv = [
+        "capture",
+        "--layout",
+        THESIS,
+        "--backend",
+        backend,
+        "--host",
+        "127.0.0.1",
+        "--per-point",
+        "3",
+        "-o",
+        str(tmp_path / "s"),
+    ]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
-    assert err == (f"lasercal: error: the {backend} backend needs the Python package {package}, which is not installed: "
-                   f"pip install 'lasercal[{extra}]' (or pip install {package})")
+    assert err == (
+        f"lasercal: error: the {backend} backend needs the Python package {package}, which is not installed: "
+        f"pip install 'lasercal[{extra}]' (or pip install {package})"
+    )
     assert not (tmp_path / "s").exists()  # nothing to clean up before trying again
 
 
 def test_validate_fake_photos_measure_the_true_spots(tmp_path, capsys):
-    assert main(["validate", "panda", "--point", "P4", "-n", "5", "--backend", "fake", "-o", str(tmp_path / "v")]) == 0
+    assert (
+        main(
+            ["validate", "panda", "--point", "P4", "-n", "5", "--backend", "fake", "-o", str(tmp_path / "v")]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     meta = yaml.safe_load((tmp_path / "v" / "validation.yaml").read_text())
-    assert meta["format"] == "lasercal-validation/1" and meta["units"]["q"] == "rad" and meta["motion"] == "moved by the backend"
+    assert (
+        meta["format"] == "lasercal-validation/1"
+        and meta["units"]["q"] == "rad"
+        and meta["motion"] == "moved by the backend"
+    )
     lines = (tmp_path / "v" / "validation.csv").read_text().splitlines()
     assert lines[0].startswith("# ") and lines[1] == "index,q1,q2,q3,q4,q5,q6,q7,photo,x_mm,y_mm,q_dev"
     rows = [ln.split(",") for ln in lines[2:]]
@@ -116,14 +209,34 @@ def test_validate_fake_photos_measure_the_true_spots(tmp_path, capsys):
     err = np.linalg.norm(measured - [441, 160], axis=1)
     assert err.mean() > 3  # the nominal model misses P4 by millimetres (thesis: 9.76 mm mean)
     assert "P4: 5 spots measured" in out
-    assert main(["validate", "panda", "-n", "5", "--backend", "fake", "-o", str(tmp_path / "v")]) == 2  # never overwritten
+    assert (
+        main(["validate", "panda", "-n", "5", "--backend", "fake", "-o", str(tmp_path / "v")]) == 2
+    )  # never overwritten
     assert "already holds a validation run" in capsys.readouterr().err
     # the true geometry as the model under test: the spots land on P4 up to the standstill residue
-    assert main(["validate", str(DATA_DIR / "robots" / "panda_thesis_identified.yaml"), "-n", "3", "--backend", "fake", "--guide",
-                 "-o", str(tmp_path / "t")]) == 0
+    assert (
+        main(
+            [
+                "validate",
+                str(builtin_dir("robots") / "panda_thesis_identified.yaml"),
+                "-n",
+                "3",
+                "--backend",
+                "fake",
+                "--guide",
+                "-o",
+                str(tmp_path / "t"),
+            ]
+        )
+        == 0
+    )
     rows = [ln.split(",") for ln in (tmp_path / "t" / "validation.csv").read_text().splitlines()[2:]]
-    assert np.linalg.norm(np.array([[float(r[9]), float(r[10])] for r in rows]) - [441, 160], axis=1).max() < 0.5
-    assert yaml.safe_load((tmp_path / "t" / "validation.yaml").read_text())["motion"] == "guided by the operator"
+    assert (
+        np.linalg.norm(np.array([[float(r[9]), float(r[10])] for r in rows]) - [441, 160], axis=1).max() < 0.5
+    )
+    assert (
+        yaml.safe_load((tmp_path / "t" / "validation.yaml").read_text())["motion"] == "guided by the operator"
+    )
 
 
 def test_opencv_camera_reads_a_capture_device(tmp_path):
@@ -138,16 +251,23 @@ def test_opencv_camera_reads_a_capture_device(tmp_path):
 
 
 def test_photos_of_a_layout_with_markers_are_measured_through_vision(tmp_path):
-    from vision.plane import load_layout as load_markers
-    from vision.render import LaserSpot, Photo, aruco_print, render, square_corners
-
-    from collector.validate import fake_view, measure_with_markers
+    from lasercal.collector.sessions.validate import fake_view, measure_with_markers
+    from lasercal.vision.plane import load_layout as load_markers
+    from lasercal.vision.render import LaserSpot, Photo, aruco_print, render, square_corners
 
     centres = {0: (401, 200), 1: (481, 200), 2: (481, 120), 3: (401, 120)}  # around P4 = (441, 160), mm
     corners = {i: square_corners(c, 20.0) for i, c in centres.items()}
     layout = tmp_path / "markers.yaml"
-    layout.write_text(yaml.safe_dump({"format": "lasercal-layout/1", "plane": {"z": -8}, "points": {"P4": [441, 160, -8]},
-                                      "markers": {"dictionary": "DICT_4X4_50", "ids": {i: c.tolist() for i, c in corners.items()}}}))
+    layout.write_text(
+        yaml.safe_dump(
+            {
+                "format": "lasercal-layout/1",
+                "plane": {"z": -8},
+                "points": {"P4": [441, 160, -8]},
+                "markers": {"dictionary": "DICT_4X4_50", "ids": {i: c.tolist() for i, c in corners.items()}},
+            }
+        )
+    )
     view = fake_view((441, 160), -8.0)
     spot = np.array([443.7, 158.2])
     u, v = view.project(spot)[0]

@@ -1,4 +1,5 @@
-"""End to end: the real ``franky`` adapter against the franky-sim simulator, which speaks libfranka's protocol.
+"""End to end: the real ``franky`` adapter against the franky-sim simulator, which speaks libfranka's
+protocol.
 
 Only loopback is used. The simulator and the adapter run in a child process inside a
 private network namespace (``unshare --net``: nothing but a loopback interface) where the
@@ -10,6 +11,7 @@ simulator's joint positions in a step callback.
 Run as a script, this file is that harness: ``serve HOST`` runs a simulator,
 ``scenario DIR HOST [--netns]`` drives it and prints a JSON report.
 """
+
 from __future__ import annotations
 
 import json
@@ -94,18 +96,21 @@ def _loopback_up() -> None:
 def scenario(workdir: str, host: str) -> dict:
     """Read joint positions, run a capture session, move, and lose the robot; report what happened."""
     sys.path.insert(0, str(ROOT))
-    from collector.adapters.franky import FrankyRobot
-    from collector.capture import CaptureOptions, run_capture
-    from collector.errors import RobotConnectionError
-    from collector.store import CaptureStore
-    from collector.triggers import Trigger
-    from solver.aim import aim
-    from solver.model import DATA_DIR, load_model
-    from solver.session import load_layout, load_session, session_meta
+    from lasercal.collector.errors import RobotConnectionError
+    from lasercal.collector.hardware.franky import FrankyRobot
+    from lasercal.collector.hardware.triggers import Trigger
+    from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+    from lasercal.collector.sessions.store import CaptureStore
+    from lasercal.solver.formats.data import builtin_dir
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.formats.session import load_layout, load_session, session_meta
+    from lasercal.solver.kinematics.aim import aim
 
     report: dict = {}
     t0 = time.monotonic()
-    server = subprocess.Popen([sys.executable, __file__, "serve", host], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    server = subprocess.Popen(
+        [sys.executable, __file__, "serve", host], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
     try:
         assert server.stdout.readline().strip() == "READY"
         report["start_s"] = time.monotonic() - t0
@@ -115,7 +120,7 @@ def scenario(workdir: str, host: str) -> dict:
             server.stdin.flush()
 
         nominal = load_model("panda")
-        layout = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+        layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
         rng = np.random.default_rng(4)
         poses = {nm: aim(nominal, layout.points[nm], 2, rng, **layout.aim_kwargs()) for nm in ("P1", "P2")}
 
@@ -128,7 +133,12 @@ def scenario(workdir: str, host: str) -> dict:
         t = time.monotonic()
         robot.move_to(target)
         report["move_s"] = time.monotonic() - t
-        time.sleep(1.0)  # the simulator's position control settles (its dq then chatters at ~0.08 rad/s: no standstill wait here)
+        time.sleep(
+            1.0
+            # the simulator's position control settles (its dq then chatters at ~0.08 rad/s: no standstill
+            # wait
+            # here)
+        )
         report["move_error"] = float(np.abs(robot.read().q - target).max())
 
         q_set = poses["P1"][0]
@@ -156,7 +166,9 @@ def scenario(workdir: str, host: str) -> dict:
         meta["requested"] = ["P1", "P2"]
         store = CaptureStore.create(Path(workdir) / "session", meta, 7, robot.extra_columns)
         t = time.monotonic()
-        res = run_capture(store, robot, Operator(), nominal, CaptureOptions(2, hold=0.2), out=open(os.devnull, "w"))
+        res = run_capture(
+            store, robot, Operator(), nominal, CaptureOptions(2, hold=0.2), out=open(os.devnull, "w")
+        )
         report["session_s"] = time.monotonic() - t
         report["complete"] = res.complete
         session = load_session(store.folder)
@@ -191,8 +203,12 @@ def _netns_available() -> bool:
 
 
 def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path):
-    pytest.importorskip("franky", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-control missing")
-    pytest.importorskip("franky_sim", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-sim missing")
+    pytest.importorskip(
+        "franky", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-control missing"
+    )
+    pytest.importorskip(
+        "franky_sim", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-sim missing"
+    )
     host = f"127.0.0.{2 + os.getpid() % 250}"
     cmd = [sys.executable, __file__, "scenario", str(tmp_path), host]
     netns = _netns_available()
@@ -201,7 +217,12 @@ def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=180, cwd=ROOT)
     assert run.returncode == 0, run.stderr[-3000:]
     r = json.loads(run.stdout.strip().splitlines()[-1])
-    print("franky-sim end to end:", {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()}, "netns", netns)
+    print(
+        "franky-sim end to end:",
+        {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()},
+        "netns",
+        netns,
+    )
     # franky reads the positions the simulator holds (the wire carries them exactly; MuJoCo rounds nothing)
     assert r["read_error"] < 1e-6
     assert r["read_dq"] < 1e-6

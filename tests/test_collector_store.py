@@ -1,4 +1,5 @@
 """The crash-safe session store: durable appends, torn-line recovery, discards, validation on resume."""
+
 from __future__ import annotations
 
 import os
@@ -6,20 +7,29 @@ import os
 import numpy as np
 import pytest
 
-from collector.errors import SessionError
-from collector.store import CaptureStore, CsvLog
-from solver.errors import FormatError
-from solver.model import DATA_DIR
-from solver.session import load_layout, load_session, session_meta
+from lasercal.collector.errors import SessionError
+from lasercal.collector.sessions.store import CaptureStore, CsvLog
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.session import load_layout, load_session, session_meta
 
-LAYOUT = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
 
 
 def _rows(k: int, seed: int = 0) -> list[dict]:
     rng = np.random.default_rng(seed)
     q = np.array([0.1, -0.5, 0.2, -2.0, 0.1, 1.8, 0.6])
-    return [{"point": ["P1", "P2", "P3"][i % 3], "t": 10.0 * (i + 1) + rng.random(), "q": q + rng.normal(0, 0.3, 7),
-             "dq": rng.normal(0, 1e-3, 7), "tau": rng.normal(0, 10, 7), "robot_mode": "Guiding"} for i in range(k)]
+    return [
+        {
+            "point": ["P1", "P2", "P3"][i % 3],
+            "t": 10.0 * (i + 1) + rng.random(),
+            "q": q + rng.normal(0, 0.3, 7),
+            "dq": rng.normal(0, 1e-3, 7),
+            "tau": rng.normal(0, 10, 7),
+            "robot_mode": "Guiding",
+        }
+        for i in range(k)
+    ]
 
 
 def _new(tmp_path, name="s"):

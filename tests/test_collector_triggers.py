@@ -1,4 +1,5 @@
 """Triggers (serial over loop:// and socket://, pilot buttons, keyboard) and the serial rangefinder."""
+
 from __future__ import annotations
 
 import io
@@ -9,18 +10,19 @@ import time
 import pytest
 import serial
 
-from collector.adapters.base import FakeClock
-from collector.adapters.fake import FakeOperator, FakeRobot
-from collector.adapters.franky import FrankyPilot
-from collector.capture import CaptureOptions, run_capture
-from collector.errors import DeviceError
-from collector.rangefinder import SerialRangefinder, parse_reading
-from collector.store import CaptureStore
-from collector.triggers import EnterTrigger, PilotTrigger, SerialTrigger, make_trigger
-from solver.model import DATA_DIR, load_model
-from solver.session import load_layout, load_session, session_meta
+from lasercal.collector.errors import DeviceError
+from lasercal.collector.hardware.base import FakeClock
+from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
+from lasercal.collector.hardware.franky import FrankyPilot
+from lasercal.collector.hardware.rangefinder import SerialRangefinder, parse_reading
+from lasercal.collector.hardware.triggers import EnterTrigger, PilotTrigger, SerialTrigger, make_trigger
+from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session, session_meta
 
-LAYOUT = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
 TRUTH = load_model("panda_thesis_identified")
 
 
@@ -44,7 +46,8 @@ def test_serial_button_box_over_loop_drives_a_session(tmp_path):
 
 
 def _device(replies):
-    """A TCP 'serial device' on 127.0.0.1 that answers each received line with the next reply, or streams them."""
+    """A TCP 'serial device' on 127.0.0.1 that answers each received line with the next reply, or streams
+    them."""
     srv = socket.create_server(("127.0.0.1", 0))
     srv.settimeout(10)
 
@@ -81,14 +84,26 @@ def test_rangefinder_answers_queries_and_reads_streams_from_a_whole_line():
     port = serial.serial_for_url("loop://", timeout=0.05)
     port.write(b"99.0\n")  # an old reading, from another pose: flushed
     real_reset = port.reset_input_buffer
-    port.reset_input_buffer = lambda: (real_reset(), port.write(b"5 mm\n230.25 mm\n"))  # the stream resumes mid-line
+    port.reset_input_buffer = lambda: (
+        real_reset(),
+        port.write(b"5 mm\n230.25 mm\n"),
+    )  # the stream resumes mid-line
     assert SerialRangefinder(port).measure() == 230.25
     with pytest.raises(DeviceError, match="no reading"):
         SerialRangefinder(serial.serial_for_url("loop://", timeout=0.05), query=b"D\n", timeout=0.3).measure()
 
 
-@pytest.mark.parametrize("line, mm", [(b"412.5", 412.5), (b"D=412.5mm", 412.5), (b"41.25 cm\r\n", 412.5),
-                                      (b"0.4125m", 412.5), (b"dist: .5 m", 500.0), (b"ERR", None)])
+@pytest.mark.parametrize(
+    "line, mm",
+    [
+        (b"412.5", 412.5),
+        (b"D=412.5mm", 412.5),
+        (b"41.25 cm\r\n", 412.5),
+        (b"0.4125m", 412.5),
+        (b"dist: .5 m", 500.0),
+        (b"ERR", None),
+    ],
+)
 def test_rangefinder_line_parsing(line, mm):
     assert parse_reading(line) == mm
 
@@ -115,7 +130,12 @@ def test_pilot_buttons_map_check_cross_circle():
             self.button, self.pressed = type("B", (), {"value": button}), pressed
 
     class Desk:
-        batches = [[Event("check", True), Event("check", False)], [Event("up", True)], [Event("cross", True)], [Event("circle", True)]]
+        batches = [
+            [Event("check", True), Event("check", False)],
+            [Event("up", True)],
+            [Event("cross", True)],
+            [Event("circle", True)],
+        ]
 
         def poll_buttons(self, timeout):
             return self.batches.pop(0)

@@ -1,4 +1,5 @@
 """lasercal demo: the whole story on the simulated Panda finds the effect hidden in it."""
+
 from __future__ import annotations
 
 import contextlib
@@ -8,16 +9,24 @@ import json
 import numpy as np
 import pytest
 
-from collector import demo_cli
-from collector.adapters.base import FakeClock
-from collector.cli import main
-from collector.demo import COMPLIANCE, TRUTH, Compensated, DemoOptions, EffectRobot, encoder_reading, format_summary
-from collector.report import load_validation
-from solver.effects import Extension
-from solver.gravity import gravity_torques
-from solver.identify import predict_spots
-from solver.model import load_model
-from solver.stats import spot_stats
+from lasercal.collector.cli import demo as demo_cli
+from lasercal.collector.cli.main import main
+from lasercal.collector.demo import (
+    COMPLIANCE,
+    TRUTH,
+    Compensated,
+    DemoOptions,
+    EffectRobot,
+    encoder_reading,
+    format_summary,
+)
+from lasercal.collector.hardware.base import FakeClock
+from lasercal.collector.report.html import load_validation
+from lasercal.solver.analysis.stats import spot_stats
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.effects import Extension
+from lasercal.solver.kinematics.gravity import gravity_torques
 
 # Fewer photos and bootstrap replicates than the real demo: the story is the same, the test is fast.
 LIGHT = {"n_validation": 12, "n_boot": 200, "n_refit": 2}
@@ -28,7 +37,11 @@ def demo(tmp_path_factory):
     """``lasercal demo -o DIR`` once, with light options; its stdout, stderr and folder."""
     out = tmp_path_factory.mktemp("demo") / "demo"
     stdout, stderr = io.StringIO(), io.StringIO()
-    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+    with (
+        pytest.MonkeyPatch.context() as mp,
+        contextlib.redirect_stdout(stdout),
+        contextlib.redirect_stderr(stderr),
+    ):
         mp.setattr(demo_cli, "DemoOptions", lambda seed: DemoOptions(seed=seed, **LIGHT))
         code = main(["demo", "-o", str(out)])
     return code, stdout.getvalue(), stderr.getvalue(), out
@@ -37,8 +50,11 @@ def demo(tmp_path_factory):
 def test_encoder_reading_inverts_each_joint_effect():
     rng = np.random.default_rng(0)
     q_true, tau = rng.uniform(-1, 1, 7), rng.uniform(-40, 40, 7)
-    for ext in (COMPLIANCE, Extension("encoder_eccentricity", (2, 4), None, np.array([2e-3, -1e-3, 5e-4, 1.5e-3])),
-                Extension("drift", (1,), None, np.array([1e-5]))):
+    for ext in (
+        COMPLIANCE,
+        Extension("encoder_eccentricity", (2, 4), None, np.array([2e-3, -1e-3, 5e-4, 1.5e-3])),
+        Extension("drift", (1,), None, np.array([1e-5])),
+    ):
         q = encoder_reading(ext, q_true, 120.0, tau)
         assert np.abs(ext.true_q(q[None], np.array([120.0]), tau[None])[0] - q_true).max() < 1e-14
         assert np.abs(q - q_true).max() > 1e-4  # the effect is there to hide
@@ -56,7 +72,9 @@ def test_effect_robot_encoders_reach_the_command_while_the_links_bend():
     seen = robot.true_spot(-8.0)[0]
     bent = predict_spots(truth, COMPLIANCE.true_q(s.q[None], None, s.tau[None]), -8.0)[0][0]
     rigid = predict_spots(truth, q[None], -8.0)[0][0]
-    assert np.linalg.norm(seen - bent) < 0.02  # ... the links are where compliance puts them (c tau noise: 6e-6 rad)
+    assert (
+        np.linalg.norm(seen - bent) < 0.02
+    )  # ... the links are where compliance puts them (c tau noise: 6e-6 rad)
     assert np.linalg.norm(seen - rigid) > 0.3  # mm: the hidden effect moves the spot (0.5 mm here)
 
 
@@ -71,7 +89,9 @@ def test_compensated_controller_puts_the_links_where_the_model_wants():
     spot = robot.true_spot(-8.0)[0]
     assert np.linalg.norm(spot - predict_spots(truth, q[None], -8.0)[0][0]) < 0.02
     assert np.abs(arm.read().q - q).max() > 1e-3  # the encoders were told otherwise
-    assert np.allclose(gravity_torques(truth, q[None])[0][1] * COMPLIANCE.params[0], q[1] - arm.read().q[1], atol=1e-5)
+    assert np.allclose(
+        gravity_torques(truth, q[None])[0][1] * COMPLIANCE.params[0], q[1] - arm.read().q[1], atol=1e-5
+    )
 
 
 def test_demo_finds_the_hidden_effect(demo):
@@ -84,7 +104,9 @@ def test_demo_finds_the_hidden_effect(demo):
     assert abs(c["value"] - 1.2e-4) < 3 * c["std_error"] and c["std_error"] < 3e-5
     assert d["gain_percent"] > 5
     p4 = s["p4"]
-    assert p4["nominal"]["error_mean"] > 5 and p4["lm"]["error_mean"] < 1.5 and p4["thesis"]["error_mean"] < 1.5
+    assert (
+        p4["nominal"]["error_mean"] > 5 and p4["lm"]["error_mean"] < 1.5 and p4["thesis"]["error_mean"] < 1.5
+    )
     assert p4["extended"]["error_mean"] < p4["lm"]["error_mean"]  # modelling the compliance pays at P4 too
     assert s["captures"] == 90
 
@@ -94,9 +116,18 @@ def test_demo_p4_statistics_are_the_photos(demo):
     s = json.loads((out / "summary.json").read_text())
     for name in ("nominal", "lm", "thesis", "extended"):
         v = load_validation(out / "validation" / name)
-        assert len(v.spots) == LIGHT["n_validation"] and len(list((v.folder / "photos").glob("*.png"))) == LIGHT["n_validation"]
+        assert (
+            len(v.spots) == LIGHT["n_validation"]
+            and len(list((v.folder / "photos").glob("*.png"))) == LIGHT["n_validation"]
+        )
         assert s["p4"][name] == spot_stats(v.spots, v.xyz).as_dict()
-    for f in ("model_lm.yaml", "model_thesis.yaml", "model_extended.yaml", "session/captures.csv", "report/index.html"):
+    for f in (
+        "model_lm.yaml",
+        "model_thesis.yaml",
+        "model_extended.yaml",
+        "session/captures.csv",
+        "report/index.html",
+    ):
         assert (out / f).is_file()
     assert "joint_compliance" in (out / "model_extended.yaml").read_text()
 
@@ -105,8 +136,15 @@ def test_demo_prints_the_summary_and_a_progress_bar(demo):
     _, stdout, stderr, out = demo
     s = json.loads((out / "summary.json").read_text())
     assert stdout == format_summary(s) + "\n"
-    for phrase in ("lm (ours)", "thesis paper, after", "lm + effect (ours)", "hidden in the robot: joint_compliance at joint 2",
-                   "effect found: joint_compliance at joint 2: c2 = ", "gain: held-out RMS", f"report: {out / 'report' / 'index.html'}"):
+    for phrase in (
+        "lm (ours)",
+        "thesis paper, after",
+        "lm + effect (ours)",
+        "hidden in the robot: joint_compliance at joint 2",
+        "effect found: joint_compliance at joint 2: c2 = ",
+        "gain: held-out RMS",
+        f"report: {out / 'report' / 'index.html'}",
+    ):
         assert phrase in stdout
     assert "validate extended" in stderr and "%|" in stderr  # tqdm's bar, on stderr
 
@@ -115,5 +153,9 @@ def test_demo_refuses_a_folder_in_use(demo, capsys):
     out = demo[3]
     before = sorted(p.name for p in out.iterdir())
     assert main(["demo", "-o", str(out)]) == 2
-    assert capsys.readouterr().err == f"lasercal: error: {out} is not empty (an earlier demo?): remove it or choose another folder with -o\n"
+    assert (
+        capsys.readouterr().err
+        == f"lasercal: error: {out} is not empty (an earlier demo?): remove it or choose another folder "
+        "with -o\n"
+    )
     assert sorted(p.name for p in out.iterdir()) == before

@@ -1,4 +1,5 @@
 """Diagnosis: hide each effect in simulated data and require the tool to name it; clean data give 'none'."""
+
 import csv
 import io
 import json
@@ -7,16 +8,19 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from collector.cli import main
-from solver.diagnose import diagnose
-from solver.effects import Extension
-from solver.model import DATA_DIR, load_model
-from solver.session import load_layout, load_session, session_meta, write_session
-from solver.simulate import simulate_captures
+from lasercal.collector.cli.main import main
+from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
+from lasercal.solver.kinematics.effects import Extension
 
 TRUTH = load_model("panda_thesis_identified")
-LAYOUT = load_layout(DATA_DIR / "layouts" / "thesis.yaml")
-LAYOUT4 = replace(LAYOUT, calibration=("P1", "P2", "P3", "P4"), validation=())  # four points tell point offsets apart
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
+LAYOUT4 = replace(
+    LAYOUT, calibration=("P1", "P2", "P3", "P4"), validation=()
+)  # four points tell point offsets apart
 
 
 def sim(tmp_path, effect, seed, layout=LAYOUT, per_point=50, noise=0.5):
@@ -36,10 +40,14 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("effect, seed", CASES, ids=lambda c: c.effect + str(c.joints) if isinstance(c, Extension) else str(c))
+@pytest.mark.parametrize(
+    "effect, seed", CASES, ids=lambda c: c.effect + str(c.joints) if isinstance(c, Extension) else str(c)
+)
 def test_hidden_joint_effect_is_named_with_its_joint(tmp_path, effect, seed):
     d = diagnose(sim(tmp_path, effect, seed), n_boot=0, k=0)
-    assert d.effect == effect.effect and d.extension.joints == effect.joints, d.as_dict()["details"]["candidates"][:3]
+    assert d.effect == effect.effect and d.extension.joints == effect.joints, d.as_dict()["details"][
+        "candidates"
+    ][:3]
     # the estimate agrees with the truth within 4 standard errors
     z = (d.extension.params - effect.params) / d.extension.std_errors
     assert np.all(np.abs(z) < 4), (d.extension.params, effect.params, d.extension.std_errors)
@@ -81,15 +89,57 @@ def test_gain_reaches_the_noise_floor_and_bootstrap_sees_the_disagreement(tmp_pa
 
 def test_cli_diagnose_json_solve_extend_and_predict(tmp_path, capsys):
     s = tmp_path / "s"
-    assert main(["simulate", "panda_thesis_identified", "--layout", str(DATA_DIR / "layouts" / "thesis.yaml"), "--per-point", "50", "--aim-noise", "0.5",
-                 "--effect", "joint_compliance", "--effect-joints", "2", "--effect-size", "1.2e-4", "--seed", "7", "-o", str(s)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "panda_thesis_identified",
+                "--layout",
+                str(builtin_dir("layouts") / "thesis.yaml"),
+                "--per-point",
+                "50",
+                "--aim-noise",
+                "0.5",
+                "--effect",
+                "joint_compliance",
+                "--effect-joints",
+                "2",
+                "--effect-size",
+                "1.2e-4",
+                "--seed",
+                "7",
+                "-o",
+                str(s),
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
-    assert main(["diagnose", str(s), "--json", "--bootstrap", "500", "--refits", "3", "--report", str(tmp_path / "rep")]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                str(s),
+                "--json",
+                "--bootstrap",
+                "500",
+                "--refits",
+                "3",
+                "--report",
+                str(tmp_path / "rep"),
+            ]
+        )
+        == 0
+    )
     o = json.loads(capsys.readouterr().out)
     assert set(o) >= {"effect", "joints", "point", "parameters", "p_value", "holdout_rms_mm", "gain_percent"}
     assert o["effect"] == "joint_compliance" and o["joints"] == [2] and o["point"] is None
     assert set(o["holdout_rms_mm"]) == {"geometric", "extended"} and o["gain_percent"] > 0
-    assert sorted(p.name for p in (tmp_path / "rep").glob("*.png")) == ["before_after.png", "measured_vs_simulated.png", "residuals_vs_regressor.png"]
+    assert sorted(p.name for p in (tmp_path / "rep").glob("*.png")) == [
+        "before_after.png",
+        "measured_vs_simulated.png",
+        "residuals_vs_regressor.png",
+    ]
     assert main(["solve", str(s), "-o", str(tmp_path / "m.yaml"), "--extend", "auto", "--folds", "0"]) == 0
     model = load_model(tmp_path / "m.yaml")
     assert model.extensions["joint_compliance"]["joints"] == [2]
@@ -107,5 +157,12 @@ def test_cli_diagnose_json_solve_extend_and_predict(tmp_path, capsys):
         assert main(["predict", str(tmp_path / "m.yaml"), str(cfg)]) == 0
         out = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
         pts = LAYOUT.points
-        err = np.array([np.hypot(float(o["spot_x"]) - pts[o["point"]][0], float(o["spot_y"]) - pts[o["point"]][1]) for o in out])
-        assert np.sqrt(np.mean(err**2)) < 0.8  # at the 0.5 mm/axis aiming noise, not the ~1 mm of a geometric model
+        err = np.array(
+            [
+                np.hypot(float(o["spot_x"]) - pts[o["point"]][0], float(o["spot_y"]) - pts[o["point"]][1])
+                for o in out
+            ]
+        )
+        assert (
+            np.sqrt(np.mean(err**2)) < 0.8
+        )  # at the 0.5 mm/axis aiming noise, not the ~1 mm of a geometric model

@@ -1,4 +1,5 @@
 """lasercal export: the URDF and the DH table move the beam exactly as the POE model does."""
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -7,18 +8,21 @@ import numpy as np
 import pytest
 import yaml
 
-from collector.adapters.fake import perturbed_model
-from collector.cli import main
-from solver.export import FRANKA_ORIGINS, export, to_dh, to_urdf
-from solver.laser import beam
-from solver.model import load_model, model_from_dict
-from solver.poe import poe_chain, space_jacobian
+from lasercal.collector.cli.main import main
+from lasercal.collector.hardware.fake import perturbed_model
+from lasercal.solver.formats.export import FRANKA_ORIGINS, export, to_dh, to_urdf
+from lasercal.solver.formats.robots import load_model, model_from_dict
+from lasercal.solver.kinematics.laser import beam
+from lasercal.solver.kinematics.poe import poe_chain, space_jacobian
 
 
 def rot(axis: str, a: float) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
-    return {"x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]), "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
-            "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[axis]
+    return {
+        "x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]),
+        "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+        "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]),
+    }[axis]
 
 
 def homogeneous(R=None, p=None) -> np.ndarray:
@@ -31,7 +35,8 @@ def homogeneous(R=None, p=None) -> np.ndarray:
 
 
 def urdf_fk(text: str, q: np.ndarray) -> dict:
-    """Every link's pose (mm) from the URDF text alone: chain the origins, rotate revolute joints about their axes."""
+    """Every link's pose (mm) from the URDF text alone: chain the origins, rotate revolute joints about their
+    axes."""
     root = ET.fromstring(text)
     joints = {j.find("parent").get("link"): j for j in root.findall("joint")}
     children = {j.find("child").get("link") for j in root.findall("joint")}
@@ -65,7 +70,13 @@ def dh_fk(text: str, q: np.ndarray) -> np.ndarray:
 
     T = pose(d["base"])
     for row, qi in zip(d["joints"], q):
-        T = T @ homogeneous(rot("x", row["alpha"])) @ homogeneous(p=[row["a"], 0, 0]) @ homogeneous(rot("z", row["theta"] + qi)) @ homogeneous(p=[0, 0, row["d"]])
+        T = (
+            T
+            @ homogeneous(rot("x", row["alpha"]))
+            @ homogeneous(p=[row["a"], 0, 0])
+            @ homogeneous(rot("z", row["theta"] + qi))
+            @ homogeneous(p=[0, 0, row["d"]])
+        )
     return T @ pose(d["tool"])
 
 
@@ -92,7 +103,9 @@ def test_urdf_forward_kinematics_equals_poe(name):
         laser = poses[f"{prefix}laser"]
         assert np.abs(laser[:3, 3] - b.aperture[0]).max() < 1e-9  # mm
         assert np.abs(laser[:3, 2] - b.direction[0]).max() < 1e-12
-        J = space_jacobian(model.screws, poe_chain(model.screws, q[None]))[0]  # (6, n): each joint's screw at q
+        J = space_jacobian(model.screws, poe_chain(model.screws, q[None]))[
+            0
+        ]  # (6, n): each joint's screw at q
         for i in range(model.n):
             w, p = poses[f"axis{i}"]
             assert np.abs(w - J[:3, i]).max() < 1e-12
@@ -110,9 +123,15 @@ def test_urdf_of_the_nominal_panda_is_frankas():
         assert np.allclose(np.array(o.get("rpy").split(), float), rpy, atol=1e-15)
         assert j.find("axis").get("xyz") == "0 0 1"
     lim = joints[3].find("limit")
-    assert (float(lim.get("lower")), float(lim.get("upper")), float(lim.get("effort"))) == (-3.0718, -0.0698, 87.0)
+    assert (float(lim.get("lower")), float(lim.get("upper")), float(lim.get("effort"))) == (
+        -3.0718,
+        -0.0698,
+        87.0,
+    )
     flange = next(j for j in root.findall("joint") if j.get("name") == "panda_joint8")
-    assert flange.get("type") == "fixed" and np.allclose(np.array(flange.find("origin").get("xyz").split(), float), [0, 0, 0.107])
+    assert flange.get("type") == "fixed" and np.allclose(
+        np.array(flange.find("origin").get("xyz").split(), float), [0, 0, 0.107]
+    )
 
 
 def test_dh_of_the_nominal_panda_is_frankas_table():
@@ -126,7 +145,9 @@ def test_dh_of_the_nominal_panda_is_frankas_table():
     assert np.allclose([j["alpha"] for j in t["joints"]], alpha, atol=1e-12)
     assert np.allclose([j["theta"] for j in t["joints"]], 0, atol=1e-12)
     assert np.allclose(t["base"]["xyz"] + t["base"]["rpy"], 0, atol=1e-12)
-    assert np.allclose(t["tool"]["xyz"], [0, 0, 208], atol=1e-9)  # the aperture, 208 mm below joint 7's frame along its axis
+    assert np.allclose(
+        t["tool"]["xyz"], [0, 0, 208], atol=1e-9
+    )  # the aperture, 208 mm below joint 7's frame along its axis
 
 
 @pytest.mark.parametrize("name", MODELS)
@@ -143,7 +164,9 @@ def test_dh_forward_kinematics_equals_poe(name):
 
 
 def test_yaml_passthrough_and_extensions(tmp_path):
-    model = load_model("panda_thesis_identified").replace(extensions={"joint_compliance": {"units": "rad/Nm", "joints": [2], "c": [1.2e-4]}})
+    model = load_model("panda_thesis_identified").replace(
+        extensions={"joint_compliance": {"units": "rad/Nm", "joints": [2], "c": [1.2e-4]}}
+    )
     again = model_from_dict(yaml.safe_load(export(model, "yaml")))
     assert np.allclose(again.screws, model.screws, atol=1e-12) and again.extensions == model.extensions
     assert "joint_compliance" in to_urdf(model).split("<robot")[0]  # said, in a comment, before the robot

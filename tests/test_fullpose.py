@@ -1,7 +1,7 @@
 """Full-pose POE calibration (thesis Section 2.3) from circle-point measurements, and on real FR3 data."""
+
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import os
@@ -13,8 +13,11 @@ import yaml
 from scipy.linalg import expm, logm
 from scipy.spatial.transform import Rotation
 
-from solver.errors import FormatError, IdentificationError, LasercalError, ModelError
-from solver.fullpose import (
+from lasercal.collector.cli.main import build_parser
+from lasercal.solver.errors import FormatError, IdentificationError, LasercalError, ModelError
+from lasercal.solver.formats.fullpose_io import read_pose_csv
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.identify.fullpose import (
     PoseParams,
     _error_jacobian,
     accuracy,
@@ -28,13 +31,16 @@ from solver.fullpose import (
     simulate_circlepoint,
     with_target,
 )
-from solver.fullpose_cli import register
-from solver.fullpose_io import read_pose_csv
-from solver.model import load_model
-from solver.poe import fk, inv_T
+from lasercal.solver.kinematics.poe import fk, inv_T
 
-FR3 = Path(os.environ.get("LASERCAL_FR3_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "fr3-camera"))
-FLANGE = np.array([[1.0, 0, 0, 88], [0, -1, 0, 0], [0, 0, -1, 926], [0, 0, 0, 1]])  # Franka DH at q = 0, flange d = 107 mm
+FR3 = Path(
+    os.environ.get(
+        "LASERCAL_FR3_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "fr3-camera"
+    )
+)
+FLANGE = np.array(
+    [[1.0, 0, 0, 88], [0, -1, 0, 0], [0, 0, -1, 926], [0, 0, 0, 1]]
+)  # Franka DH at q = 0, flange d = 107 mm
 
 
 def hat(xi):
@@ -44,7 +50,9 @@ def hat(xi):
 
 def robots(kind):
     """(nominal, truth) with M at the same target: the thesis's Puma (Table 4.1) or Panda (Table 4.3)."""
-    nom, tru = {"puma": ("puma560", "puma560_thesis_actual"), "panda": ("panda", "panda_thesis_identified")}[kind]
+    nom, tru = {"puma": ("puma560", "puma560_thesis_actual"), "panda": ("panda", "panda_thesis_identified")}[
+        kind
+    ]
     nom, tru = load_model(nom), load_model(tru)
     tgt = default_target(nom)
     return with_target(nom, tgt), with_target(tru, tgt), tgt
@@ -70,15 +78,29 @@ def test_jacobian_against_finite_differences():
     q = rng.uniform(nom.limits[:, 0], nom.limits[:, 1], (5, nom.n))
     x = rng.normal(0, 0.02, P.size)
     x[P.slice_M] = rng.normal(0, 0.1, 6) * [1, 1, 1, 50, 50, 50]
-    Ta = fk(tru.screws, tru.ee_pose, q) @ expm(hat(rng.normal(0, 0.2, 6)))  # far from the model: y is not small
+    Ta = fk(tru.screws, tru.ee_pose, q) @ expm(
+        hat(rng.normal(0, 0.2, 6))
+    )  # far from the model: y is not small
     T, J = P.jacobian(x, q)
     # eq. 2.3.28: [dT T^-1]^vee, by central differences of log(T(x + h) T(x)^-1)
     h = 1e-6
-    num = np.stack([(pose_errors(P.poses(x + h * e, q), T) - pose_errors(P.poses(x - h * e, q), T)) / (2 * h) for e in np.eye(P.size)], -1)
+    num = np.stack(
+        [
+            (pose_errors(P.poses(x + h * e, q), T) - pose_errors(P.poses(x - h * e, q), T)) / (2 * h)
+            for e in np.eye(P.size)
+        ],
+        -1,
+    )
     assert np.abs(J - num).max() < 1e-5 * max(1, np.abs(J).max())
     # the residual Jacobian dy/dx = -J_l(-y)^-1 J, used by least_squares
     D = _error_jacobian(pose_errors(Ta, T), J)
-    num = np.stack([(pose_errors(Ta, P.poses(x + h * e, q)) - pose_errors(Ta, P.poses(x - h * e, q))) / (2 * h) for e in np.eye(P.size)], -1)
+    num = np.stack(
+        [
+            (pose_errors(Ta, P.poses(x + h * e, q)) - pose_errors(Ta, P.poses(x - h * e, q))) / (2 * h)
+            for e in np.eye(P.size)
+        ],
+        -1,
+    )
     assert np.abs(D - num).max() < 1e-5 * max(1, np.abs(D).max())
 
 
@@ -93,8 +115,13 @@ def test_exact_recovery_without_noise(kind):
     assert cal.before.position[0] > 1.0 and cal.after.position[2] < 1e-6
     qv, _ = measured(tru, tgt, 30, 0.0, 8)  # fresh configurations
     Tt, Tc = fk(tru.screws, tru.ee_pose, qv), fk(cal.model.screws, cal.model.ee_pose, qv)
-    assert np.abs(Tt[:, :3, 3] - Tc[:, :3, 3]).max() < 1e-6 and np.abs(Tt[:, :3, :3] - Tc[:, :3, :3]).max() < 1e-9
-    assert np.abs(cal.model.screws - tru.screws).max() < 1e-8  # the minimal POE is unique: the screws themselves
+    assert (
+        np.abs(Tt[:, :3, 3] - Tc[:, :3, 3]).max() < 1e-6
+        and np.abs(Tt[:, :3, :3] - Tc[:, :3, :3]).max() < 1e-9
+    )
+    assert (
+        np.abs(cal.model.screws - tru.screws).max() < 1e-8
+    )  # the minimal POE is unique: the screws themselves
 
 
 @pytest.mark.parametrize("kind", ["puma", "panda"])
@@ -111,7 +138,10 @@ def test_noisy_calibration_reaches_the_sensor_level(kind):
     Tt, Tc = fk(tru.screws, tru.ee_pose, qv), fk(cal.model.screws, cal.model.ee_pose, qv)
     assert np.linalg.norm(Tt[:, :3, 3] - Tc[:, :3, 3], axis=1).mean() < 0.03
     table = format_table([("nominal", cal.before), ("calibrated", cal.after)]).splitlines()
-    assert len(table) == 9 and table[2].split()[-4:] == ["calibrated", *(f"{v:.5f}" for v in cal.after.position)]
+    assert len(table) == 9 and table[2].split()[-4:] == [
+        "calibrated",
+        *(f"{v:.5f}" for v in cal.after.position),
+    ]
 
 
 def test_standard_errors_match_the_scatter():
@@ -121,7 +151,9 @@ def test_standard_errors_match_the_scatter():
     x_true = fit_fullpose(nom, q, T0).estimate
     z = []
     for seed in range(3):  # the same configurations, new sensor noise
-        noisy = dataclasses.replace(d, points=d.points + np.random.default_rng(100 + seed).normal(0, 0.01, d.points.shape))
+        noisy = dataclasses.replace(
+            d, points=d.points + np.random.default_rng(100 + seed).normal(0, 0.01, d.points.shape)
+        )
         _, T = noisy.poses()
         f = fit_fullpose(nom, q, T)
         z.append((f.estimate - x_true) / np.array([f.std_errors[k] for k in f.param_names]))
@@ -136,7 +168,11 @@ def test_unidentifiable_combinations_stay_at_their_start():
     T = fk(tru.screws, tru.ee_pose, q)
     f = fit_fullpose(nom, q, T)
     idf = f.identifiability
-    assert idf.rank == 4 * nom.n + 6 - 4 and len(idf.unidentifiable) == 4 and idf.singular_values[idf.rank] < 1e-9
+    assert (
+        idf.rank == 4 * nom.n + 6 - 4
+        and len(idf.unidentifiable) == 4
+        and idf.singular_values[idf.rank] < 1e-9
+    )
     assert all(np.isfinite(v) for v in f.std_errors.values())
     assert f.converged and np.abs(pose_errors(T, fk(f.model.screws, f.model.ee_pose, q))).max() < 1e-9
 
@@ -178,15 +214,30 @@ def test_bad_input():
 
 # ------------------------------------------------------------------ command line
 def run(argv):
-    ap = argparse.ArgumentParser(prog="lasercal")
-    register(ap.add_subparsers(required=True))
-    a = ap.parse_args(argv)
+    a = build_parser(argv[0]).parse_args(argv)
     return a.func(a)
 
 
 def test_cli_simulate_then_calibrate(tmp_path, capsys):
     m, out = tmp_path / "m.csv", tmp_path / "id.yaml"
-    assert run(["simulate-fullpose", "--robot", "puma560_thesis_actual", "--configs", "20", "--noise", "0.01", "--seed", "3", "-o", str(m)]) == 0
+    assert (
+        run(
+            [
+                "simulate-fullpose",
+                "--robot",
+                "puma560_thesis_actual",
+                "--configs",
+                "20",
+                "--noise",
+                "0.01",
+                "--seed",
+                "3",
+                "-o",
+                str(m),
+            ]
+        )
+        == 0
+    )
     assert run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--folds", "3"]) == 0
     text = capsys.readouterr().out
     assert "absolute position [mm]" in text and "3-fold cross-validation" in text
@@ -201,7 +252,11 @@ def test_cli_simulate_then_calibrate(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ real data: FR3 camera poses
-needs_fr3 = pytest.mark.skipif(not (FR3 / "poses.csv").is_file(), reason=f"real FR3 data not found at {FR3} (shared/data/fr3-camera beside the repository, or LASERCAL_FR3_DATA)")
+needs_fr3 = pytest.mark.skipif(
+    not (FR3 / "poses.csv").is_file(),
+    reason=f"real FR3 data not found at {FR3} (shared/data/fr3-camera beside the repository, or "
+    "LASERCAL_FR3_DATA)",
+)
 
 
 @needs_fr3
@@ -225,7 +280,9 @@ def test_fr3_cli_reads_poses(tmp_path, capsys):
     assert run(["fullpose", str(FR3 / "poses.csv"), "--robot", "panda", "-o", str(out)]) == 0
     assert "114 poses" in capsys.readouterr().out
     ident = yaml.safe_load(out.read_text())["identification"]
-    assert ident["accuracy"]["after"]["position_mm"]["mean"] < ident["accuracy"]["before"]["position_mm"]["mean"]
+    assert (
+        ident["accuracy"]["after"]["position_mm"]["mean"] < ident["accuracy"]["before"]["position_mm"]["mean"]
+    )
 
 
 def test_pose_csv_errors(tmp_path):

@@ -1,13 +1,14 @@
 """Identification against simulated ground truth: the thesis's Simulations 1-2 and Panda experiment."""
+
 import numpy as np
 import pytest
 
-from solver.aim import aim
-from solver.identify import identify, predict_spots
-from solver.laser import LaserParams
-from solver.model import load_model
-from solver.simulate import validation_spots
-from solver.stats import cross_validate, spot_stats
+from lasercal.solver.analysis.simulate import validation_spots
+from lasercal.solver.analysis.stats import cross_validate, spot_stats
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.identify.spot import identify, predict_spots
+from lasercal.solver.kinematics.aim import aim
+from lasercal.solver.kinematics.laser import LaserParams
 from tests.conftest import make_session
 
 
@@ -32,11 +33,14 @@ def test_simulation1_lm_recovers_the_puma_exactly(puma_exact):
     q, tgt = heldout_configs(truth, layout, 100, 11)
     assert heldout_error(session.robot, q, tgt).mean() > 10  # the nominal model is far off
     assert heldout_error(res.model, q, tgt).max() < 1e-6
-    # every identifiable parameter is the truth: screws and laser exactly; the aperture along the beam is the one
+    # every identifiable parameter is the truth: screws and laser exactly; the aperture along the beam is the
+    # one
     # combination the data cannot see, and it is held at the measured p_Mz (= the truth's here)
     assert res.identifiability.rank == LaserParams(truth).size - 1
     assert len(res.identifiability.unidentifiable) == 1 and "M.z" in res.identifiability.unidentifiable[0]
-    assert np.allclose(res.model.screws, truth.screws, atol=1e-8) and np.allclose(res.model.aperture, truth.aperture, atol=1e-6)
+    assert np.allclose(res.model.screws, truth.screws, atol=1e-8) and np.allclose(
+        res.model.aperture, truth.aperture, atol=1e-6
+    )
 
 
 def test_simulation1_thesis_method_converges_toward_the_truth(puma_exact):
@@ -44,10 +48,12 @@ def test_simulation1_thesis_method_converges_toward_the_truth(puma_exact):
     res = identify(session, "thesis")
     q, tgt = heldout_configs(truth, layout, 100, 11)
     err = heldout_error(res.model, q, tgt)
-    # after the thesis's 500 iterations the laser-length fixed point is within 1e-4 mm (Figure 4.1: "small differences")
+    # after the thesis's 500 iterations the laser-length fixed point is within 1e-4 mm (Figure 4.1: "small
+    # differences")
     assert err.max() < 1e-4
     assert res.history[-1]["step_norm"] < res.history[0]["step_norm"] * 1e-6
-    # the thesis's own Table 4.2 result predicts the same held-out spots with mm-level errors: it stopped earlier
+    # the thesis's own Table 4.2 result predicts the same held-out spots with mm-level errors: it stopped
+    # earlier
     t42 = heldout_error(load_model("puma560_thesis_identified"), q, tgt)
     assert 0.05 < t42.mean() < 1.0 and err.max() < t42.mean() / 100
 
@@ -57,7 +63,9 @@ def test_simulation2_error_grows_with_noise(tmp_path, method):
     truth = load_model("puma560_thesis_actual")
     errs = []
     for k, noise in enumerate([0.1, 1.0, 2.0, 3.0]):
-        session, truth, layout = make_session(tmp_path / f"n{k}", "puma560_thesis_actual", "puma", 30, noise, 20 + k, "puma560")
+        session, truth, layout = make_session(
+            tmp_path / f"n{k}", "puma560_thesis_actual", "puma", 30, noise, 20 + k, "puma560"
+        )
         res = identify(session, method, **({"max_iter": 150} if method == "thesis" else {}))
         assert method == "thesis" or res.converged
         q, tgt = heldout_configs(truth, layout, 100, 12)
@@ -72,11 +80,20 @@ def test_panda_experiment_at_p4(panda_noisy):
     rng = np.random.default_rng(5)
     p4 = layout.points["P4"]
     before = spot_stats(validation_spots(truth, session.robot, p4, 60, rng, **layout.aim_kwargs()), p4)
-    after = spot_stats(validation_spots(truth, identify(session, "lm").model, p4, 60, rng, **layout.aim_kwargs()), p4)
-    thesis = spot_stats(validation_spots(truth, identify(session, "thesis").model, p4, 60, rng, **layout.aim_kwargs()), p4)
-    print(f"\nP4 before: mean {before.error_mean:.2f} max {before.error_max:.2f}; lm after: mean {after.error_mean:.3f} max {after.error_max:.3f};"
-          f" thesis method: mean {thesis.error_mean:.3f} max {thesis.error_max:.3f}")
-    assert 7 < before.error_mean < 13 and before.error_max > 15  # the Table 4.3 geometry itself explains the thesis's ~10 mm
+    after = spot_stats(
+        validation_spots(truth, identify(session, "lm").model, p4, 60, rng, **layout.aim_kwargs()), p4
+    )
+    thesis = spot_stats(
+        validation_spots(truth, identify(session, "thesis").model, p4, 60, rng, **layout.aim_kwargs()), p4
+    )
+    print(
+        f"\nP4 before: mean {before.error_mean:.2f} max {before.error_max:.2f}; lm after: mean "
+        f"{after.error_mean:.3f} max {after.error_max:.3f};"
+        f" thesis method: mean {thesis.error_mean:.3f} max {thesis.error_max:.3f}"
+    )
+    assert (
+        7 < before.error_mean < 13 and before.error_max > 15
+    )  # the Table 4.3 geometry itself explains the thesis's ~10 mm
     assert after.error_mean < 1.3 and after.error_max < 3.5
     assert thesis.error_mean < 1.5
 
@@ -86,7 +103,9 @@ def test_identifiability_vertical_laser_aperture_height_unseen(panda_noisy):
     res = identify(session, "lm")
     idf = res.identifiability
     assert idf.rank == idf.n_params - 1 and "M.z" in idf.unidentifiable[0]
-    assert np.isclose(res.model.aperture[2], session.aperture_z, atol=1e-9)  # the gauge: held at the measured p_Mz
+    assert np.isclose(
+        res.model.aperture[2], session.aperture_z, atol=1e-9
+    )  # the gauge: held at the measured p_Mz
     assert np.isfinite(list(res.std_errors.values())).all()
 
 
@@ -94,20 +113,26 @@ def test_outlier_aimed_at_the_wrong_point_is_flagged(tmp_path, panda_noisy):
     session, truth, layout = panda_noisy
     bad = session.point.copy()
     bad[7], bad[30] = "P3", "P1"  # two captures logged against the wrong reference point
-    s2 = type(session)(*[getattr(session, f) for f in ("path", "meta", "robot", "plane_z", "aperture_z", "points")], bad,
-                       np.array([session.points[p] for p in bad]), *[getattr(session, f) for f in ("t", "q", "dq", "tau", "extra", "lines")])
+    s2 = type(session)(
+        *[getattr(session, f) for f in ("path", "meta", "robot", "plane_z", "aperture_z", "points")],
+        bad,
+        np.array([session.points[p] for p in bad]),
+        *[getattr(session, f) for f in ("t", "q", "dq", "tau", "extra", "lines")],
+    )
     res = identify(s2, "lm")
     assert set(res.outliers) == {7, 30}
     assert identify(session, "lm").outliers == ()  # no false alarm on the clean session
     keep = np.ones(session.m, bool)
     keep[[7, 30]] = False
-    without = identify(s2.subset(keep), "lm", robust=False)  # the flagged captures no longer bend the model at all
+    without = identify(
+        s2.subset(keep), "lm", robust=False
+    )  # the flagged captures no longer bend the model at all
     assert np.abs(res.model.screws - without.model.screws).max() < 1e-6
 
 
 def test_standard_errors_match_monte_carlo_spread(tmp_path):
     """Reported standard errors vs the actual spread of estimates over 40 noise draws (same poses)."""
-    from solver.aim import polish
+    from lasercal.solver.kinematics.aim import polish
 
     session, truth, layout = make_session(tmp_path, "panda_thesis_identified", "thesis", 20, 0.0, 3, "panda")
     rng = np.random.default_rng(6)
@@ -115,8 +140,17 @@ def test_standard_errors_match_monte_carlo_spread(tmp_path):
     for _ in range(40):
         hit = session.target + np.c_[rng.normal(0, 0.5, (session.m, 2)), np.zeros(session.m)]
         q = polish(truth, session.q, hit)
-        s = type(session)(*[getattr(session, f) for f in ("path", "meta", "robot", "plane_z", "aperture_z", "points", "point", "target", "t")], q,
-                          None, None, {}, session.lines)
+        s = type(session)(
+            *[
+                getattr(session, f)
+                for f in ("path", "meta", "robot", "plane_z", "aperture_z", "points", "point", "target", "t")
+            ],
+            q,
+            None,
+            None,
+            {},
+            session.lines,
+        )
         r = identify(s, "lm", robust=False)
         est.append(r.estimate)
         ses.append([r.std_errors[n] for n in r.param_names])

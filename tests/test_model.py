@@ -1,12 +1,14 @@
 """Robot model files: the shipped thesis tables, their typos handled openly, round trip, bad files."""
+
 import numpy as np
 import pytest
 
-from solver.errors import FormatError
-from solver.model import DATA_DIR, load_model, model_from_dict
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model, model_from_dict
 
 
-@pytest.mark.parametrize("name", sorted(p.stem for p in (DATA_DIR / "robots").glob("*.yaml")))
+@pytest.mark.parametrize("name", sorted(p.stem for p in (builtin_dir("robots")).glob("*.yaml")))
 def test_shipped_models_are_valid_screws(name):
     m = load_model(name)
     w, v = m.screws[:, :3], m.screws[:, 3:]
@@ -20,10 +22,13 @@ def test_printed_typos_are_corrected_and_rounding_is_reported():
     assert len(t43.notes) == 7  # every joint's 4-5 digit rounding is reported, never silent
     assert np.isclose(t43.laser_dir[0], 0.02478, atol=1e-5)  # printed 0.2478: |v_p| would be 1.030
     actual = load_model("puma560_thesis_actual")
-    # Table 4.1's printed joint-4/6 omega_z (-0.0998, -0.0995) and joint-3 (-0.01) corrected to -0.998, -0.995, -0.001
+    # Table 4.1's printed joint-4/6 omega_z (-0.0998, -0.0995) and joint-3 (-0.01) corrected to -0.998,
+    # -0.995, -0.001
     assert np.allclose(actual.screws[[2, 3, 5], 2], [-0.001, -0.998, -0.995], atol=2e-4)
     # and Table 4.2, identified by the thesis, confirms the corrected digits
-    assert np.allclose(load_model("puma560_thesis_identified").screws[[2, 3, 5], 2], actual.screws[[2, 3, 5], 2], atol=2e-3)
+    assert np.allclose(
+        load_model("puma560_thesis_identified").screws[[2, 3, 5], 2], actual.screws[[2, 3, 5], 2], atol=2e-3
+    )
 
 
 def test_save_load_round_trip(tmp_path):
@@ -45,7 +50,11 @@ def test_save_load_round_trip(tmp_path):
     ],
 )
 def test_bad_model_names_the_field(patch, field):
-    d = {"format": "lasercal-robot/1", "joints": [{"omega": [0, 0, 1], "v": [0, 0, 0], "limits": [-1, 1]}], "laser": {"v": [0, 0, -1], "M": [0, 0, 100]}}
+    d = {
+        "format": "lasercal-robot/1",
+        "joints": [{"omega": [0, 0, 1], "v": [0, 0, 0], "limits": [-1, 1]}],
+        "laser": {"v": [0, 0, -1], "M": [0, 0, 100]},
+    }
     d.update(patch)
     with pytest.raises(FormatError) as e:
         model_from_dict(d, "bad.yaml")

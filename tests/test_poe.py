@@ -1,14 +1,15 @@
 """Kinematics against independent oracles: scipy expm/logm, finite differences, Franka's DH table."""
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.linalg import expm, logm
 
-from solver.laser import LaserParams
-from solver.minimal import link_frame, screw_from_eta
-from solver.model import load_model
-from solver.poe import ad, adjoint, dexp_A, exp6, inv_T, log6, poe_chain, space_jacobian
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.kinematics.laser import LaserParams
+from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, exp6, inv_T, log6, poe_chain, space_jacobian
 
 finite = st.floats(-3, 3, allow_nan=False)
 
@@ -64,7 +65,11 @@ def test_dexp_A_is_the_derivative_of_the_exponential():
 
 
 def test_link_frames_follow_eqs_2215_2216():
-    for S in load_model("panda").screws.tolist() + load_model("puma560_thesis_actual").screws.tolist() + [[0, 0, 0, 0, 0, -1]]:
+    for S in (
+        load_model("panda").screws.tolist()
+        + load_model("puma560_thesis_actual").screws.tolist()
+        + [[0, 0, 0, 0, 0, -1]]
+    ):
         S = np.array(S)
         T = link_frame(S)
         R = T[:3, :3]
@@ -91,17 +96,33 @@ def test_screw_from_eta_derivative_and_constraints():
         S, dS = screw_from_eta(T, eta)
         w, v = S[:3], S[3:]
         if eta.size == 4:
-            assert np.isclose(np.linalg.norm(w), 1) and abs(w @ v) < 1e-9  # unit axis, zero pitch: no constraints needed
+            assert (
+                np.isclose(np.linalg.norm(w), 1) and abs(w @ v) < 1e-9
+            )  # unit axis, zero pitch: no constraints needed
         else:
             assert np.allclose(w, 0) and np.isclose(np.linalg.norm(v), 1)
         h = 1e-7
-        num = np.stack([(screw_from_eta(T, eta + h * e)[0] - screw_from_eta(T, eta - h * e)[0]) / (2 * h) for e in np.eye(eta.size)], 1)
+        num = np.stack(
+            [
+                (screw_from_eta(T, eta + h * e)[0] - screw_from_eta(T, eta - h * e)[0]) / (2 * h)
+                for e in np.eye(eta.size)
+            ],
+            1,
+        )
         assert np.allclose(dS, num, atol=1e-6)
 
 
 def test_panda_nominal_equals_franka_dh_table():
     """Thesis Table 4.3 nominal screws reproduce Franka's (Craig) DH table to round-off."""
-    dh = [(0, 333, 0), (0, 0, -np.pi / 2), (0, 316, np.pi / 2), (82.5, 0, np.pi / 2), (-82.5, 384, -np.pi / 2), (0, 0, np.pi / 2), (88, 0, np.pi / 2)]
+    dh = [
+        (0, 333, 0),
+        (0, 0, -np.pi / 2),
+        (0, 316, np.pi / 2),
+        (82.5, 0, np.pi / 2),
+        (-82.5, 384, -np.pi / 2),
+        (0, 0, np.pi / 2),
+        (88, 0, np.pi / 2),
+    ]
 
     def Rx(a):
         c, s = np.cos(a), np.sin(a)
@@ -138,7 +159,11 @@ def test_space_jacobian_by_finite_differences():
     for i in range(7):
         dq = np.zeros((1, 7))
         dq[0, i] = h
-        D = (poe_chain(model.screws, q + dq)[0, -1] - poe_chain(model.screws, q - dq)[0, -1]) / (2 * h) @ inv_T(T)
+        D = (
+            (poe_chain(model.screws, q + dq)[0, -1] - poe_chain(model.screws, q - dq)[0, -1])
+            / (2 * h)
+            @ inv_T(T)
+        )
         assert np.allclose(J[:, i], np.r_[D[2, 1], D[0, 2], D[1, 0], D[:3, 3]], atol=1e-5)
 
 
@@ -161,6 +186,8 @@ def test_laser_jacobians_by_finite_differences():
     for k in range(P.size):
         e = np.zeros(P.size)
         e[k] = h
-        assert np.allclose(K[:, :, k], (tip(x + e) - tip(x - e)) / (2 * h), atol=1e-4 * (1 + np.abs(K[:, :, k]).max()))
+        assert np.allclose(
+            K[:, :, k], (tip(x + e) - tip(x - e)) / (2 * h), atol=1e-4 * (1 + np.abs(K[:, :, k]).max())
+        )
         ds = (P.spots(x + e, q, -8.0)[0] - P.spots(x - e, q, -8.0)[0])[:, :2] / (2 * h)
         assert np.allclose(Js[:, :, k], ds, atol=1e-4 * (1 + np.abs(ds).max()))

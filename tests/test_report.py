@@ -1,4 +1,5 @@
 """lasercal report: the page's numbers are the library's, and a real browser renders it with its images."""
+
 from __future__ import annotations
 
 import csv
@@ -11,16 +12,16 @@ import cv2
 import numpy as np
 import pytest
 
-from collector.cli import main
-from collector.demo import TRUTH, DemoOptions, capture_session, thesis_layout, validate_model
-from collector.report import load_validation, parameter_table, write_report
-from solver.diagnose import diagnose
-from solver.diagnose_cli import format_diagnosis
-from solver.identify import identify
-from solver.laser import LaserParams
-from solver.model import load_model
-from solver.session import load_session
-from solver.stats import solve_report
+from lasercal.collector.cli.diagnose import format_diagnosis
+from lasercal.collector.cli.main import main
+from lasercal.collector.demo import TRUTH, DemoOptions, capture_session, thesis_layout, validate_model
+from lasercal.collector.report.html import load_validation, parameter_table, write_report
+from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.analysis.stats import solve_report
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_session
+from lasercal.solver.identify.spot import identify
+from lasercal.solver.kinematics.laser import LaserParams
 
 OPTS = DemoOptions(per_point=15, n_validation=8, n_boot=200, n_refit=2, seed=4)
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -65,7 +66,8 @@ class Tables(HTMLParser):
 
 @pytest.fixture(scope="module")
 def experiment(tmp_path_factory):
-    """A capture session, its calibration and diagnosis, and validations of the nominal and calibrated models at P4."""
+    """A capture session, its calibration and diagnosis, and validations of the nominal and calibrated models
+    at P4."""
     root = tmp_path_factory.mktemp("report")
     truth, layout = load_model(TRUTH), thesis_layout()
     session = load_session(capture_session(root / "session", truth, layout, OPTS))
@@ -83,7 +85,15 @@ def experiment(tmp_path_factory):
 def test_validation_table_is_the_photos(experiment):
     root, *_, index = experiment
     rows = Tables(index.read_text()).tables["validation-stats"]
-    assert rows[0] == ["run", "model", "spots measured", "scatter mean", "scatter std", "error mean", "error max"]
+    assert rows[0] == [
+        "run",
+        "model",
+        "spots measured",
+        "scatter mean",
+        "scatter std",
+        "error mean",
+        "error max",
+    ]
     assert [r[0] for r in rows[1:]] == ["nominal", "calibrated", "published"]
     for row, name in zip(rows[1:], ("nominal", "calibrated")):
         with open(root / name / "validation.csv") as f:  # straight from the file, not through load_validation
@@ -104,7 +114,9 @@ def test_parameter_table_is_the_model_with_propagated_standard_errors(experiment
     assert len(rows) == 2 * n + 2
     values = np.array([[float(x) for x in r[2].split(", ")] for r in rows])
     assert np.allclose(values[: 2 * n].reshape(n, 6), ident.model.screws, rtol=1e-5, atol=1e-8)
-    assert np.allclose(values[-2], ident.model.laser_dir, rtol=1e-5) and np.allclose(values[-1], ident.model.aperture, rtol=1e-5)
+    assert np.allclose(values[-2], ident.model.laser_dir, rtol=1e-5) and np.allclose(
+        values[-1], ident.model.aperture, rtol=1e-5
+    )
     # Standard errors: the fit's covariance through a finite-difference Jacobian of the parametrisation.
     P = LaserParams(ident.nominal)
     x = ident.estimate[: P.size]
@@ -121,7 +133,9 @@ def test_parameter_table_is_the_model_with_propagated_standard_errors(experiment
     se = np.sqrt(np.diag(D @ ident.extra["cov"][: P.size, : P.size] @ D.T))
     got = np.concatenate([r.std_error for r in parameter_table(ident)])
     assert np.allclose(got, se, rtol=1e-4, atol=1e-9)
-    assert np.allclose([[float(x) for x in r[3].split(", ")] for r in rows], got.reshape(-1, 3), rtol=0.06, atol=1e-12)  # printed to 2 digits
+    assert np.allclose(
+        [[float(x) for x in r[3].split(", ")] for r in rows], got.reshape(-1, 3), rtol=0.06, atol=1e-12
+    )  # printed to 2 digits
     assert got[-1] == 0.0  # the aperture height is the measured p_Mz: fixed, not estimated
 
 
@@ -129,11 +143,17 @@ def test_points_identifiability_and_diagnosis_are_the_librarys(experiment):
     _, session, ident, d, _, index = experiment
     t = Tables(index.read_text())
     rep = solve_report(session, ident)
-    expect = [[nm, when, str(s[when]["n"])] + [f"{s[when][k]:.3f}" for k in ("scatter_mean", "scatter_std", "error_mean", "error_max")]
-              for nm, s in rep["points"].items() for when in ("before", "after")]
+    expect = [
+        [nm, when, str(s[when]["n"])]
+        + [f"{s[when][k]:.3f}" for k in ("scatter_mean", "scatter_std", "error_mean", "error_max")]
+        for nm, s in rep["points"].items()
+        for when in ("before", "after")
+    ]
     assert t.tables["points"][1:] == expect
     idf = {r[0]: r[1] for r in t.tables["identifiability"][1:]}
-    assert idf["rank"] == str(ident.identifiability.rank) and idf["parameters"] == str(ident.identifiability.n_params)
+    assert idf["rank"] == str(ident.identifiability.rank) and idf["parameters"] == str(
+        ident.identifiability.n_params
+    )
     assert idf["not identifiable (1)"] == ident.identifiability.unidentifiable[0]
     assert t.pre["diagnosis"] == format_diagnosis(d)
 
@@ -146,28 +166,59 @@ def test_report_folder_is_self_contained(experiment):
     assert "http" not in text and "<script" not in text
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium to render the report headless (Debian: apt-get install chromium)")
+@pytest.mark.skipif(
+    CHROMIUM is None, reason="needs Chromium to render the report headless (Debian: apt-get install chromium)"
+)
 def test_report_renders_with_its_images_in_chromium(experiment, tmp_path):
     *_, index = experiment
     # The page under test plus a probe that records, once loaded, every image's decoded size.
-    probe = ('<script>window.addEventListener("load", function () { var s = [];'
-             ' for (var i = 0; i < document.images.length; i++) { var im = document.images[i];'
-             ' s.push(im.complete ? im.naturalWidth + "x" + im.naturalHeight : "0x0"); }'
-             ' document.body.setAttribute("data-images", s.join(" ")); });</script>')
+    probe = (
+        '<script>window.addEventListener("load", function () { var s = [];'
+        " for (var i = 0; i < document.images.length; i++) { var im = document.images[i];"
+        ' s.push(im.complete ? im.naturalWidth + "x" + im.naturalHeight : "0x0"); }'
+        ' document.body.setAttribute("data-images", s.join(" ")); });</script>'
+    )
     page = index.with_name("probe.html")
     page.write_text(index.read_text().replace("</body>", probe + "</body>"))
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-             "--disable-component-update", "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}"]
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / 'profile'}",
+    ]
     try:
-        dom = subprocess.run([CHROMIUM, *flags, "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
-                             capture_output=True, text=True, timeout=120, check=False).stdout
+        dom = subprocess.run(
+            [CHROMIUM, *flags, "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        ).stdout
         shot = tmp_path / "shot.png"
-        subprocess.run([CHROMIUM, *flags, f"--screenshot={shot}", "--window-size=1200,2400", "--hide-scrollbars", index.as_uri()],
-                       capture_output=True, timeout=120, check=False)
+        subprocess.run(
+            [
+                CHROMIUM,
+                *flags,
+                f"--screenshot={shot}",
+                "--window-size=1200,2400",
+                "--hide-scrollbars",
+                index.as_uri(),
+            ],
+            capture_output=True,
+            timeout=120,
+            check=False,
+        )
     finally:
         page.unlink()
     sizes = re.search(r'data-images="([^"]*)"', dom).group(1).split()
-    files = [cv2.imread(str(index.parent / s)).shape for s in re.findall(r'<img src="([^"]+)"', index.read_text())]
+    files = [
+        cv2.imread(str(index.parent / s)).shape for s in re.findall(r'<img src="([^"]+)"', index.read_text())
+    ]
     assert sizes == [f"{w}x{h}" for h, w, _ in files]  # every image decoded, at its file's size
     assert "Validation at P4" in dom and "Diagnosis" in dom
     img = cv2.imread(str(shot))
@@ -177,7 +228,17 @@ def test_report_renders_with_its_images_in_chromium(experiment, tmp_path):
 def test_report_cli(experiment, tmp_path, capsys):
     root = experiment[0]
     out = tmp_path / "rep"
-    args = [str(root / "nominal"), str(root / "session"), str(root / "calibrated"), "-o", str(out), "--bootstrap", "50", "--refits", "1"]
+    args = [
+        str(root / "nominal"),
+        str(root / "session"),
+        str(root / "calibrated"),
+        "-o",
+        str(out),
+        "--bootstrap",
+        "50",
+        "--refits",
+        "1",
+    ]
     assert main(["report", *args]) == 0
     assert capsys.readouterr().out.strip() == f"wrote {out / 'index.html'}"
     t = Tables((out / "index.html").read_text())
@@ -185,7 +246,10 @@ def test_report_cli(experiment, tmp_path, capsys):
     first = Tables(experiment[-1].read_text())
     assert t.tables["parameters"] == first.tables["parameters"]  # the same calibration as the library's
     assert main(["report", str(root / "nominal"), "-o", str(out)]) == 2
-    assert "exactly one capture session folder (with session.yaml) among its folders, got 0" in capsys.readouterr().err
+    assert (
+        "exactly one capture session folder (with session.yaml) among its folders, got 0"
+        in capsys.readouterr().err
+    )
 
 
 def test_report_input_errors_name_the_file_and_line(experiment, tmp_path, capsys):
@@ -200,7 +264,9 @@ def test_report_input_errors_name_the_file_and_line(experiment, tmp_path, capsys
     (bad / "validation.csv").write_text("\n".join(lines) + "\n")
     assert main(["report", str(root / "session"), str(bad), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"lasercal: error: {bad / 'validation.csv'}, line 4, column 'y_mm': not a finite number: 'abc'"]
+    assert err == [
+        f"lasercal: error: {bad / 'validation.csv'}, line 4, column 'y_mm': not a finite number: 'abc'"
+    ]
     assert main(["report", str(root / "session"), str(tmp_path), "-o", str(tmp_path / "o")]) == 2
     assert "neither a capture session" in capsys.readouterr().err
     # Photos not measured yet: empty x_mm, y_mm are skipped, and none at all is an error.

@@ -4,6 +4,7 @@ The data tests use ../shared/data/mukca (CI has it) and skip with the reason whe
 The full four-robot study takes ~90 s on two cores (benchmarks/bench_study_mukca.py); here a
 --quick study of panda_4 runs once through the CLI and the tests read its report.
 """
+
 from __future__ import annotations
 
 import json
@@ -12,16 +13,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from collector.cli import main
-from collector.study_mukca import (
-    consistency, homogeneity, jackknife_se, load_robot, outlier_audit, position_of, stiffness, summarise,
+from lasercal.collector.cli.main import main
+from lasercal.collector.studies.mukca import (
+    consistency,
+    homogeneity,
+    jackknife_se,
+    load_robot,
+    outlier_audit,
+    position_of,
+    stiffness,
+    summarise,
 )
-from solver.measurement import fit
-from solver.session import load_session
+from lasercal.solver.formats.session import load_session
+from lasercal.solver.identify.measurement import fit
 
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 
-needs_data = pytest.mark.skipif(not (MUKCA / "panda_4").is_dir(), reason=f"MUKCa data not found at {MUKCA} (see PROVENANCE.md there)")
+needs_data = pytest.mark.skipif(
+    not (MUKCA / "panda_4").is_dir(), reason=f"MUKCa data not found at {MUKCA} (see PROVENANCE.md there)"
+)
 
 
 # ------------------------------------------------------------------ no data needed
@@ -59,15 +69,24 @@ def test_consistency_matches_mukca_definitions():
     rng = np.random.default_rng(2)
     a = rng.normal([0, 0, 0], 0.3, (30, 3))
     b = rng.normal([50.4, 0, 0], 0.5, (40, 3))
-    c = consistency(np.vstack([a, b]), _Pts(["p/hole_0"] * 30 + ["p/hole_1"] * 40, (("p/hole_0", "p/hole_1", 50.0),)))
+    c = consistency(
+        np.vstack([a, b]), _Pts(["p/hole_0"] * 30 + ["p/hole_1"] * 40, (("p/hole_0", "p/hole_1", 50.0),))
+    )
     da, db = np.linalg.norm(a - a.mean(0), axis=1), np.linalg.norm(b - b.mean(0), axis=1)
     s = c["sockets"]["p/hole_1"]
-    assert s["n"] == 40 and s["rms_mm"] == pytest.approx(np.sqrt(np.mean(db**2))) and s["mean_mm"] == pytest.approx(db.mean())
+    assert (
+        s["n"] == 40
+        and s["rms_mm"] == pytest.approx(np.sqrt(np.mean(db**2)))
+        and s["mean_mm"] == pytest.approx(db.mean())
+    )
     pos = c["positions"]["p"]
     assert pos["distance_error_mm"] == pytest.approx(abs(np.linalg.norm(a.mean(0) - b.mean(0)) - 50.0))
-    # calibrate_fk/utils.py evaluate_model: N-weighted mean absolute error and RMS over both sockets, in metres
+    # calibrate_fk/utils.py evaluate_model: N-weighted mean absolute error and RMS over both sockets, in
+    # metres
     assert pos["mukca_mae_m"] == pytest.approx(1e-3 * (30 * da.mean() + 40 * db.mean()) / 70)
-    assert pos["mukca_sigma_m"] == pytest.approx(1e-3 * np.sqrt((np.sum(np.var(a, 0)) * 30 + np.sum(np.var(b, 0)) * 40) / 70))
+    assert pos["mukca_sigma_m"] == pytest.approx(
+        1e-3 * np.sqrt((np.sum(np.var(a, 0)) * 30 + np.sum(np.var(b, 0)) * 40) / 70)
+    )
     assert summarise(c)["spread_mean_mm"] == pytest.approx((da.mean() + db.mean()) / 2)
 
 
@@ -85,7 +104,14 @@ def quick_report(tmp_path_factory):
 @needs_data
 def test_study_cli_writes_tables_and_plots(quick_report):
     out, rep = quick_report
-    for name in ("report.json", "report.md", "residuals_vs_regressor.png", "measured_vs_simulated.png", "stiffness.png", "loto_positions.png"):
+    for name in (
+        "report.json",
+        "report.md",
+        "residuals_vs_regressor.png",
+        "measured_vs_simulated.png",
+        "stiffness.png",
+        "loto_positions.png",
+    ):
         assert (out / name).stat().st_size > 500, name
     md = (out / "report.md").read_text()
     for section in ("## 1.", "## 2.", "## 3.", "## 4.", "## 5.", "8.28e-03 -> 1.68e-04"):
@@ -102,7 +128,9 @@ def test_calibration_by_leaving_positions_out(quick_report):
     assert test["geometric"]["spread_rms_mm"] < 0.35  # calibrated, on positions the fit never saw
     assert test["geometric"]["distance_error_mm"] < 0.3 < test["nominal"]["distance_error_mm"]
     assert x["train"]["geometric"]["spread_rms_mm"] < test["geometric"]["spread_rms_mm"]
-    assert test["geometric"]["mukca_mae_m"] == pytest.approx(1e-3 * test["geometric"]["spread_mean_mm"], rel=0.05)
+    assert test["geometric"]["mukca_mae_m"] == pytest.approx(
+        1e-3 * test["geometric"]["spread_mean_mm"], rel=0.05
+    )
 
 
 @needs_data
@@ -111,10 +139,14 @@ def test_diagnosis_simulation_and_extension(quick_report):
     d = x["diagnosis"]
     assert d["effect"] == "joint_compliance" and 2 in d["joints"] and d["p_value"] < 1e-6
     sim = x["simulation"]
-    assert sim["size"]["measured_rms_mm"] == pytest.approx(sim["size"]["simulated_rms_mm"][0], rel=0.05)  # by construction
+    assert sim["size"]["measured_rms_mm"] == pytest.approx(
+        sim["size"]["simulated_rms_mm"][0], rel=0.05
+    )  # by construction
     assert sim["lag1"]["measured"] > sim["lag1"]["simulated_95"]  # structure the simulation lacks
     assert sim["regressors"][0]["partial_r2"] > 5 * sim["regressors"][0]["simulated_r2_95"]
-    assert x["extension"]["gain_percent"]["nested"] > 3.0  # held out, effect chosen without the held-out position
+    assert (
+        x["extension"]["gain_percent"]["nested"] > 3.0
+    )  # held out, effect chosen without the held-out position
     cm = x["extension"]["compliance"]
     assert cm["joints"] == [2, 3, 4] and len(cm["folds_rad_per_nm"]) == 4
     assert cm["c_rad_per_nm"][2] < -2 * cm["se_rad_per_nm"][2]  # joint 4 sags
@@ -131,7 +163,8 @@ def test_outliers_against_the_authors_cleaning_panda_4(quick_report):
 
 @needs_data
 def test_robust_loss_finds_the_corrupted_panda_2_position(tmp_path):
-    """The authors removed panda_2/high by hand; the robust fit flags its rows and the position screen names it."""
+    """The authors removed panda_2/high by hand; the robust fit flags its rows and the position screen names
+    it."""
     s = load_robot(MUKCA, "panda_2", tmp_path)
     g = fit(s)
     a = outlier_audit(s, g, ["high"], 0.01, {})
@@ -150,7 +183,10 @@ def test_subset_drops_points_without_captures(tmp_path):
 
 @needs_data
 def test_import_mukca_cli_still_works(tmp_path):
-    assert main(["import-mukca", str(MUKCA / "panda_4"), "-o", str(tmp_path / "s"), "--positions", "front,left"]) == 0
+    assert (
+        main(["import-mukca", str(MUKCA / "panda_4"), "-o", str(tmp_path / "s"), "--positions", "front,left"])
+        == 0
+    )
     s = load_session(tmp_path / "s")
     assert set(position_of(s)) == {"front", "left"} and s.m == 129 and len(s.distances) == 2
 

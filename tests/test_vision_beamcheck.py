@@ -1,4 +1,5 @@
 """Circle fit and the laser alignment check (beam tilt from the joint-7 axis)."""
+
 import json
 
 import cv2
@@ -6,11 +7,11 @@ import numpy as np
 import pytest
 import yaml
 
-from vision.beamcheck import fit_circle, tilt
-from vision.cli import main
-from vision.errors import CalibrationError
-from vision.plane import layout_markers
-from vision.render import LaserSpot, Photo, look_down, marker_prints, marker_sheet, render
+from lasercal.collector.cli.main import main
+from lasercal.vision.beamcheck import fit_circle, tilt
+from lasercal.vision.errors import CalibrationError
+from lasercal.vision.plane import layout_markers
+from lasercal.vision.render import LaserSpot, Photo, look_down, marker_prints, marker_sheet, render
 
 
 def test_circle_through_exact_points():
@@ -52,13 +53,29 @@ def test_beam_check_command_on_rendered_photos(tmp_path, capsys):
     paths = []
     for i, a in enumerate(np.radians([0, 50, 100, 160, 220, 290])):
         p = centre + radius * np.array([np.cos(a), np.sin(a)])
-        img = render(Photo(view, marker_prints(markers), (LaserSpot(*view.project(p)[0], 2.0, 3.0, speckle=0.3),),
-                           paper=0.55, jpeg=92, gamma=2.2), i)
+        img = render(
+            Photo(
+                view,
+                marker_prints(markers),
+                (LaserSpot(*view.project(p)[0], 2.0, 3.0, speckle=0.3),),
+                paper=0.55,
+                jpeg=92,
+                gamma=2.2,
+            ),
+            i,
+        )
         paths.append(str(tmp_path / f"j7_{i}.jpg"))
         cv2.imwrite(paths[-1], img)
     layout = tmp_path / "layout.yaml"
-    layout.write_text(yaml.safe_dump({"format": "lasercal-layout/1", "plane": {"z": -8},
-                                      "markers": layout_markers("DICT_4X4_50", markers)}))
+    layout.write_text(
+        yaml.safe_dump(
+            {
+                "format": "lasercal-layout/1",
+                "plane": {"z": -8},
+                "markers": layout_markers("DICT_4X4_50", markers),
+            }
+        )
+    )
     assert main(["beam-check", *paths, "--layout", str(layout), "--laser-length", str(length), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert np.hypot(*(np.array(out["centre_mm"]) - centre)) < 0.05

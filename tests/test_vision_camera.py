@@ -1,12 +1,13 @@
 """Camera YAML and calibration against synthetic pattern photos with known intrinsics (px)."""
+
 import cv2
 import numpy as np
 import pytest
 import yaml
 
-from vision.camera import Camera, calibrate, distort, load_camera, save_camera, undistort
-from vision.errors import CalibrationError, LayoutError
-from vision.render import Photo, Print, chessboard_print, pose_view, render
+from lasercal.vision.camera import Camera, calibrate, distort, load_camera, save_camera, undistort
+from lasercal.vision.errors import CalibrationError, LayoutError
+from lasercal.vision.render import Photo, Print, chessboard_print, pose_view, render
 
 SIZE = (640, 480)
 K = np.array([[620.0, 0, 322.5], [0, 620.0, 238.0], [0, 0, 1]])
@@ -35,8 +36,9 @@ def test_distort_and_undistort_are_inverse():
 
 def test_chessboard_calibration_recovers_the_intrinsics():
     board = chessboard_print(9, 6, 25.0)
-    cam, used = calibrate(pattern_photos(board, (125.0, 87.5)), {"type": "chessboard", "cols": 9, "rows": 6,
-                                                                   "square": 25.0})
+    cam, used = calibrate(
+        pattern_photos(board, (125.0, 87.5)), {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0}
+    )
     assert used == 8 and cam.size == SIZE
     assert cam.rms_px < 0.15
     assert np.allclose(np.diag(cam.K)[:2], np.diag(K)[:2], rtol=0.02)  # f and k1, k2 trade off a little
@@ -64,8 +66,17 @@ def test_charuco_calibration():
     tex = board.generateImage((700, 500), marginSize=0).astype(np.float32) / 255
     item = Print(tex, np.array([[0, 0], [210, 0], [210, 150], [0, 150.0]]))  # board frame: y down the print
     photos = pattern_photos(item, (105.0, 75.0), n=6, seed=1, distance=420.0)
-    cam, used = calibrate(photos, {"type": "charuco", "cols": 7, "rows": 5, "square": 30.0, "marker": 22.0,
-                                   "dictionary": "DICT_4X4_50"})
+    cam, used = calibrate(
+        photos,
+        {
+            "type": "charuco",
+            "cols": 7,
+            "rows": 5,
+            "square": 30.0,
+            "marker": 22.0,
+            "dictionary": "DICT_4X4_50",
+        },
+    )
     assert used == 6 and cam.rms_px < 0.5
     assert np.allclose(np.diag(cam.K)[:2], np.diag(K)[:2], rtol=0.02)
 
@@ -77,13 +88,17 @@ def test_calibration_errors():
         calibrate(blank, {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0}, warned.append)
     assert len(warned) == 4 and "b0.png: calibration pattern not found" in warned[0]
     with pytest.raises(CalibrationError, match="different sizes"):
-        calibrate([("a", np.zeros((10, 20), np.uint8)), ("b", np.zeros((20, 10), np.uint8))],
-                  {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0})
+        calibrate(
+            [("a", np.zeros((10, 20), np.uint8)), ("b", np.zeros((20, 10), np.uint8))],
+            {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0},
+        )
 
 
 def test_camera_yaml_round_trip(tmp_path):
     path = tmp_path / "camera.yaml"
-    save_camera(path, Camera(SIZE, K, DIST, 0.123), {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0}, 8)
+    save_camera(
+        path, Camera(SIZE, K, DIST, 0.123), {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0}, 8
+    )
     doc = yaml.safe_load(path.read_text())
     assert doc["format"] == "lasercal-camera/1" and doc["units"] == {"image": "px", "pattern": "mm"}
     assert doc["image_size"] == [640, 480] and doc["photos"] == 8 and doc["rms_px"] == 0.123
@@ -91,12 +106,19 @@ def test_camera_yaml_round_trip(tmp_path):
     assert np.allclose(cam.K, K) and np.allclose(cam.dist, DIST) and cam.size == SIZE
 
 
-@pytest.mark.parametrize("text, field", [
-    ("format: other/1\n", "format"),
-    ("format: lasercal-camera/1\nimage_size: [640]\nK: [[1,0,0],[0,1,0],[0,0,1]]\n", "image_size"),
-    ("format: lasercal-camera/1\nimage_size: [640, 480]\nK: [[1,0,0],[0,1,0]]\n", "K"),
-    ("format: lasercal-camera/1\nimage_size: [640, 480]\nK: [[1,0,0],[0,1,0],[0,0,1]]\ndist: [1, 2, 3]\n", "dist"),
-])
+@pytest.mark.parametrize(
+    "text, field",
+    [
+        ("format: other/1\n", "format"),
+        ("format: lasercal-camera/1\nimage_size: [640]\nK: [[1,0,0],[0,1,0],[0,0,1]]\n", "image_size"),
+        ("format: lasercal-camera/1\nimage_size: [640, 480]\nK: [[1,0,0],[0,1,0]]\n", "K"),
+        (
+            "format: lasercal-camera/1\nimage_size: [640, 480]\nK: [[1,0,0],[0,1,0],[0,0,1]]\ndist: [1, 2, "
+            "3]\n",
+            "dist",
+        ),
+    ],
+)
 def test_camera_yaml_errors_name_the_field(tmp_path, text, field):
     path = tmp_path / "cam.yaml"
     path.write_text(text)
@@ -105,5 +127,7 @@ def test_camera_yaml_errors_name_the_field(tmp_path, text, field):
 
 
 def test_photo_of_another_size_is_refused():
-    with pytest.raises(CalibrationError, match="p.jpg: image is 480x640 px but the camera was calibrated at 640x480"):
+    with pytest.raises(
+        CalibrationError, match="p.jpg: image is 480x640 px but the camera was calibrated at 640x480"
+    ):
         Camera(SIZE, K, DIST).check_size((480, 640), "p.jpg")

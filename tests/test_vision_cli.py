@@ -1,5 +1,5 @@
 """The vision subcommands end to end: output shapes, bad input, exit codes and messages."""
-import argparse
+
 import json
 import subprocess
 import sys
@@ -9,9 +9,18 @@ import numpy as np
 import pytest
 import yaml
 
-from vision.cli import main, register
-from vision.plane import layout_markers
-from vision.render import LaserSpot, Photo, chessboard_print, look_down, marker_prints, marker_sheet, pose_view, render
+from lasercal.collector.cli.main import build_parser, main
+from lasercal.vision.plane import layout_markers
+from lasercal.vision.render import (
+    LaserSpot,
+    Photo,
+    chessboard_print,
+    look_down,
+    marker_prints,
+    marker_sheet,
+    pose_view,
+    render,
+)
 
 VIEW = look_down((1000, 750), 0.3, centre=(450.0, 0.0), yaw_deg=-4, z=-8)
 MARKERS = marker_sheet(VIEW, side=40)
@@ -28,15 +37,28 @@ def files(tmp_path_factory):
         cv2.imwrite(str(d / name), render(Photo(VIEW, marker_prints(markers), spots, **PHOTO), seed))
         return str(d / name)
 
-    f = {"one": photo("one.jpg", XY[:1]), "two": photo("two.jpg", XY, seed=1), "none": photo("none.jpg", seed=2),
-         "few": photo("few.jpg", XY[:1], {i: c for i, c in MARKERS.items() if i == 0}, seed=3)}
+    f = {
+        "one": photo("one.jpg", XY[:1]),
+        "two": photo("two.jpg", XY, seed=1),
+        "none": photo("none.jpg", seed=2),
+        "few": photo("few.jpg", XY[:1], {i: c for i, c in MARKERS.items() if i == 0}, seed=3),
+    }
     (d / "text.jpg").write_text("not an image")
     f["text"] = str(d / "text.jpg")
     f["missing"] = str(d / "missing.jpg")
     layout = d / "layout.yaml"
-    layout.write_text(yaml.safe_dump({"format": "lasercal-layout/1", "units": {"length": "mm"}, "plane": {"z": -8},
-                                      "points": {"P1": [521, 200, -8]}, "validation": ["P1"],
-                                      "markers": layout_markers("DICT_4X4_50", MARKERS)}))
+    layout.write_text(
+        yaml.safe_dump(
+            {
+                "format": "lasercal-layout/1",
+                "units": {"length": "mm"},
+                "plane": {"z": -8},
+                "points": {"P1": [521, 200, -8]},
+                "validation": ["P1"],
+                "markers": layout_markers("DICT_4X4_50", MARKERS),
+            }
+        )
+    )
     f["layout"] = str(layout)
     f["dir"] = d
     return f
@@ -49,8 +71,9 @@ def run(capsys, *argv):
 
 
 def test_spots_json_shape_and_mm(files, capsys):
-    code, out, err = run(capsys, "spots", files["one"], files["two"], "--layout", files["layout"], "--json",
-                         "--expect", "any")
+    code, out, err = run(
+        capsys, "spots", files["one"], files["two"], "--layout", files["layout"], "--json", "--expect", "any"
+    )
     assert code == 0 and err == ""
     doc = json.loads(out)
     assert [e["image"] for e in doc] == [files["one"], files["two"]]
@@ -59,8 +82,20 @@ def test_spots_json_shape_and_mm(files, capsys):
         assert e["plane"]["markers"] == [0, 1, 2, 3] and e["plane"]["rms_mm"] < 0.05
         assert e["plane"]["z_mm"] == -8 and e["plane"]["mm_per_px"] == pytest.approx(0.3, abs=0.003)
         s = e["spots"][0]
-        assert set(s) == {"u", "v", "sigma_u", "sigma_v", "x_mm", "y_mm", "sigma_x_mm", "sigma_y_mm", "peak",
-                          "saturated", "area", "on_ink"}
+        assert set(s) == {
+            "u",
+            "v",
+            "sigma_u",
+            "sigma_v",
+            "x_mm",
+            "y_mm",
+            "sigma_x_mm",
+            "sigma_y_mm",
+            "peak",
+            "saturated",
+            "area",
+            "on_ink",
+        }
     got = np.array([[s["x_mm"], s["y_mm"]] for s in doc[1]["spots"]])
     for p in XY:
         assert np.min(np.hypot(*(got - p).T)) < 0.1
@@ -79,20 +114,33 @@ def test_spots_table_and_conventions(files, capsys):
 
 
 def test_imagej_method_from_the_command_line(files, capsys):
-    code, out, _ = run(capsys, "spots", files["one"], "--json", "--method", "imagej", "--imagej-threshold", "otsu",
-                       "--imagej-mode", "com")
+    code, out, _ = run(
+        capsys,
+        "spots",
+        files["one"],
+        "--json",
+        "--method",
+        "imagej",
+        "--imagej-threshold",
+        "otsu",
+        "--imagej-mode",
+        "com",
+    )
     s = json.loads(out)[0]
     assert code == 0 and s["method"] == "imagej" and s["spots"][0]["sigma_u"] is None
     truth = VIEW.project(XY[0])[0]
     assert np.hypot(s["spots"][0]["u"] - truth[0], s["spots"][0]["v"] - truth[1]) < 0.5
 
 
-@pytest.mark.parametrize("key, message", [
-    ("missing", "missing.jpg: no such file"),
-    ("text", "text.jpg: not an image OpenCV can decode"),
-    ("none", "none.jpg: no red laser spot found"),
-    ("two", "two.jpg: 2 spots found where 1 is expected"),
-])
+@pytest.mark.parametrize(
+    "key, message",
+    [
+        ("missing", "missing.jpg: no such file"),
+        ("text", "text.jpg: not an image OpenCV can decode"),
+        ("none", "none.jpg: no red laser spot found"),
+        ("two", "two.jpg: 2 spots found where 1 is expected"),
+    ],
+)
 def test_bad_photo_alone_exits_2_with_a_clear_message(files, capsys, key, message):
     code, out, err = run(capsys, "spots", files[key])
     assert code == 2 and message in err and err.startswith("lasercal: warning: ")
@@ -101,8 +149,9 @@ def test_bad_photo_alone_exits_2_with_a_clear_message(files, capsys, key, messag
 def test_missing_markers_exit_2_and_the_batch_goes_on(files, capsys):
     code, out, err = run(capsys, "spots", files["few"], "--layout", files["layout"], "--json")
     assert code == 2 and "few.jpg: found 1 of the 4 markers" in err and "at least 3 needed" in err
-    code, out, err = run(capsys, "spots", files["few"], files["one"], files["missing"], "--layout", files["layout"],
-                         "--json")
+    code, out, err = run(
+        capsys, "spots", files["few"], files["one"], files["missing"], "--layout", files["layout"], "--json"
+    )
     doc = json.loads(out)
     assert code == 0 and [bool(e["spots"]) for e in doc] == [False, True, False]
     assert "markers" in doc[0]["error"] and doc[0]["warnings"] == [doc[0]["error"]]
@@ -110,10 +159,15 @@ def test_missing_markers_exit_2_and_the_batch_goes_on(files, capsys):
 
 def test_command_wide_errors_are_reported_as_errors(files, capsys, tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("format: lasercal-layout/1\nmarkers: {dictionary: DICT_4X4_50, ids: {0: [[0, 0], [1, 0]]}}\n")
+    bad.write_text(
+        "format: lasercal-layout/1\nmarkers: {dictionary: DICT_4X4_50, ids: {0: [[0, 0], [1, 0]]}}\n"
+    )
     code, out, err = run(capsys, "spots", files["one"], "--layout", str(bad))
-    assert code == 2 and err.strip() == f"lasercal: error: {bad}, field 'markers.ids.0': expected 4 corners [[x, y], " \
-                                        "...] in mm"
+    assert (
+        code == 2
+        and err.strip()
+        == f"lasercal: error: {bad}, field 'markers.ids.0': expected 4 corners [[x, y], ...] in mm"
+    )
     code, _, err = run(capsys, "spots", files["one"], "--reference", files["missing"])
     assert code == 2 and "lasercal: error:" in err and "no such file" in err
     code, _, err = run(capsys, "spots", files["one"], "--camera", str(tmp_path / "nocam.yaml"))
@@ -126,7 +180,9 @@ def test_reference_median_of_a_series(files, capsys):
         spot = (LaserSpot(*VIEW.project(p)[0], 2.0, 1.0),)
         paths.append(str(files["dir"] / f"series{i}.png"))
         cv2.imwrite(paths[-1], render(Photo(VIEW, marker_prints(MARKERS), spot, paper=0.55), 10))
-    code, out, _ = run(capsys, "spots", *paths, "--reference", "median", "--layout", files["layout"], "--json")
+    code, out, _ = run(
+        capsys, "spots", *paths, "--reference", "median", "--layout", files["layout"], "--json"
+    )
     doc = json.loads(out)
     assert code == 0 and all(len(e["spots"]) == 1 for e in doc)
     assert doc[1]["spots"][0]["x_mm"] == pytest.approx(455.0, abs=0.1)
@@ -134,8 +190,9 @@ def test_reference_median_of_a_series(files, capsys):
 
 def test_overlay_png_is_written(files, capsys):
     out_dir = files["dir"] / "overlays"
-    code, _, _ = run(capsys, "spots", files["two"], "--layout", files["layout"], "--expect", "2", "--overlay",
-                     str(out_dir))
+    code, _, _ = run(
+        capsys, "spots", files["two"], "--layout", files["layout"], "--expect", "2", "--overlay", str(out_dir)
+    )
     png = cv2.imread(str(out_dir / "two.overlay.png"))
     assert code == 0 and png.shape == (750, 1000, 3)
     original = cv2.imread(files["two"])
@@ -155,33 +212,59 @@ def test_camera_calibrate_command(files, capsys, tmp_path):
         cv2.imwrite(paths[-1], render(Photo(pose_view((640, 480), K, dist, R, t), (board,), paper=0.7), i))
     paths.append(files["text"])
     out_yaml = tmp_path / "camera.yaml"
-    code, out, err = run(capsys, "camera-calibrate", *paths, "-o", str(out_yaml), "--chessboard", "9x6",
-                         "--square", "20")
+    code, out, err = run(
+        capsys, "camera-calibrate", *paths, "-o", str(out_yaml), "--chessboard", "9x6", "--square", "20"
+    )
     assert code == 0 and "from 5 photos" in out and "text.jpg: not an image" in err
     doc = yaml.safe_load(out_yaml.read_text())
     assert doc["format"] == "lasercal-camera/1" and doc["pattern"]["type"] == "chessboard"
     assert doc["K"][0][0] == pytest.approx(600, rel=0.03) and doc["rms_px"] < 0.2
-    code, _, err = run(capsys, "camera-calibrate", files["one"], files["none"], "-o", str(tmp_path / "x.yaml"),
-                       "--chessboard", "9x6", "--square", "20")
+    code, _, err = run(
+        capsys,
+        "camera-calibrate",
+        files["one"],
+        files["none"],
+        "-o",
+        str(tmp_path / "x.yaml"),
+        "--chessboard",
+        "9x6",
+        "--square",
+        "20",
+    )
     assert code == 2 and "found in 0 of 2 photos" in err
-    code, _, err = run(capsys, "camera-calibrate", files["one"], "-o", str(tmp_path / "x.yaml"), "--charuco", "7x5",
-                       "--square", "30")
+    code, _, err = run(
+        capsys,
+        "camera-calibrate",
+        files["one"],
+        "-o",
+        str(tmp_path / "x.yaml"),
+        "--charuco",
+        "7x5",
+        "--square",
+        "30",
+    )
     assert code == 2 and "--charuco needs --marker" in err
 
 
-def test_register_adds_subcommands_to_a_foreign_parser():
-    parser = argparse.ArgumentParser(prog="lasercal")
-    sub = parser.add_subparsers(dest="command")
-    register(sub)
+def test_parser_of_the_vision_subcommands():
+    parser = build_parser("spots")
     args = parser.parse_args(["spots", "a.jpg", "--color", "green", "--expect", "any", "--imagej-box", "0"])
     assert args.func.__name__ == "spots_command" and args.colour == "green" and args.expect is None
-    assert parser.parse_args(["beam-check", "a", "b", "c", "--laser-length", "350"]).laser_length == 350
+    assert (
+        build_parser("beam-check")
+        .parse_args(["beam-check", "a", "b", "c", "--laser-length", "350"])
+        .laser_length
+        == 350
+    )
     with pytest.raises(SystemExit):
         parser.parse_args(["spots", "a.jpg", "--expect", "0"])
 
 
 def test_vision_stands_alone():
-    code = ("import sys, vision, vision.cli, vision.render, vision.overlay; "
-            "bad = [m for m in sys.modules if m.split('.')[0] in ('solver', 'collector')]; "
-            "sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, lasercal.vision, lasercal.vision.render, lasercal.vision.overlay; "
+        "bad = [m for m in sys.modules if m.split('.')[:2] in (['lasercal', 'solver'], ['lasercal', "
+        "'collector'])]; "
+        "sys.exit(1 if bad else 0)"
+    )
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

@@ -1,12 +1,13 @@
 """Spot detection and the precise centroid, against the renderer's known truth (px)."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vision.detect import detect_spots, find_candidates
-from vision.errors import NoSpotError, SpotCountError
-from vision.render import Glare, LaserSpot, Photo, cross_print, ink_dot, look_down, render
+from lasercal.vision.detect import detect_spots, find_candidates
+from lasercal.vision.errors import NoSpotError, SpotCountError
+from lasercal.vision.render import Glare, LaserSpot, Photo, cross_print, ink_dot, look_down, render
 
 VIEW = look_down((320, 240), 0.3, centre=(450.0, 0.0))
 SENSOR = dict(paper=0.5, gradient=0.2, vignetting=0.1)
@@ -27,7 +28,7 @@ def errors(spot_kw, photo_kw, n, seed=0):
 
 
 def rms(e):
-    return float(np.sqrt(np.mean(e ** 2)))
+    return float(np.sqrt(np.mean(e**2)))
 
 
 def test_clean_unsaturated_spot_within_005_px():
@@ -56,7 +57,10 @@ def test_speckle_is_the_limit_error_grows_with_it():
 def test_reported_uncertainty_matches_the_error_within_a_factor_2():
     rng = np.random.default_rng(4)
     ratios = []
-    for kw, pk in [(dict(sigma=2.0, peak=0.4), dict(paper=0.5)), (dict(sigma=2.0, peak=3.0, speckle=0.4), HARSH)]:
+    for kw, pk in [
+        (dict(sigma=2.0, peak=0.4), dict(paper=0.5)),
+        (dict(sigma=2.0, peak=3.0, speckle=0.4), HARSH),
+    ]:
         e, s = [], []
         for i in range(20):
             u, v = rng.uniform(130, 190), rng.uniform(90, 150)
@@ -89,7 +93,9 @@ def test_saturated_flag_peak_and_area():
 
 def test_many_spots_in_one_photo_are_all_found():
     truth = [(60.3, 50.7), (250.1, 60.2), (160.5, 120.4), (70.8, 190.1), (260.6, 185.9)]
-    img = render(Photo(VIEW, spots=tuple(LaserSpot(u, v, 2.0, 2.0, speckle=0.2) for u, v in truth), **HARSH), 1)
+    img = render(
+        Photo(VIEW, spots=tuple(LaserSpot(u, v, 2.0, 2.0, speckle=0.2) for u, v in truth), **HARSH), 1
+    )
     spots, warnings = detect_spots(img, expect=None)
     assert len(spots) == 5 and not warnings
     got = np.array([[s.u, s.v] for s in spots])
@@ -98,7 +104,9 @@ def test_many_spots_in_one_photo_are_all_found():
 
 
 def test_two_spots_where_one_is_expected_is_an_error_naming_the_photo():
-    img = render(Photo(VIEW, spots=(LaserSpot(80, 80, 2.0, 2.0), LaserSpot(240, 160, 2.0, 2.0)), paper=0.5), 0)
+    img = render(
+        Photo(VIEW, spots=(LaserSpot(80, 80, 2.0, 2.0), LaserSpot(240, 160, 2.0, 2.0)), paper=0.5), 0
+    )
     with pytest.raises(SpotCountError, match=r"p\.jpg: 2 spots found where 1 is expected"):
         detect_spots(img, name="p.jpg", expect=1)
     spots, warnings = detect_spots(img, expect=3)
@@ -113,8 +121,16 @@ def test_no_spot_is_an_error():
 
 def test_white_reflection_and_red_ink_are_rejected():
     prints = (ink_dot((440, 10), 5.0), cross_print((460, -10), 12), ink_dot((470, 12), 3.0))
-    img = render(Photo(VIEW, prints=prints, spots=(LaserSpot(130.4, 160.2, 2.0, 3.0, speckle=0.2),),
-                       glares=(Glare(250, 60, 5, 3.0), Glare(60, 60, 3, 1.5)), **HARSH), 3)
+    img = render(
+        Photo(
+            VIEW,
+            prints=prints,
+            spots=(LaserSpot(130.4, 160.2, 2.0, 3.0, speckle=0.2),),
+            glares=(Glare(250, 60, 5, 3.0), Glare(60, 60, 3, 1.5)),
+            **HARSH,
+        ),
+        3,
+    )
     spots, _ = detect_spots(img)
     assert len(spots) == 1 and np.hypot(spots[0].u - 130.4, spots[0].v - 160.2) < 0.2
     only_glare = render(Photo(VIEW, prints=prints, glares=(Glare(250, 60, 5, 3.0),), **HARSH), 3)
@@ -146,15 +162,19 @@ def test_grey_and_16_bit_photos():
     grey = img[..., 2].copy()
     s, w = detect_spots(grey)
     assert np.hypot(s[0].u - 150.4, s[0].v - 110.6) < 0.06 and "grey photo" in w[0]
-    deep = (img.astype(np.uint16) * 257)
+    deep = img.astype(np.uint16) * 257
     s16 = detect_spots(deep)[0][0]
     assert np.hypot(s16.u - 150.4, s16.v - 110.6) < 0.06 and s16.peak > 256
 
 
 def test_candidates_on_a_large_photo_are_few_and_include_the_spot():
     view = look_down((2000, 1500), 0.3, centre=(450.0, 0.0))
-    img = render(Photo(view, prints=(cross_print((450, 0), 12),), spots=(LaserSpot(1500.5, 300.5, 2.0, 2.0),),
-                       **HARSH), 0)
+    img = render(
+        Photo(
+            view, prints=(cross_print((450, 0), 12),), spots=(LaserSpot(1500.5, 300.5, 2.0, 2.0),), **HARSH
+        ),
+        0,
+    )
     cands = find_candidates(img)
     assert 1 <= len(cands) <= 3
     assert any(c.box[0] <= 1500 < c.box[2] and c.box[1] <= 300 < c.box[3] for c in cands)
@@ -174,14 +194,27 @@ def test_spot_on_a_printed_cross_is_found_and_flagged():
     for i, off in enumerate([(0.0, 0.0), (0.3, 2.5), (2.5, -0.3)]):
         centre = np.array([449.0 + i, 1.0 - i])
         uv = VIEW.project(centre + off)[0]
-        img = render(Photo(VIEW, prints=(cross_print(centre, 12, 0.5),),
-                           spots=(LaserSpot(*uv, 2.5, 4.0, speckle=0.2),), **HARSH), i)
+        img = render(
+            Photo(
+                VIEW,
+                prints=(cross_print(centre, 12, 0.5),),
+                spots=(LaserSpot(*uv, 2.5, 4.0, speckle=0.2),),
+                **HARSH,
+            ),
+            i,
+        )
         spots, warnings = detect_spots(img)
         assert len(spots) == 1 and spots[0].on_ink and "printed ink" in warnings[0]
         errs.append(np.hypot(spots[0].u - uv[0], spots[0].v - uv[1]))
     assert max(errs) < 0.6
-    clear = detect_spots(render(Photo(VIEW, prints=(cross_print((430, -20), 12),),
-                                      spots=(LaserSpot(160, 120, 2.5, 4.0),), **HARSH), 0))
+    clear = detect_spots(
+        render(
+            Photo(
+                VIEW, prints=(cross_print((430, -20), 12),), spots=(LaserSpot(160, 120, 2.5, 4.0),), **HARSH
+            ),
+            0,
+        )
+    )
     assert not clear[0][0].on_ink and not clear[1]
 
 
@@ -191,7 +224,9 @@ def test_luma_centroid_beats_the_red_channel_on_chroma_subsampled_jpeg():
     err = {False: [], True: []}
     for i in range(20):
         u, v = rng.uniform(130, 190), rng.uniform(90, 150)
-        img = render(Photo(VIEW, spots=(LaserSpot(u, v, 2.0, 3.0),), paper=0.5, jpeg=90, gamma=2.2, bloom=0.3), i)
+        img = render(
+            Photo(VIEW, spots=(LaserSpot(u, v, 2.0, 3.0),), paper=0.5, jpeg=90, gamma=2.2, bloom=0.3), i
+        )
         for luma in err:
             s = detect_spots(img, luma=luma)[0][0]
             err[luma].append(np.hypot(s.u - u, s.v - v))

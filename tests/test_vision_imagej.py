@@ -1,14 +1,15 @@
 """The ImageJ emulation: thresholds, Centroid / Center of Mass, the +0.5 px convention."""
+
 import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vision.detect import detect_spots
-from vision.errors import VisionError
-from vision.imagej import default_threshold, gray8, measure, otsu_threshold
-from vision.render import LaserSpot, Photo, look_down, marker_prints, marker_sheet, render
+from lasercal.vision.detect import detect_spots
+from lasercal.vision.errors import VisionError
+from lasercal.vision.imagej import default_threshold, gray8, measure, otsu_threshold
+from lasercal.vision.render import LaserSpot, Photo, look_down, marker_prints, marker_sheet, render
 
 VIEW = look_down((320, 240), 0.3, centre=(450.0, 0.0))
 
@@ -18,7 +19,7 @@ def test_default_threshold_splits_two_levels_midway_and_ignores_0_and_255():
     hist[60], hist[180] = 500, 400
     t = default_threshold(hist)
     assert 60 <= t < 180 and abs(t - 120) <= 1
-    hist[0], hist[255] = 10 ** 6, 10 ** 6  # erased and clipped areas must not move it
+    hist[0], hist[255] = 10**6, 10**6  # erased and clipped areas must not move it
     assert default_threshold(hist) == t
 
 
@@ -41,7 +42,9 @@ def test_default_threshold_of_a_flat_histogram_is_128():
 @given(st.integers(0, 10_000))
 def test_otsu_matches_opencv(seed):
     rng = np.random.default_rng(seed)
-    img = np.concatenate([rng.normal(rng.uniform(30, 120), 12, 3000), rng.normal(rng.uniform(140, 230), 15, 1000)])
+    img = np.concatenate(
+        [rng.normal(rng.uniform(30, 120), 12, 3000), rng.normal(rng.uniform(140, 230), 15, 1000)]
+    )
     img = np.clip(img, 0, 255).astype(np.uint8).reshape(40, 100)
     t_cv, _ = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     assert otsu_threshold(np.bincount(img.ravel(), minlength=256)) == int(t_cv)
@@ -73,7 +76,9 @@ def test_otsu_in_a_drawn_box_reaches_a_few_tenths_of_a_pixel():
         u, v = rng.uniform(140, 180), rng.uniform(100, 140)
         img = render(Photo(VIEW, spots=(LaserSpot(u, v, 2.0, 0.4),), paper=0.5), i)
         ox, oy = rng.integers(-8, 9, 2)
-        s = measure(img, (int(u) - 32 + ox, int(v) - 32 + oy, int(u) + 32 + ox, int(v) + 32 + oy), "com", "otsu")
+        s = measure(
+            img, (int(u) - 32 + ox, int(v) - 32 + oy, int(u) + 32 + ox, int(v) + 32 + oy), "com", "otsu"
+        )
         err.append(np.hypot(s.u - u, s.v - v))
     assert 0.02 < np.sqrt(np.mean(np.square(err))) < 0.3
 

@@ -1,10 +1,11 @@
 """Reading photos: formats, depths, channels, and the JPEG chroma-subsampling probe."""
+
 import cv2
 import numpy as np
 import pytest
 
-from vision.errors import ImageReadError
-from vision.images import chroma_subsampled, full_scale, read_image, to_gray
+from lasercal.vision.errors import ImageReadError
+from lasercal.vision.images import chroma_subsampled, full_scale, read_image, to_gray
 
 
 def test_read_keeps_depth_and_drops_alpha(tmp_path):
@@ -35,8 +36,11 @@ def test_unreadable_files_name_the_file(tmp_path):
 def test_chroma_subsampling_probe(tmp_path):
     img = (np.random.default_rng(0).random((32, 32, 3)) * 255).astype(np.uint8)
     cv2.imwrite(str(tmp_path / "420.jpg"), img)
-    cv2.imwrite(str(tmp_path / "444.jpg"), img,
-                [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444])
+    cv2.imwrite(
+        str(tmp_path / "444.jpg"),
+        img,
+        [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444],
+    )
     cv2.imwrite(str(tmp_path / "grey.jpg"), img[..., 0])
     cv2.imwrite(str(tmp_path / "x.png"), img)
     assert chroma_subsampled(tmp_path / "420.jpg")

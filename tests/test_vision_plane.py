@@ -1,23 +1,39 @@
 """Layout markers, ArUco/ChArUco fiducials and the homography to mm, against the renderer's truth."""
+
 import cv2
 import numpy as np
 import pytest
 import yaml
 
-from vision import plane as P
-from vision.camera import Camera
-from vision.errors import LayoutError, MarkerError
-from vision.images import to_gray
-from vision.measure import Options, measure_photo
-from vision.render import LaserSpot, Photo, Print, look_down, marker_prints, marker_sheet, render, square_corners
+from lasercal.vision import plane as P
+from lasercal.vision.camera import Camera
+from lasercal.vision.errors import LayoutError, MarkerError
+from lasercal.vision.images import to_gray
+from lasercal.vision.measure import Options, measure_photo
+from lasercal.vision.render import (
+    LaserSpot,
+    Photo,
+    Print,
+    look_down,
+    marker_prints,
+    marker_sheet,
+    render,
+    square_corners,
+)
 
 PHOTO = dict(paper=0.55, jpeg=92, gamma=2.2, bloom=0.3, gradient=0.2)
 
 
 def write_layout(tmp_path, markers, **extra):
-    doc = {"format": "lasercal-layout/1", "units": {"length": "mm"}, "plane": {"z": -8},
-           "points": {"P1": [521, 200, -8]}, "calibration": ["P1"], "aiming": {"tilt_deg": [0, 35]},
-           "markers": {**P.layout_markers("DICT_4X4_50", markers), **extra}}
+    doc = {
+        "format": "lasercal-layout/1",
+        "units": {"length": "mm"},
+        "plane": {"z": -8},
+        "points": {"P1": [521, 200, -8]},
+        "calibration": ["P1"],
+        "aiming": {"tilt_deg": [0, 35]},
+        "markers": {**P.layout_markers("DICT_4X4_50", markers), **extra},
+    }
     path = tmp_path / "layout.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
@@ -26,8 +42,15 @@ def write_layout(tmp_path, markers, **extra):
 def scene(seed, size=(1000, 750), dist=(0, 0, 0, 0, 0), n_spots=3):
     """A 0.3 mm/px photo with four markers and spots at known plane positions (mm)."""
     rng = np.random.default_rng(seed)
-    view = look_down(size, 0.3, centre=(450.0, 0.0), tilt_deg=tuple(rng.uniform(-1, 1, 2)),
-                     yaw_deg=rng.uniform(-20, 20), dist=dist, z=-8)
+    view = look_down(
+        size,
+        0.3,
+        centre=(450.0, 0.0),
+        tilt_deg=tuple(rng.uniform(-1, 1, 2)),
+        yaw_deg=rng.uniform(-20, 20),
+        dist=dist,
+        z=-8,
+    )
     markers = marker_sheet(view, side=40)
     xy = view.unproject(rng.uniform([250, 200], [size[0] - 250, size[1] - 200], (n_spots, 2)))
     spots = tuple(LaserSpot(*view.project(p)[0], 2.0, 3.0, speckle=0.3) for p in xy)
@@ -48,22 +71,61 @@ def test_layout_without_markers_gives_none(tmp_path):
     assert P.load_layout(path) is None
 
 
-@pytest.mark.parametrize("markers, field, message", [
-    ({"dictionary": "DICT_9X9_1"}, "markers.dictionary", "not an OpenCV ArUco dictionary"),
-    ({"ids": {0: [[0, 0], [1, 0]]}, "dictionary": "DICT_4X4_50"}, "markers.ids.0", "expected 4 corners"),
-    ({"ids": {0: [[0, 0], [40, 0], [40, 40], [0, 40]]}, "dictionary": "DICT_4X4_50"}, "markers.ids.0", "clockwise"),
-    ({"ids": {"a": [[0, 40], [40, 40], [40, 0], [0, 0]]}, "dictionary": "DICT_4X4_50"}, "markers.ids.a", "whole"),
-    ({"ids": {}, "dictionary": "DICT_4X4_50"}, "markers.ids", "no markers"),
-    ({"ids": {0: [[0, 40], [40, 40], [40, 0], [0, 0]]}}, "markers.dictionary", "missing"),
-    ({"ids": {0: [[0, 40], [40, 40], [40, 0], [0, 0]]}, "dictionary": "DICT_4X4_50", "min_markers": 4},
-     "markers.min_markers", "between 1 and"),
-    ({"ids": {0: [[0, 40], [40, 40], [40, 0], [0, 0]]}, "dictionary": "DICT_4X4_50",
-      "charuco": {"squares": [5, 4], "square": 30, "marker": 22, "origin": [0, 0], "x_axis": [1, 0],
-                  "y_axis": [0, -1]}}, "markers.ids", "also markers of the ChArUco board"),
-    ({"dictionary": "DICT_4X4_50", "charuco": {"squares": [5, 4], "square": 30, "marker": 40, "origin": [0, 0],
-                                               "x_axis": [1, 0], "y_axis": [0, -1]}}, "markers.charuco.marker",
-     "below the square side"),
-])
+@pytest.mark.parametrize(
+    "markers, field, message",
+    [
+        ({"dictionary": "DICT_9X9_1"}, "markers.dictionary", "not an OpenCV ArUco dictionary"),
+        ({"ids": {0: [[0, 0], [1, 0]]}, "dictionary": "DICT_4X4_50"}, "markers.ids.0", "expected 4 corners"),
+        (
+            {"ids": {0: [[0, 0], [40, 0], [40, 40], [0, 40]]}, "dictionary": "DICT_4X4_50"},
+            "markers.ids.0",
+            "clockwise",
+        ),
+        (
+            {"ids": {"a": [[0, 40], [40, 40], [40, 0], [0, 0]]}, "dictionary": "DICT_4X4_50"},
+            "markers.ids.a",
+            "whole",
+        ),
+        ({"ids": {}, "dictionary": "DICT_4X4_50"}, "markers.ids", "no markers"),
+        ({"ids": {0: [[0, 40], [40, 40], [40, 0], [0, 0]]}}, "markers.dictionary", "missing"),
+        (
+            {"ids": {0: [[0, 40], [40, 40], [40, 0], [0, 0]]}, "dictionary": "DICT_4X4_50", "min_markers": 4},
+            "markers.min_markers",
+            "between 1 and",
+        ),
+        (
+            {
+                "ids": {0: [[0, 40], [40, 40], [40, 0], [0, 0]]},
+                "dictionary": "DICT_4X4_50",
+                "charuco": {
+                    "squares": [5, 4],
+                    "square": 30,
+                    "marker": 22,
+                    "origin": [0, 0],
+                    "x_axis": [1, 0],
+                    "y_axis": [0, -1],
+                },
+            },
+            "markers.ids",
+            "also markers of the ChArUco board",
+        ),
+        (
+            {
+                "dictionary": "DICT_4X4_50",
+                "charuco": {
+                    "squares": [5, 4],
+                    "square": 30,
+                    "marker": 40,
+                    "origin": [0, 0],
+                    "x_axis": [1, 0],
+                    "y_axis": [0, -1],
+                },
+            },
+            "markers.charuco.marker",
+            "below the square side",
+        ),
+    ],
+)
 def test_layout_errors_name_the_file_and_field(tmp_path, markers, field, message):
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump({"format": "lasercal-layout/1", "markers": markers}))
@@ -120,8 +182,11 @@ def test_too_few_markers_is_a_clear_error(tmp_path):
     shown = {i: c for i, c in markers.items() if i in (0, 2)}
     img = render(Photo(view, marker_prints(shown), (LaserSpot(320.2, 240.7, 2.0, 3.0),), **PHOTO), 0)
     lay = P.load_layout(write_layout(tmp_path, markers))
-    with pytest.raises(MarkerError, match=r"p\.jpg: found 2 of the 4 markers of .*layout\.yaml \(ids 0, 2\); "
-                                          r"at least 3 needed"):
+    with pytest.raises(
+        MarkerError,
+        match=r"p\.jpg: found 2 of the 4 markers of .*layout\.yaml \(ids 0, 2\); "
+        r"at least 3 needed",
+    ):
         measure_photo(img, "p.jpg", Options(), lay)
 
 
@@ -141,8 +206,9 @@ def test_charuco_board_maps_pixels_to_mm(tmp_path):
     cols, rows, square, marker = 7, 5, 20.0, 15.0
     origin = np.array([450 - cols * square / 2, rows * square / 2])
     x_axis, y_axis = np.array([1.0, 0.0]), np.array([0.0, -1.0])
-    board = cv2.aruco.CharucoBoard((cols, rows), square, marker,
-                                   cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_100))
+    board = cv2.aruco.CharucoBoard(
+        (cols, rows), square, marker, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_100)
+    )
     tex = board.generateImage((cols * 100, rows * 100), marginSize=0).astype(np.float32) / 255
     w, h = cols * square, rows * square
     corners = np.array([origin, origin + w * x_axis, origin + w * x_axis + h * y_axis, origin + h * y_axis])
@@ -150,9 +216,24 @@ def test_charuco_board_maps_pixels_to_mm(tmp_path):
     spots = tuple(LaserSpot(*view.project(p)[0], 2.0, 3.0) for p in xy)
     img = render(Photo(view, (Print(tex, corners),), spots, **PHOTO), 1)
     path = tmp_path / "charuco.yaml"
-    path.write_text(yaml.safe_dump({"format": "lasercal-layout/1", "markers": {
-        "dictionary": "DICT_5X5_100", "charuco": {"squares": [cols, rows], "square": square, "marker": marker,
-                                                  "origin": origin.tolist(), "x_axis": [1, 0], "y_axis": [0, -1]}}}))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "format": "lasercal-layout/1",
+                "markers": {
+                    "dictionary": "DICT_5X5_100",
+                    "charuco": {
+                        "squares": [cols, rows],
+                        "square": square,
+                        "marker": marker,
+                        "origin": origin.tolist(),
+                        "x_axis": [1, 0],
+                        "y_axis": [0, -1],
+                    },
+                },
+            }
+        )
+    )
     lay = P.load_layout(path)
     fid = P.find_fiducials(to_gray(img), lay)
     assert fid.charuco == (cols - 1) * (rows - 1) and fid.marker_ids == ()

@@ -1,8 +1,19 @@
 """The synthetic renderer's own truth: geometry in mm and px, sub-pixel edges and spots."""
+
 import numpy as np
 import pytest
 
-from vision.render import FULL, LaserSpot, Photo, Print, _speckle, aruco_print, look_down, render, square_corners
+from lasercal.vision.render import (
+    FULL,
+    LaserSpot,
+    Photo,
+    Print,
+    _speckle,
+    aruco_print,
+    look_down,
+    render,
+    square_corners,
+)
 
 
 def test_look_down_scale_orientation_and_round_trip():
@@ -34,12 +45,24 @@ def test_print_edges_land_at_exact_subpixel_places():
 
 def test_marker_print_matches_opencv_marker_image():
     v = look_down((300, 300), 0.25, centre=(0.0, 0.0))
-    img = render(Photo(v, (aruco_print("DICT_4X4_50", 7, square_corners((0, 0), 60)),), read_noise=0,
-                       shot_noise=0, paper=1.0, tint=(1, 1, 1)), 0)
+    img = render(
+        Photo(
+            v,
+            (aruco_print("DICT_4X4_50", 7, square_corners((0, 0), 60)),),
+            read_noise=0,
+            shot_noise=0,
+            paper=1.0,
+            tint=(1, 1, 1),
+        ),
+        0,
+    )
     # The 6x6 cells of 10 mm sit 40 px apart: sample each cell's centre.
     centres = v.project([[-25 + 10 * j, 25 - 10 * i] for i in range(6) for j in range(6)])
-    cells = img[np.round(centres[:, 1]).astype(int), np.round(centres[:, 0]).astype(int), 0].reshape(6, 6) > 128
+    cells = (
+        img[np.round(centres[:, 1]).astype(int), np.round(centres[:, 0]).astype(int), 0].reshape(6, 6) > 128
+    )
     import cv2
+
     ref = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50), 7, 6) > 128
     assert (cells == ref).all()
 
@@ -47,8 +70,16 @@ def test_marker_print_matches_opencv_marker_image():
 def test_noise_free_spot_centroid_is_the_truth():
     v = look_down((100, 100), 0.3)
     u0, v0 = 47.31, 52.77
-    img = render(Photo(v, spots=(LaserSpot(u0, v0, 2.3, 0.5, aspect=0.6, angle_deg=25),), read_noise=0,
-                       shot_noise=0, paper=0.3), 0)[..., 2].astype(float)
+    img = render(
+        Photo(
+            v,
+            spots=(LaserSpot(u0, v0, 2.3, 0.5, aspect=0.6, angle_deg=25),),
+            read_noise=0,
+            shot_noise=0,
+            paper=0.3,
+        ),
+        0,
+    )[..., 2].astype(float)
     w = img - np.median(img)
     yy, xx = np.mgrid[:100, :100]
     assert (w * xx).sum() / w.sum() == pytest.approx(u0, abs=0.01)  # 8-bit rounding only
@@ -62,7 +93,9 @@ def test_saturation_bloom_and_jpeg():
     bloom = render(Photo(v, spots=spot, paper=0.5, bloom=0.5), 0)
     assert plain[..., 2].max() == FULL and (bloom[..., 2] == FULL).sum() > (plain[..., 2] == FULL).sum()
     jpeg = render(Photo(v, spots=spot, paper=0.5, jpeg=70), 0)
-    assert jpeg.dtype == np.uint8 and jpeg.shape == (100, 100, 3) and np.abs(jpeg.astype(int) - plain).max() > 3
+    assert (
+        jpeg.dtype == np.uint8 and jpeg.shape == (100, 100, 3) and np.abs(jpeg.astype(int) - plain).max() > 3
+    )
 
 
 @pytest.mark.parametrize("contrast", [0.2, 0.6, 1.0])

@@ -7,38 +7,47 @@ table plane in the robot base frame through printed ArUco/ChArUco markers.
 
 Stands alone: imports neither ``solver`` nor ``collector``.
 """
-from .beamcheck import Circle, fit_circle, tilt
-from .camera import Camera, calibrate, load_camera, save_camera
-from .detect import Spot, detect_spots
-from .errors import CalibrationError, ImageReadError, LayoutError, MarkerError, NoSpotError, SpotCountError, VisionError
-from .images import read_image
-from .measure import Options, PhotoResult, measure_photo
-from .plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane, load_layout
+
+from lasercal.vision.beamcheck import Circle, fit_circle, tilt
+from lasercal.vision.camera import Camera, calibrate, load_camera, save_camera
+from lasercal.vision.detect import Spot, detect_spots
+from lasercal.vision.errors import (
+    CalibrationError,
+    ImageReadError,
+    LayoutError,
+    MarkerError,
+    NoSpotError,
+    SpotCountError,
+    VisionError,
+)
+from lasercal.vision.images import read_image
+from lasercal.vision.measure import Options, PhotoResult, measure_photo
+from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane, load_layout
 
 __all__ = [
-                     "CalibrationError",
-                     "Camera",
-                     "Circle",
-                     "ImageReadError",
-                     "LayoutError",
-                     "MarkerError",
-                     "MarkerLayout",
-                     "NoSpotError",
-                     "Options",
-                     "PhotoResult",
-                     "PlaneMap",
-                     "Spot",
-                     "SpotCountError",
-                     "VisionError",
-                     "calibrate",
-                     "detect_spots",
-                     "find_fiducials",
-                     "fit_circle",
-                     "fit_plane",
-                     "load_camera",
-                     "load_layout",
-                     "measure_photo",
-                     "read_image",
-                     "save_camera",
-                     "tilt",
+    "CalibrationError",
+    "Camera",
+    "Circle",
+    "ImageReadError",
+    "LayoutError",
+    "MarkerError",
+    "MarkerLayout",
+    "NoSpotError",
+    "Options",
+    "PhotoResult",
+    "PlaneMap",
+    "Spot",
+    "SpotCountError",
+    "VisionError",
+    "calibrate",
+    "detect_spots",
+    "find_fiducials",
+    "fit_circle",
+    "fit_plane",
+    "load_camera",
+    "load_layout",
+    "measure_photo",
+    "read_image",
+    "save_camera",
+    "tilt",
 ]

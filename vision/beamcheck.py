@@ -9,6 +9,7 @@ cannot tell the two apart, so the tilt reported is an upper bound.
 
 Units: pixels (OpenCV convention) or mm on the plane; tilt in mrad and degrees.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from .errors import CalibrationError
+from lasercal.vision.errors import CalibrationError
 
 
 @dataclass(frozen=True)
@@ -60,14 +61,16 @@ def fit_circle(points: np.ndarray) -> Circle:
     q = p - m  # centring keeps the normal equations well conditioned
     scale = np.abs(q).max()
     if scale == 0:
-        raise CalibrationError("all spots are at the same place: the beam is aligned with the axis "
-                               "to within the measurement (radius 0)")
+        raise CalibrationError(
+            "all spots are at the same place: the beam is aligned with the axis "
+            "to within the measurement (radius 0)"
+        )
     q = q / scale
     sv = np.linalg.svd(q, compute_uv=False)
     if sv[1] < 1e-6 * sv[0]:
         raise CalibrationError("the spots lie on a line, not on a circle")
     A = np.column_stack([q, np.ones(len(q))])
-    sol, *_ = np.linalg.lstsq(A, (q ** 2).sum(1), rcond=None)
+    sol, *_ = np.linalg.lstsq(A, (q**2).sum(1), rcond=None)
     c0 = sol[:2] / 2
     r0 = np.sqrt(max(sol[2] + c0 @ c0, 1e-12))
     if r0 > 1e3:
@@ -82,8 +85,14 @@ def fit_circle(points: np.ndarray) -> Circle:
         sigma = float(np.sqrt(cov[2, 2]) * scale)
     ang = np.sort(np.arctan2(*(q - c).T[::-1]))
     gaps = np.diff(np.r_[ang, ang[0] + 2 * np.pi])
-    return Circle(m + c * scale, float(r * scale), sigma, float(np.sqrt(np.mean(resid ** 2))),
-                  float(np.degrees(2 * np.pi - gaps.max())), resid)
+    return Circle(
+        m + c * scale,
+        float(r * scale),
+        sigma,
+        float(np.sqrt(np.mean(resid**2))),
+        float(np.degrees(2 * np.pi - gaps.max())),
+        resid,
+    )
 
 
 def tilt(radius_mm: float, laser_length_mm: float) -> float:

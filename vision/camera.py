@@ -15,6 +15,7 @@ Camera YAML (``format: lasercal-camera/1``)::
     pattern: {type: chessboard, cols: 9, rows: 6, square: 25.0}
     photos: 12                      # photos used
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,7 +25,7 @@ import cv2
 import numpy as np
 import yaml
 
-from .errors import CalibrationError, LayoutError
+from lasercal.vision.errors import CalibrationError, LayoutError
 
 CAMERA_FORMAT = "lasercal-camera/1"
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
@@ -99,7 +100,8 @@ class Camera:
         if tuple(size) != tuple(self.size):
             raise CalibrationError(
                 f"{image}: image is {size[0]}x{size[1]} px but the camera was calibrated "
-                f"at {self.size[0]}x{self.size[1]} px (rotated or resized photo?)")
+                f"at {self.size[0]}x{self.size[1]} px (rotated or resized photo?)"
+            )
 
 
 def read_yaml(path: Path, what: str):
@@ -160,6 +162,13 @@ def save_camera(path, camera: Camera, pattern: dict, photos: int) -> None:
     Path(path).write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
 
 
+def aruco_dictionary(name: str, path="layout", field="markers.dictionary"):
+    """OpenCV's predefined ArUco dictionary called ``name`` (e.g. ``"DICT_4X4_50"``)."""
+    if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+        raise LayoutError(path, f"'{name}' is not an OpenCV ArUco dictionary (e.g. DICT_4X4_50)", field)
+    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+
+
 def chessboard_points(gray: np.ndarray, cols: int, rows: int, square: float):
     """Inner corners of a chessboard in one photo.
 
@@ -217,11 +226,16 @@ def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -
     """
     sizes = {img.shape[::-1] for _, img in images}
     if len(sizes) != 1:
-        raise CalibrationError("photos have different sizes: " + ", ".join(f"{w}x{h}" for w, h in sorted(sizes)))
+        raise CalibrationError(
+            "photos have different sizes: " + ", ".join(f"{w}x{h}" for w, h in sorted(sizes))
+        )
     if pattern["type"] == "charuco":
-        from .plane import aruco_dictionary  # plane imports camera: import here to avoid a cycle
-        board = cv2.aruco.CharucoBoard((pattern["cols"], pattern["rows"]), pattern["square"],
-                                       pattern["marker"], aruco_dictionary(pattern["dictionary"]))
+        board = cv2.aruco.CharucoBoard(
+            (pattern["cols"], pattern["rows"]),
+            pattern["square"],
+            pattern["marker"],
+            aruco_dictionary(pattern["dictionary"]),
+        )
         detector = cv2.aruco.CharucoDetector(board)
     obj, img = [], []
     for name, gray in images:
@@ -235,8 +249,10 @@ def calibrate(images: list[tuple[str, np.ndarray]], pattern: dict, warn=print) -
         obj.append(found[0])
         img.append(found[1])
     if len(obj) < 3:
-        raise CalibrationError(f"the calibration pattern was found in {len(obj)} of {len(images)} photos; "
-                               "at least 3 are needed (from different angles)")
+        raise CalibrationError(
+            f"the calibration pattern was found in {len(obj)} of {len(images)} photos; "
+            "at least 3 are needed (from different angles)"
+        )
     size = sizes.pop()
     # k3 only helps wide-angle lenses and runs wild when the photos leave the corners empty.
     rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None, flags=cv2.CALIB_FIX_K3)

@@ -26,66 +26,22 @@ Detection, on a red (or green) laser on white paper under room light:
 With a laser-off reference photo the candidates come from the difference image,
 which holds nothing but laser light, and fainter spots are believed.
 """
+
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from .errors import NoSpotError, SpotCountError, VisionError
-from .images import full_scale
+from lasercal.vision.errors import NoSpotError, SpotCountError, VisionError
+from lasercal.vision.imagej import measure as imagej_measure
+from lasercal.vision.images import full_scale
+from lasercal.vision.spot import CHANNEL, Spot
 
-CHANNEL = {"red": 2, "green": 1}  # BGR index of each laser's colour
 LUMA = np.array([0.114, 0.587, 0.299])  # BGR weights of JPEG's luma (ITU-R BT.601)
 MAX_CANDIDATES = 50
-
-
-@dataclass(frozen=True)
-class Spot:
-    """One measured laser spot.
-
-    Attributes
-    ----------
-    u, v : float, centre, px (OpenCV convention)
-    sigma_u, sigma_v : float or None, 1-sigma uncertainty of the centre, px
-        (None for the ``imagej`` method, which has no error model)
-    peak : float, highest value of the laser's channel in the spot, DN
-    saturated : bool, some of the spot's pixels are clipped at full scale
-    area : int, pixels in the spot's blob
-    x_mm, y_mm : float or None, position on the table plane, base frame, mm
-    sigma_x_mm, sigma_y_mm : float or None, the centre's uncertainty mapped to mm
-    on_ink : bool, printed ink (a mark) lies under the spot: it swallows laser light
-        unevenly and may bias the centre by a few tenths of a pixel
-    """
-
-    u: float
-    v: float
-    sigma_u: float | None
-    sigma_v: float | None
-    peak: float
-    saturated: bool
-    area: int
-    x_mm: float | None = None
-    y_mm: float | None = None
-    sigma_x_mm: float | None = None
-    sigma_y_mm: float | None = None
-    on_ink: bool = False
-
-    def to_dict(self, convention: str = "opencv") -> dict:
-        """JSON-ready dict; ``convention="imagej"`` adds 0.5 px to u and v."""
-        shift = 0.5 if convention == "imagej" else 0.0
-
-        def r(x, n):
-            return None if x is None else round(float(x), n)
-
-        return {"u": r(self.u + shift, 4), "v": r(self.v + shift, 4),
-                "sigma_u": r(self.sigma_u, 4), "sigma_v": r(self.sigma_v, 4),
-                "x_mm": r(self.x_mm, 4), "y_mm": r(self.y_mm, 4),
-                "sigma_x_mm": r(self.sigma_x_mm, 4), "sigma_y_mm": r(self.sigma_y_mm, 4),
-                "peak": r(self.peak, 1), "saturated": bool(self.saturated), "area": int(self.area),
-                "on_ink": bool(self.on_ink)}
 
 
 @dataclass(frozen=True)
@@ -139,7 +95,7 @@ def _highpass(small: np.ndarray, tile: int = 24) -> np.ndarray:
         return small - np.median(small)
     ty, tx = max(h // tile, 1), max(w // tile, 1)
     th, tw = (h // ty) // 2, (w // tx) // 2
-    sub = small[:ty * th * 2:2, :tx * tw * 2:2]  # every other pixel: plenty for a percentile
+    sub = small[: ty * th * 2 : 2, : tx * tw * 2 : 2]  # every other pixel: plenty for a percentile
     tiles = sub.reshape(ty, th, tx, tw).transpose(0, 2, 1, 3).reshape(ty, tx, -1)
     k = int(0.9 * (tiles.shape[2] - 1))
     level = np.ascontiguousarray(np.partition(tiles, k, axis=2)[..., k], np.float32)
@@ -148,8 +104,9 @@ def _highpass(small: np.ndarray, tile: int = 24) -> np.ndarray:
     return small - cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def find_candidates(img: np.ndarray, colour: str = "red", reference: np.ndarray | None = None,
-                    k_sigma: float = 6.0) -> list[Candidate]:
+def find_candidates(
+    img: np.ndarray, colour: str = "red", reference: np.ndarray | None = None, k_sigma: float = 6.0
+) -> list[Candidate]:
     """Regions of laser-coloured light brighter than their surroundings.
 
     Parameters
@@ -192,10 +149,19 @@ def find_candidates(img: np.ndarray, colour: str = "red", reference: np.ndarray 
     for i in order:
         x, y, bw, bh = stats[i, :4]
         margin = max(4, bw, bh)
-        box = (max((x - margin) * f, 0), max((y - margin) * f, 0),
-               min((x + bw + margin) * f, w), min((y + bh + margin) * f, h))
-        out.append(Candidate(tuple(int(b) for b in box), float(cents[i, 0] * f + (f - 1) / 2),
-                             float(cents[i, 1] * f + (f - 1) / 2)))
+        box = (
+            max((x - margin) * f, 0),
+            max((y - margin) * f, 0),
+            min((x + bw + margin) * f, w),
+            min((y + bh + margin) * f, h),
+        )
+        out.append(
+            Candidate(
+                tuple(int(b) for b in box),
+                float(cents[i, 0] * f + (f - 1) / 2),
+                float(cents[i, 1] * f + (f - 1) / 2),
+            )
+        )
     return out
 
 
@@ -229,8 +195,9 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return bg.astype(np.float32), noise
 
 
-def _weighted_centroid(sig: np.ndarray, start: tuple[float, float], radius: float, exclude: np.ndarray,
-                       iterations: int = 30) -> tuple[float, float, np.ndarray]:
+def _weighted_centroid(
+    sig: np.ndarray, start: tuple[float, float], radius: float, exclude: np.ndarray, iterations: int = 30
+) -> tuple[float, float, np.ndarray]:
     """Intensity-weighted centroid in a circular window re-centred until it settles.
 
     Parameters
@@ -277,8 +244,15 @@ def _ink(roi: np.ndarray, bg: np.ndarray, ch: int) -> np.ndarray | None:
     return cv2.dilate(ink.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
 
 
-def _fit_gaussian(raw: np.ndarray, bg: np.ndarray, valid: np.ndarray, start: tuple[float, float], r_eq: float,
-                  full: float, gamma: float) -> tuple[float, float, float, float] | None:
+def _fit_gaussian(
+    raw: np.ndarray,
+    bg: np.ndarray,
+    valid: np.ndarray,
+    start: tuple[float, float],
+    r_eq: float,
+    full: float,
+    gamma: float,
+) -> tuple[float, float, float, float] | None:
     """Elliptical Gaussian fitted in linear intensity to the ``valid`` pixels.
 
     Parameters
@@ -325,22 +299,33 @@ def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tup
     """
     h, w = sig.shape
     Y, X = np.mgrid[:h, :w].astype(np.float32)
-    mirror = cv2.remap(sig.astype(np.float32), (2 * u - X), (2 * v - Y), cv2.INTER_LINEAR,
-                       borderMode=cv2.BORDER_REPLICATE)
+    mirror = cv2.remap(
+        sig.astype(np.float32), (2 * u - X), (2 * v - Y), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
     inside = wgt > 0
     odd = np.where(inside, sig - mirror, 0)
     odd2 = odd[inside] ** 2 / 2
     # Speckle grains span several pixels: inflate by the neighbours' correlation.
-    rho = np.clip(((odd[:, 1:] * odd[:, :-1]).sum() + (odd[1:] * odd[:-1]).sum())
-                  / (2 * (odd ** 2).sum() + 1e-12), 0, 0.95)
+    rho = np.clip(
+        ((odd[:, 1:] * odd[:, :-1]).sum() + (odd[1:] * odd[:-1]).sum()) / (2 * (odd**2).sum() + 1e-12),
+        0,
+        0.95,
+    )
     total = wgt.sum() / (1 + 2 * rho)
     su = np.sqrt(((X[inside] - u) ** 2 * odd2).sum()) / total
     sv = np.sqrt(((Y[inside] - v) ** 2 * odd2).sum()) / total
     return float(su), float(sv)
 
 
-def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", reference: np.ndarray | None = None,
-                 others: list[Candidate] = (), gamma: float = 2.2, luma: bool = False) -> Spot | Rejection:
+def measure_spot(
+    img: np.ndarray,
+    cand: Candidate,
+    colour: str = "red",
+    reference: np.ndarray | None = None,
+    others: list[Candidate] = (),
+    gamma: float = 2.2,
+    luma: bool = False,
+) -> Spot | Rejection:
     """Measure one candidate with the precise method.
 
     Parameters
@@ -428,7 +413,7 @@ def measure_spot(img: np.ndarray, cand: Candidate, colour: str = "red", referenc
     # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
     if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max() and ink is None:
         return Rejection("dim", cand.u, cand.v)
-    Y, X = np.mgrid[:sig.shape[0], :sig.shape[1]]
+    Y, X = np.mgrid[: sig.shape[0], : sig.shape[1]]
     window = np.hypot(X - u, Y - v) <= 1.5 * r_eq + 2
     on_ink = ink is not None and bool((ink & window).any())
     saturated = bool(clipped[blob].any())
@@ -454,10 +439,19 @@ def _dedupe(spots: list[Spot]) -> list[Spot]:
     return out
 
 
-def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", reference: np.ndarray | None = None,
-                 expect: int | None = 1, method: str = "precise", imagej_mode: str = "centroid",
-                 imagej_threshold: str = "default", imagej_box: int = 64,
-                 gamma: float = 2.2, luma: bool = False) -> tuple[list[Spot], list[str]]:
+def detect_spots(
+    img: np.ndarray,
+    name: str = "image",
+    colour: str = "red",
+    reference: np.ndarray | None = None,
+    expect: int | None = 1,
+    method: str = "precise",
+    imagej_mode: str = "centroid",
+    imagej_threshold: str = "default",
+    imagej_box: int = 64,
+    gamma: float = 2.2,
+    luma: bool = False,
+) -> tuple[list[Spot], list[str]]:
     """Find and measure the laser spots of one photo.
 
     Parameters
@@ -485,8 +479,10 @@ def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", refe
         More spots than ``expect``.
     """
     if reference is not None and reference.shape != img.shape:
-        raise VisionError(f"{name}: the reference photo is {reference.shape[1]}x{reference.shape[0]} px, "
-                          f"the photo {img.shape[1]}x{img.shape[0]} px")
+        raise VisionError(
+            f"{name}: the reference photo is {reference.shape[1]}x{reference.shape[0]} px, "
+            f"the photo {img.shape[1]}x{img.shape[0]} px"
+        )
     cands = find_candidates(img, colour, reference)
     found, rejected = [], []
     for c in cands:
@@ -497,25 +493,33 @@ def detect_spots(img: np.ndarray, name: str = "image", colour: str = "red", refe
     if img.ndim == 2:
         warnings.append("grey photo: white reflections cannot be told from laser light")
     if not spots:
-        why = {"dim": "not brighter than the paper (printed marks?)",
-               "white": "white, not laser-coloured (reflections?)"}
+        why = {
+            "dim": "not brighter than the paper (printed marks?)",
+            "white": "white, not laser-coloured (reflections?)",
+        }
         kinds = [k for k in why if any(r.kind == k for r in rejected)]
-        detail = "; rejected: " + ", ".join(f"{sum(r.kind == k for r in rejected)} {why[k]}" for k in kinds) \
-            if kinds else ""
+        detail = (
+            "; rejected: " + ", ".join(f"{sum(r.kind == k for r in rejected)} {why[k]}" for k in kinds)
+            if kinds
+            else ""
+        )
         raise NoSpotError(f"{name}: no {colour} laser spot found{detail}")
     if expect is not None and len(spots) > expect:
         where = ", ".join(f"({s.u:.1f}, {s.v:.1f})" for s in spots[:6])
-        raise SpotCountError(f"{name}: {len(spots)} spots found where {expect} "
-                             f"{'is' if expect == 1 else 'are'} expected, at px {where}"
-                             f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several spots)")
+        raise SpotCountError(
+            f"{name}: {len(spots)} spots found where {expect} "
+            f"{'is' if expect == 1 else 'are'} expected, at px {where}"
+            f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several spots)"
+        )
     for sp in spots:
         if sp.on_ink:
-            warnings.append(f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
-                            "light: its centre may be off by a few tenths of a pixel (aim beside the mark)")
+            warnings.append(
+                f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
+                "light: its centre may be off by a few tenths of a pixel (aim beside the mark)"
+            )
     if expect is not None and len(spots) < expect:
         warnings.append(f"{len(spots)} spot{'s' * (len(spots) != 1)} found where {expect} are expected")
     if method == "imagej":
-        from .imagej import measure as imagej_measure
         measured = []
         for s in spots:
             box = _imagej_box(img.shape, s, imagej_box)
@@ -538,8 +542,3 @@ def _imagej_box(shape, spot: Spot, side: int) -> tuple[int, int, int, int]:
         return 0, 0, w, h
     x0, y0 = int(round(spot.u - side / 2)), int(round(spot.v - side / 2))
     return max(x0, 0), max(y0, 0), min(x0 + side, w), min(y0 + side, h)
-
-
-def with_plane(spot: Spot, x: float, y: float, sx: float | None, sy: float | None) -> Spot:
-    """The spot with its plane position (mm) filled in."""
-    return replace(spot, x_mm=x, y_mm=y, sigma_x_mm=sx, sigma_y_mm=sy)

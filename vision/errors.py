@@ -4,6 +4,7 @@ Every error raised on bad user input derives from :class:`VisionError`; the CLI
 turns it into ``lasercal: error: <message>`` and exit code 2. Messages name the
 file, and the field when there is one.
 """
+
 from __future__ import annotations
 
 

@@ -13,14 +13,15 @@ foreground is grey > level; particles are 8-connected; ImageJ reports positions
 +0.5 px from OpenCV's convention (its pixel (0, 0) spans 0..1). Here positions
 are returned in OpenCV's convention, pixels; the caller shifts them for output.
 """
+
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-from .detect import CHANNEL, Spot
-from .errors import VisionError
-from .images import full_scale
+from lasercal.vision.errors import VisionError
+from lasercal.vision.images import full_scale
+from lasercal.vision.spot import CHANNEL, Spot
 
 
 def default_threshold(hist: np.ndarray) -> int:
@@ -80,8 +81,13 @@ def gray8(img: np.ndarray) -> np.ndarray:
     return np.floor(g * (255 / full_scale(img)) + 0.5).astype(np.uint8)
 
 
-def measure(img: np.ndarray, box: tuple[int, int, int, int], mode: str = "centroid",
-            threshold: str = "default", colour: str = "red") -> Spot:
+def measure(
+    img: np.ndarray,
+    box: tuple[int, int, int, int],
+    mode: str = "centroid",
+    threshold: str = "default",
+    colour: str = "red",
+) -> Spot:
     """Measure the spot in ``box`` as a person would in ImageJ.
 
     Parameters
@@ -114,11 +120,15 @@ def measure(img: np.ndarray, box: tuple[int, int, int, int], mode: str = "centro
     i = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     x, y, bw, bh, area = stats[i]
     # A whole-photo selection may hold the photo's border; a drawn box must isolate the spot.
-    touches = (x == 0 or y == 0 or x + bw == g.shape[1] or y + bh == g.shape[0]) and (x1 - x0, y1 - y0) != \
-        img.shape[1::-1]
+    touches = (x == 0 or y == 0 or x + bw == g.shape[1] or y + bh == g.shape[0]) and (
+        x1 - x0,
+        y1 - y0,
+    ) != img.shape[1::-1]
     if touches or area > 0.25 * g.size:
-        raise VisionError(f"{threshold} threshold {level} does not isolate the spot "
-                          f"(particle of {area} px{' touching the selection' if touches else ''})")
+        raise VisionError(
+            f"{threshold} threshold {level} does not isolate the spot "
+            f"(particle of {area} px{' touching the selection' if touches else ''})"
+        )
     yy, xx = np.nonzero(labels == i)
     if mode == "com":
         wts = g[yy, xx].astype(float)
@@ -129,5 +139,12 @@ def measure(img: np.ndarray, box: tuple[int, int, int, int], mode: str = "centro
         raise VisionError(f"unknown ImageJ measurement '{mode}' (centroid or com)")
     ch = crop[..., CHANNEL[colour]] if crop.ndim == 3 else crop
     vals = ch[yy, xx]
-    return Spot(float(u + x0), float(v + y0), None, None, float(vals.max()),
-                bool((vals >= 0.985 * full_scale(img)).any()), int(area))
+    return Spot(
+        float(u + x0),
+        float(v + y0),
+        None,
+        None,
+        float(vals.max()),
+        bool((vals >= 0.985 * full_scale(img)).any()),
+        int(area),
+    )

@@ -6,6 +6,7 @@ coordinates). EXIF orientation is ignored on purpose: the camera model, the
 markers and ImageJ all work in the sensor's own frame, and a phone that flags
 some photos as rotated would otherwise mix two frames.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import ImageReadError
+from lasercal.vision.errors import ImageReadError
 
 _FLAGS = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
 

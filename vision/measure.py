@@ -3,17 +3,19 @@
 Pixels in OpenCV's convention (ImageJ's is +0.5 px, applied only on output), mm
 in the robot base frame on the layout's plane.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Camera
-from .detect import Spot, detect_spots, with_plane
-from .errors import VisionError
-from .images import read_image, to_gray
-from .plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane
+from lasercal.vision.camera import Camera
+from lasercal.vision.detect import detect_spots
+from lasercal.vision.errors import VisionError
+from lasercal.vision.images import read_image, to_gray
+from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane
+from lasercal.vision.spot import Spot, with_plane
 
 
 @dataclass(frozen=True)
@@ -40,9 +42,15 @@ class PhotoResult:
     plane: PlaneMap | None
 
 
-def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout: MarkerLayout | None = None,
-                  camera: Camera | None = None, reference: np.ndarray | None = None,
-                  subsampled: bool = False) -> PhotoResult:
+def measure_photo(
+    img: np.ndarray,
+    name: str,
+    opts: Options = Options(),
+    layout: MarkerLayout | None = None,
+    camera: Camera | None = None,
+    reference: np.ndarray | None = None,
+    subsampled: bool = False,
+) -> PhotoResult:
     """Detect and measure the spots of one photo, on the plane when the layout has markers.
 
     Parameters
@@ -64,8 +72,19 @@ def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout:
     if camera is not None:
         camera.check_size(size, name)
     luma = opts.channel == "luma" or (opts.channel == "auto" and subsampled)
-    spots, warnings = detect_spots(img, name, opts.colour, reference, opts.expect, opts.method,
-                                   opts.imagej_mode, opts.imagej_threshold, opts.imagej_box, opts.gamma, luma)
+    spots, warnings = detect_spots(
+        img,
+        name,
+        opts.colour,
+        reference,
+        opts.expect,
+        opts.method,
+        opts.imagej_mode,
+        opts.imagej_threshold,
+        opts.imagej_box,
+        opts.gamma,
+        luma,
+    )
     plane = None
     if layout is not None:
         fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
@@ -73,18 +92,24 @@ def measure_photo(img: np.ndarray, name: str, opts: Options = Options(), layout:
         if fid.unknown_ids:
             warnings.append(f"markers not in the layout ignored: ids {', '.join(map(str, fid.unknown_ids))}")
         if (~plane.inliers).any():
-            warnings.append(f"{int((~plane.inliers).sum())} fiducial corners disagree with the layout by more than "
-                            "2 mm and were left out (wrong id or corner order?)")
+            warnings.append(
+                f"{int((~plane.inliers).sum())} fiducial corners disagree with the layout by more than "
+                "2 mm and were left out (wrong id or corner order?)"
+            )
         uv = np.array([[s.u, s.v] for s in spots])
         xy = plane.to_plane(uv)
         sig_uv = np.array([[s.sigma_u or 0.0, s.sigma_v or 0.0] for s in spots])
         sig_xy = plane.sigma_mm(uv, sig_uv)
         has_sigma = [s.sigma_u is not None for s in spots]
-        spots = [with_plane(s, float(p[0]), float(p[1]), float(e[0]) if ok else None, float(e[1]) if ok else None)
-                 for s, p, e, ok in zip(spots, xy, sig_xy, has_sigma)]
+        spots = [
+            with_plane(s, float(p[0]), float(p[1]), float(e[0]) if ok else None, float(e[1]) if ok else None)
+            for s, p, e, ok in zip(spots, xy, sig_xy, has_sigma)
+        ]
         outside = ~plane.inside(uv)
         if outside.any():
-            warnings.append(f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated")
+            warnings.append(
+                f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated"
+            )
     return PhotoResult(name, spots, warnings, plane)
 
 

@@ -6,6 +6,7 @@ crosses), each spot (magenta circle and cross, numbered) and, along the top and
 clear of the corners, a zoomed inset of every spot with its sub-pixel centre.
 Pixels in OpenCV's convention; lengths in mm.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,8 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .detect import Spot
-from .plane import PlaneMap
+from lasercal.vision.detect import Spot
+from lasercal.vision.plane import PlaneMap
 
 GRID, MARKER, OUTLIER, SPOT, TEXT = (255, 160, 0), (0, 200, 0), (0, 0, 255), (255, 0, 255), (20, 20, 20)
 
@@ -32,8 +33,13 @@ def _label(img, text, org, scale, colour=TEXT):
     cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, colour, th, cv2.LINE_AA)
 
 
-def draw(img: np.ndarray, spots: list[Spot], plane: PlaneMap | None = None, title: str = "",
-         convention: str = "opencv") -> np.ndarray:
+def draw(
+    img: np.ndarray,
+    spots: list[Spot],
+    plane: PlaneMap | None = None,
+    title: str = "",
+    convention: str = "opencv",
+) -> np.ndarray:
     """Return an annotated BGR uint8 copy of ``img``.
 
     Parameters
@@ -73,7 +79,9 @@ def draw(img: np.ndarray, spots: list[Spot], plane: PlaneMap | None = None, titl
             cv2.circle(out, tuple(np.round(c[0]).astype(int)), 4 * t, MARKER, -1)  # corner 0
             _label(out, f"id {mid}", tuple(np.round(c.mean(0)).astype(int)), 1.2 * fs, MARKER)
         for u, v in fid.image[~plane.inliers]:
-            cv2.drawMarker(out, (int(round(u)), int(round(v))), OUTLIER, cv2.MARKER_TILTED_CROSS, 12 * t, 2 * t)
+            cv2.drawMarker(
+                out, (int(round(u)), int(round(v))), OUTLIER, cv2.MARKER_TILTED_CROSS, 12 * t, 2 * t
+            )
     shift = 0.5 if convention == "imagej" else 0.0
     for n, s in enumerate(spots, 1):
         c = (int(round(s.u)), int(round(s.v)))
@@ -88,10 +96,12 @@ def draw(img: np.ndarray, spots: list[Spot], plane: PlaneMap | None = None, titl
     lines = [title]
     if plane is not None:
         fid = plane.fiducials
-        lines.append(f"{len(fid.marker_ids)} markers, {fid.charuco} ChArUco corners, fit RMS {plane.rms_mm:.3f} mm, "
-                     f"{plane.mm_per_px:.3f} mm/px, {int((~plane.inliers).sum())} outliers")
+        lines.append(
+            f"{len(fid.marker_ids)} markers, {fid.charuco} ChArUco corners, fit RMS {plane.rms_mm:.3f} mm, "
+            f"{plane.mm_per_px:.3f} mm/px, {int((~plane.inliers).sum())} outliers"
+        )
     y0 = int(round((220 if spots else 30) * k))
-    for i, line in enumerate(l for l in lines if l):
+    for i, line in enumerate(ln for ln in lines if ln):
         _label(out, line, (int(10 * k), y0 + int(i * 24 * k)), 1.2 * fs)
     return out
 
@@ -115,7 +125,7 @@ def _insets(out: np.ndarray, img: np.ndarray, spots: list[Spot], k: float) -> No
         _label(crop, f"#{n}", (6, int(22 * k)), 0.6 * k, SPOT)
         if x + side > out.shape[1] or int(10 * k) + side > out.shape[0]:
             break
-        out[int(10 * k):int(10 * k) + side, x:x + side] = crop
+        out[int(10 * k) : int(10 * k) + side, x : x + side] = crop
         x += side + int(round(10 * k))
 
 
@@ -124,6 +134,7 @@ def write(path, img: np.ndarray) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(path), img):
-        from .errors import VisionError
+        from lasercal.vision.errors import VisionError
+
         raise VisionError(f"{path}: cannot write the overlay PNG")
     return path

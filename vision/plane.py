@@ -26,6 +26,7 @@ are ignored here)::
 
 Seen from above, OpenCV's corner order runs clockwise; the corners are checked for it.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,24 +35,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import Camera, distort, read_yaml
-
-
-def distort_px(uv: np.ndarray, camera) -> np.ndarray:
-    """Ideal pixels back to recorded pixels (identity without a camera)."""
-    return uv if camera is None else distort(uv, camera.K, camera.dist)
-from .errors import LayoutError, MarkerError
+from lasercal.vision.camera import Camera, aruco_dictionary, distort, read_yaml
+from lasercal.vision.errors import LayoutError, MarkerError
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # renamed in numpy 2.0
 LAYOUT_FORMAT = "lasercal-layout/1"
 RANSAC_MM = 2.0  # a corner further than this from its layout position is an outlier, mm
 
 
-def aruco_dictionary(name: str, path="layout", field="markers.dictionary"):
-    """OpenCV's predefined ArUco dictionary called ``name`` (e.g. ``"DICT_4X4_50"``)."""
-    if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
-        raise LayoutError(path, f"'{name}' is not an OpenCV ArUco dictionary (e.g. DICT_4X4_50)", field)
-    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+def distort_px(uv: np.ndarray, camera) -> np.ndarray:
+    """Ideal pixels back to recorded pixels (identity without a camera)."""
+    return uv if camera is None else distort(uv, camera.K, camera.dist)
 
 
 @dataclass(frozen=True)
@@ -71,8 +65,13 @@ class CharucoLayout:
     def board(self):
         """The OpenCV ``CharucoBoard``."""
         n = (self.squares[0] * self.squares[1]) // 2
-        b = cv2.aruco.CharucoBoard(self.squares, self.square, self.marker, aruco_dictionary(self.dictionary),
-                                   np.arange(self.first_id, self.first_id + n, dtype=np.int32))
+        b = cv2.aruco.CharucoBoard(
+            self.squares,
+            self.square,
+            self.marker,
+            aruco_dictionary(self.dictionary),
+            np.arange(self.first_id, self.first_id + n, dtype=np.int32),
+        )
         b.setLegacyPattern(self.legacy)
         return b
 
@@ -129,16 +128,31 @@ def _parse_charuco(c, default_dict, path) -> CharucoLayout:
     square = float(_vec([c["square"]], 1, path, f"{f}.square")[0])
     marker = float(_vec([c["marker"]], 1, path, f"{f}.marker")[0])
     if not 0 < marker < square:
-        raise LayoutError(path, f"marker side {marker} mm must be positive and below the square side {square} mm",
-                          f"{f}.marker")
+        raise LayoutError(
+            path,
+            f"marker side {marker} mm must be positive and below the square side {square} mm",
+            f"{f}.marker",
+        )
     x_axis, y_axis = _vec(c["x_axis"], 2, path, f"{f}.x_axis"), _vec(c["y_axis"], 2, path, f"{f}.y_axis")
-    if abs(np.linalg.norm(x_axis) - 1) > 1e-3 or abs(np.linalg.norm(y_axis) - 1) > 1e-3 or abs(x_axis @ y_axis) > 1e-3:
+    if (
+        abs(np.linalg.norm(x_axis) - 1) > 1e-3
+        or abs(np.linalg.norm(y_axis) - 1) > 1e-3
+        or abs(x_axis @ y_axis) > 1e-3
+    ):
         raise LayoutError(path, "x_axis and y_axis must be orthogonal unit vectors", f"{f}.x_axis")
     name = c.get("dictionary", default_dict)
     aruco_dictionary(name, path, f"{f}.dictionary")
-    return CharucoLayout(name, (int(squares[0]), int(squares[1])), square, marker,
-                         _vec(c["origin"], 2, path, f"{f}.origin"), x_axis, y_axis,
-                         int(c.get("first_id", 0)), bool(c.get("legacy", False)))
+    return CharucoLayout(
+        name,
+        (int(squares[0]), int(squares[1])),
+        square,
+        marker,
+        _vec(c["origin"], 2, path, f"{f}.origin"),
+        x_axis,
+        y_axis,
+        int(c.get("first_id", 0)),
+        bool(c.get("legacy", False)),
+    )
 
 
 def load_layout(path) -> MarkerLayout | None:
@@ -185,8 +199,12 @@ def load_layout(path) -> MarkerLayout | None:
         x, y = c.T
         area = 0.5 * (x @ np.roll(y, -1) - y @ np.roll(x, -1))  # > 0 counter-clockwise (y up)
         if area >= 0:
-            raise LayoutError(path, "corners must run clockwise seen from above (OpenCV's order: top-left, "
-                              "top-right, bottom-right, bottom-left)", field)
+            raise LayoutError(
+                path,
+                "corners must run clockwise seen from above (OpenCV's order: top-left, "
+                "top-right, bottom-right, bottom-left)",
+                field,
+            )
         corners[mid] = c
     charuco = _parse_charuco(m["charuco"], m["dictionary"], path) if m.get("charuco") is not None else None
     if charuco is None and not corners:
@@ -201,7 +219,9 @@ def load_layout(path) -> MarkerLayout | None:
     except (TypeError, ValueError):
         raise LayoutError(path, "expected a whole number", "markers.min_markers") from None
     if not 1 <= min_markers <= max(len(corners), 1):
-        raise LayoutError(path, f"must be between 1 and the {len(corners)} markers listed", "markers.min_markers")
+        raise LayoutError(
+            path, f"must be between 1 and the {len(corners)} markers listed", "markers.min_markers"
+        )
     plane = doc.get("plane") or {}
     try:
         plane_z = float(plane["z"]) if isinstance(plane, dict) and "z" in plane else None
@@ -234,8 +254,13 @@ def _edge_line(gray: np.ndarray, a: np.ndarray, b: np.ndarray, outward: np.ndarr
     s = np.arange(-reach, reach + 1e-9, 0.25)
     base = a + t[:, None] * (b - a)
     pts = base[:, None, :] + s[None, :, None] * outward
-    prof = cv2.remap(gray, pts[..., 0].astype(np.float32), pts[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE).astype(float)
+    prof = cv2.remap(
+        gray,
+        pts[..., 0].astype(np.float32),
+        pts[..., 1].astype(np.float32),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    ).astype(float)
     k = max(2, len(s) // 6)
     lo, hi = prof[:, :k].mean(1), prof[:, -k:].mean(1)
     ok = hi - lo > 20
@@ -357,8 +382,13 @@ def linearise(gray: np.ndarray, gamma: float) -> np.ndarray:
     return cv2.LUT(gray, lut)
 
 
-def find_fiducials(gray: np.ndarray, layout: MarkerLayout, gamma: float = 2.2, camera: Camera | None = None,
-                   refine_edges: bool = True) -> Fiducials:
+def find_fiducials(
+    gray: np.ndarray,
+    layout: MarkerLayout,
+    gamma: float = 2.2,
+    camera: Camera | None = None,
+    refine_edges: bool = True,
+) -> Fiducials:
     """Detect the layout's markers (and ChArUco corners) in a grey photo.
 
     Parameters
@@ -376,11 +406,16 @@ def find_fiducials(gray: np.ndarray, layout: MarkerLayout, gamma: float = 2.2, c
     corners = np.asarray(corners, float).reshape(-1, 4, 2)
     if refine_edges and len(corners):
         corners = _refine_marker_corners(gray, corners, dictionary.markerSize + 2, camera)
-    board_ids = set(layout.charuco.marker_ids()) if layout.charuco and layout.charuco.dictionary == \
-        layout.dictionary else set()
+    board_ids = (
+        set(layout.charuco.marker_ids())
+        if layout.charuco and layout.charuco.dictionary == layout.dictionary
+        else set()
+    )
     counts = {i: int((ids == i).sum()) for i in set(ids.tolist())}
     # A duplicated id cannot be told apart: drop it rather than guess.
-    keep = sorted((k for k, i in enumerate(ids) if i in layout.corners and counts[i] == 1), key=lambda k: ids[k])
+    keep = sorted(
+        (k for k, i in enumerate(ids) if i in layout.corners and counts[i] == 1), key=lambda k: ids[k]
+    )
     unknown = tuple(sorted({int(i) for i in ids if i not in layout.corners and i not in board_ids}))
     img_pts = [corners[keep].reshape(-1, 2)]
     plane_pts = [np.concatenate([layout.corners[int(ids[k])] for k in keep]) if keep else np.zeros((0, 2))]
@@ -394,8 +429,14 @@ def find_fiducials(gray: np.ndarray, layout: MarkerLayout, gamma: float = 2.2, c
             img_pts.append(_refine_saddles(gray, np.asarray(cc, float).reshape(-1, 2), obj, layout.charuco))
             plane_pts.append(layout.charuco.to_base(obj))
             n_charuco = len(cids)
-    return Fiducials(np.concatenate(img_pts), np.concatenate(plane_pts), tuple(int(ids[k]) for k in keep),
-                     corners[keep], n_charuco, unknown)
+    return Fiducials(
+        np.concatenate(img_pts),
+        np.concatenate(plane_pts),
+        tuple(int(ids[k]) for k in keep),
+        corners[keep],
+        n_charuco,
+        unknown,
+    )
 
 
 @dataclass(frozen=True)
@@ -431,7 +472,9 @@ class PlaneMap:
 
     def to_image(self, xy: np.ndarray) -> np.ndarray:
         """Plane points (n, 2) mm -> recorded pixels (n, 2) px."""
-        uv = cv2.perspectiveTransform(np.asarray(xy, float).reshape(-1, 1, 2), np.linalg.inv(self.H)).reshape(-1, 2)
+        uv = cv2.perspectiveTransform(np.asarray(xy, float).reshape(-1, 1, 2), np.linalg.inv(self.H)).reshape(
+            -1, 2
+        )
         return distort_px(uv, self.camera)
 
     def jacobian(self, uv: np.ndarray, h: float = 0.5) -> np.ndarray:
@@ -449,18 +492,23 @@ class PlaneMap:
         """
         J = self.jacobian(uv)
         cov = np.einsum("nij,nj,nkj->nik", J, np.asarray(sigma_uv, float) ** 2, J)
-        fit = self.rms_mm ** 2 * 8 / max(int(self.inliers.sum()), 8)
+        fit = self.rms_mm**2 * 8 / max(int(self.inliers.sum()), 8)
         return np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + fit)
 
     def inside(self, uv: np.ndarray) -> np.ndarray:
         """(n,) bool: recorded pixels inside the hull of the inlier fiducials."""
         hull = cv2.convexHull(self.fiducials.image[self.inliers].astype(np.float32))
-        return np.array([cv2.pointPolygonTest(hull, (float(u), float(v)), False) >= 0
-                         for u, v in np.asarray(uv, float).reshape(-1, 2)])
+        return np.array(
+            [
+                cv2.pointPolygonTest(hull, (float(u), float(v)), False) >= 0
+                for u, v in np.asarray(uv, float).reshape(-1, 2)
+            ]
+        )
 
 
-def fit_plane(fid: Fiducials, layout: MarkerLayout, camera: Camera | None, size: tuple[int, int],
-              name: str = "image") -> PlaneMap:
+def fit_plane(
+    fid: Fiducials, layout: MarkerLayout, camera: Camera | None, size: tuple[int, int], name: str = "image"
+) -> PlaneMap:
     """Homography from the fiducials (RANSAC over all corners, refined on the inliers).
 
     Parameters
@@ -482,16 +530,22 @@ def fit_plane(fid: Fiducials, layout: MarkerLayout, camera: Camera | None, size:
         seen = f" (ids {', '.join(map(str, fid.marker_ids))})" if fid.marker_ids else ""
         extra = f"; unknown ids seen: {', '.join(map(str, fid.unknown_ids))}" if fid.unknown_ids else ""
         board = f" and {fid.charuco} ChArUco corners" if layout.charuco is not None else ""
-        raise MarkerError(f"{name}: found {len(fid.marker_ids)} of the {len(layout.corners)} markers of "
-                          f"{layout.path}{seen}{board}; at least {layout.min_markers} needed{extra}")
+        raise MarkerError(
+            f"{name}: found {len(fid.marker_ids)} of the {len(layout.corners)} markers of "
+            f"{layout.path}{seen}{board}; at least {layout.min_markers} needed{extra}"
+        )
     ideal = camera.undistort(fid.image) if camera is not None else fid.image
     H, mask = cv2.findHomography(ideal, fid.plane, cv2.RANSAC, RANSAC_MM, maxIters=5000, confidence=0.999)
     if H is None or mask is None or mask.sum() < 4:
-        raise MarkerError(f"{name}: the markers' corners do not agree with {layout.path} (no consistent homography)")
+        raise MarkerError(
+            f"{name}: the markers' corners do not agree with {layout.path} (no consistent homography)"
+        )
     inl = mask.ravel().astype(bool)
     # Refine on the inliers by least squares: RANSAC's model leans on a minimal sample.
     H, _ = cv2.findHomography(ideal[inl], fid.plane[inl], 0)
-    res = np.linalg.norm(cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 2) - fid.plane, axis=1)
+    res = np.linalg.norm(
+        cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 2) - fid.plane, axis=1
+    )
     pm = PlaneMap(H, camera, float(np.sqrt(np.mean(res[inl] ** 2))), float(res[inl].max()), inl, fid, 0.0)
     c = np.array([[(size[0] - 1) / 2, (size[1] - 1) / 2]])
     scale = float(np.sqrt(abs(np.linalg.det(pm.jacobian(c)[0]))))
@@ -500,5 +554,7 @@ def fit_plane(fid: Fiducials, layout: MarkerLayout, camera: Camera | None, size:
 
 def layout_markers(dictionary: str, corners: dict) -> dict:
     """The ``markers`` section for a layout YAML from ``{id: (4, 2) corners mm}``."""
-    return {"dictionary": dictionary,
-            "ids": {int(i): np.round(np.asarray(c, float), 4).tolist() for i, c in corners.items()}}
+    return {
+        "dictionary": dictionary,
+        "ids": {int(i): np.round(np.asarray(c, float), 4).tolist() for i, c in corners.items()},
+    }

@@ -15,6 +15,7 @@ and specular glare; plus shot and read noise; excess charge blooms into the
 neighbours; clipped at full scale; then gamma-encoded, quantised to 8 bits and
 optionally JPEG-compressed (with 4:2:0 chroma subsampling, as cameras do).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -22,7 +23,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .camera import distort, undistort
+from lasercal.vision.camera import distort, undistort
 
 FULL = 255.0
 
@@ -72,8 +73,16 @@ def pose_view(size, K, dist, R, t, z: float = 0.0) -> View:
     return View(tuple(size), H / H[2, 2], np.asarray(K, float), np.asarray(dist, float))
 
 
-def look_down(size=(4000, 3000), mm_per_px: float = 0.3, centre=(450.0, 0.0), yaw_deg: float = 0.0,
-              tilt_deg=(0.0, 0.0), height: float = 1000.0, dist=(0, 0, 0, 0, 0), z: float = 0.0) -> View:
+def look_down(
+    size=(4000, 3000),
+    mm_per_px: float = 0.3,
+    centre=(450.0, 0.0),
+    yaw_deg: float = 0.0,
+    tilt_deg=(0.0, 0.0),
+    height: float = 1000.0,
+    dist=(0, 0, 0, 0, 0),
+    z: float = 0.0,
+) -> View:
     """A camera ``height`` mm above ``centre`` looking down at the plane z = ``z``.
 
     With zero yaw the image's right is +x and its down is -y (a top view of a
@@ -147,7 +156,7 @@ def ink_dot(centre, diameter: float, bgr=(0.15, 0.15, 0.85)) -> Print:
     n = 32
     yy, xx = np.mgrid[:n, :n] - (n - 1) / 2
     img = np.ones((n, n, 3), np.float32)
-    img[xx ** 2 + yy ** 2 <= (n / 2) ** 2] = bgr
+    img[xx**2 + yy**2 <= (n / 2) ** 2] = bgr
     return Print(img, square_corners(centre, diameter))
 
 
@@ -252,12 +261,20 @@ def _paste(refl: np.ndarray, view: View, item: Print, blur: float) -> None:
     big[pad:-pad, pad:-pad] = img.repeat(up, 0).repeat(up, 1)
     big = cv2.GaussianBlur(big, (0, 0), blur * up / px_per_texel)
     grid = np.stack(np.meshgrid(np.arange(x0, x1), np.arange(y0, y1)), -1).reshape(-1, 2)
-    T = cv2.getPerspectiveTransform(c.astype(np.float32), np.float32(
-        [[-0.5, -0.5], [tw - 0.5, -0.5], [tw - 0.5, th - 0.5], [-0.5, th - 0.5]]))
+    T = cv2.getPerspectiveTransform(
+        c.astype(np.float32),
+        np.float32([[-0.5, -0.5], [tw - 0.5, -0.5], [tw - 0.5, th - 0.5], [-0.5, th - 0.5]]),
+    )
     tex = cv2.perspectiveTransform(view.unproject(grid).reshape(-1, 1, 2), T).reshape(y1 - y0, x1 - x0, 2)
     tex = ((tex + 0.5) * up - 0.5 + pad).astype(np.float32)
-    vals = cv2.remap(big, tex[..., 0], tex[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=(1.0, 1.0, 1.0))
+    vals = cv2.remap(
+        big,
+        tex[..., 0],
+        tex[..., 1],
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=(1.0, 1.0, 1.0),
+    )
     refl[y0:y1, x0:x1] *= vals
 
 
@@ -281,7 +298,7 @@ def _speckle(shape, grain: float, contrast: float, rng) -> np.ndarray:
     field = rng.standard_normal(shape + (2,)).astype(np.float32)
     k = max(grain / 2, 0.3)
     field = cv2.GaussianBlur(field, (0, 0), k, borderType=cv2.BORDER_REFLECT)
-    inten = (field ** 2).sum(-1)
+    inten = (field**2).sum(-1)
     inten /= inten.mean()
     return 1 + contrast * (inten - 1)  # fully developed speckle (exponential) scaled to the contrast
 
@@ -305,7 +322,9 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
         _paste(refl, photo.view, item, np.hypot(photo.psf, np.sqrt(1 / 12)))  # PSF and pixel aperture
     xs = np.linspace(-0.5, 0.5, w, dtype=np.float32)
     ys = np.linspace(-0.5, 0.5, h, dtype=np.float32) * (h / w)
-    light = (1 + photo.gradient * xs)[None, :] * (1 - photo.vignetting * 2 * (xs[None, :] ** 2 + ys[:, None] ** 2))
+    light = (1 + photo.gradient * xs)[None, :] * (
+        1 - photo.vignetting * 2 * (xs[None, :] ** 2 + ys[:, None] ** 2)
+    )
     img = refl * (FULL * photo.paper * light)[..., None] * np.float32(photo.tint)
     response = LASER_RESPONSE[photo.colour].astype(np.float32)
     for spot in photo.spots:
@@ -324,8 +343,9 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
         x0, y0, x1, y1 = _spot_box(gl.u, gl.v, r, w, h)
         g = _gaussian(LaserSpot(gl.u, gl.v, gl.sigma), x0, y0, x1 - x0, y1 - y0) * (FULL * gl.peak)
         img[y0:y1, x0:x1] += g[..., None] * np.float32(photo.tint)
-    img += np.sqrt(photo.read_noise ** 2 + photo.shot_noise * np.maximum(img, 0)) * \
-        rng.standard_normal(img.shape, dtype=np.float32)
+    img += np.sqrt(photo.read_noise**2 + photo.shot_noise * np.maximum(img, 0)) * rng.standard_normal(
+        img.shape, dtype=np.float32
+    )
     if photo.bloom > 0:
         excess = np.maximum(img - FULL, 0)
         if excess.any():
@@ -340,8 +360,9 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
     return out
 
 
-def marker_sheet(view: View, side: float = 40.0, dictionary: str = "DICT_4X4_50", inset: float = 0.1,
-                 ids=(0, 1, 2, 3)) -> dict:
+def marker_sheet(
+    view: View, side: float = 40.0, dictionary: str = "DICT_4X4_50", inset: float = 0.1, ids=(0, 1, 2, 3)
+) -> dict:
     """Four markers near the corners of the photo, upright in it.
 
     Parameters
@@ -357,7 +378,10 @@ def marker_sheet(view: View, side: float = 40.0, dictionary: str = "DICT_4X4_50"
     dict id -> (4, 2) corners mm (OpenCV order), for :func:`aruco_print` and the layout
     """
     w, h = view.size
-    at = np.array([[inset, inset], [1 - inset, inset], [1 - inset, 1 - inset], [inset, 1 - inset]]) * [w - 1, h - 1]
+    at = np.array([[inset, inset], [1 - inset, inset], [1 - inset, 1 - inset], [inset, 1 - inset]]) * [
+        w - 1,
+        h - 1,
+    ]
     centres = view.unproject(at)
     right = view.unproject(at + [1, 0]) - centres  # the photo's +u on the plane
     angles = np.degrees(np.arctan2(right[:, 1], right[:, 0]))

@@ -1,0 +1,383 @@
+"""``lasercal capture`` and ``lasercal validate``: thin layers over the sessions."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.collector.errors import SessionError
+from lasercal.collector.hardware import BACKENDS
+from lasercal.collector.hardware.base import RobotAdapter
+from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
+from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
+from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+from lasercal.collector.sessions.store import CaptureStore
+from lasercal.collector.sessions.validate import (
+    FakeCamera,
+    OpenCVCamera,
+    ValidateOptions,
+    fake_view,
+    measure_known_view,
+    measure_with_markers,
+    run_validation,
+    validation_point,
+)
+from lasercal.solver.analysis.stats import spot_stats
+from lasercal.solver.errors import LasercalError
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model, load_yaml
+from lasercal.solver.formats.session import Layout, load_layout, session_meta
+from lasercal.solver.kinematics.model import RobotModel
+
+THESIS_LAYOUT = builtin_dir("layouts") / "thesis.yaml"
+DEFAULTS = {
+    "robot": "panda",
+    "trigger": "enter",
+    "truth": "panda_thesis_identified",
+    "aim_noise": 1.0,
+    "seed": 0,
+    "speed_threshold": 0.005,
+    "hold": 0.5,
+    "dynamics": 0.1,
+    "ros_port": 9090,
+}
+# Settings a resumed session must keep: they decide what its captures mean.
+FIXED = ("backend", "robot", "per_point", "truth", "perturb_seed", "aim_noise", "seed", "rangefinder")
+SETTINGS = FIXED + (
+    "speed_threshold",
+    "hold",
+    "trigger",
+    "host",
+    "dynamics",
+    "desk_user",
+    "ros_port",
+    "ros_joints",
+    "rangefinder_query",
+    "aperture_z",
+)
+
+
+def _backend_options(p: argparse.ArgumentParser) -> None:
+    """Options shared by capture and validate (None = not given, so a resume can tell)."""
+    g = p.add_argument_group("robot backend")
+    g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
+    g.add_argument("--robot", help="nominal robot model: name under data/robots/ or YAML (default panda)")
+    g.add_argument("--host", help="robot FCI address (franky, panda-py) or rosbridge host (ros)")
+    g.add_argument(
+        "--dynamics",
+        type=float,
+        metavar="F",
+        help="franky/panda-py: speed of commanded moves, fraction of the limits (default 0.1)",
+    )
+    g.add_argument(
+        "--desk-user",
+        metavar="USER",
+        help="Desk user for --trigger pilot (password in $LASERCAL_DESK_PASSWORD)",
+    )
+    g.add_argument("--ros-port", type=int, metavar="PORT", help="rosbridge port (default 9090)")
+    g.add_argument(
+        "--ros-joints",
+        metavar="NAMES",
+        help="comma-separated arm joint names in /joint_states (default: found by name)",
+    )
+    g.add_argument(
+        "--trigger",
+        metavar="enter|serial:URL|pilot",
+        help="enter (default), serial:URL (button box / foot pedal, pyserial URL) or pilot",
+    )
+    f = p.add_argument_group("fake backend")
+    f.add_argument(
+        "--truth",
+        metavar="ROBOT.yaml",
+        help="the fake robot's true geometry: robot YAML or name (default panda_thesis_identified)",
+    )
+    f.add_argument(
+        "--perturb-seed",
+        type=int,
+        metavar="S",
+        help="instead of --truth: a seeded random perturbation of the nominal robot",
+    )
+    f.add_argument("--seed", type=int, metavar="S", help="seed of the simulation (default 0)")
+    s = p.add_argument_group("standstill")
+    s.add_argument(
+        "--speed-threshold",
+        type=float,
+        metavar="RAD_S",
+        help="the arm is still when every joint is slower (default 0.005)",
+    )
+    s.add_argument("--hold", type=float, metavar="S", help="... for this long (default 0.5)")
+
+
+def args_capture(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal capture``."""
+    p.add_argument("--layout", help="layout YAML with the reference points")
+    p.add_argument("--per-point", type=int, metavar="N", help="captures at each calibration point")
+    p.add_argument("-o", "--output", metavar="SESSION", help="new session folder")
+    p.add_argument("--resume", metavar="SESSION", help="continue an interrupted session where it stopped")
+    p.add_argument(
+        "--aperture-z",
+        type=float,
+        metavar="MM",
+        help="measured height of the laser aperture at q = 0, mm (p_Mz)",
+    )
+    p.add_argument(
+        "--rangefinder",
+        metavar="URL",
+        help="serial laser rangefinder (pyserial URL; 'fake' with --backend fake): log the laser length",
+    )
+    p.add_argument(
+        "--rangefinder-query",
+        metavar="TEXT",
+        help="sent before each reading (e.g. 'D\\n'); default: the device streams",
+    )
+    p.add_argument(
+        "--auto", action="store_true", help="fake backend: the simulated operator triggers too (no keyboard)"
+    )
+    p.add_argument(
+        "--auto-pace",
+        type=float,
+        metavar="S",
+        help="with --auto: real seconds per capture, to watch (default 0)",
+    )
+    p.add_argument(
+        "--aim-noise",
+        type=float,
+        metavar="MM",
+        help="fake backend: aiming noise per in-plane axis, mm (default 1.0)",
+    )
+    _backend_options(p)
+
+
+def args_validate(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal validate``."""
+    p.add_argument("model", help="robot model YAML under test (nominal or identified)")
+    p.add_argument("--point", help="validation point (default: the layout's first validation point)")
+    p.add_argument("-n", type=int, default=60, help="configurations (default 60)")
+    p.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="DIR",
+        help="new folder: validation.yaml, validation.csv, photos/",
+    )
+    p.add_argument("--layout", default=str(THESIS_LAYOUT), help="layout YAML (default: the thesis layout)")
+    p.add_argument(
+        "--camera",
+        help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
+    )
+    p.add_argument(
+        "--guide",
+        action="store_true",
+        help="guide the operator to each configuration even where the backend can move",
+    )
+    _backend_options(p)
+
+
+def _settings(args) -> dict:
+    return {k: getattr(args, k) for k in SETTINGS if getattr(args, k, None) is not None}
+
+
+def _desk(cfg: dict):
+    if not cfg.get("desk_user"):
+        return None
+    return cfg["desk_user"], os.environ.get("LASERCAL_DESK_PASSWORD", "")
+
+
+def make_robot(cfg: dict, nominal: RobotModel, layout: Layout, per_point: int = 0) -> RobotAdapter:
+    """The robot adapter a settings mapping asks for (keys as in SETTINGS, defaults applied)."""
+    backend = cfg["backend"]
+    if backend == "fake":
+        from lasercal.collector.hardware.base import FakeClock
+        from lasercal.collector.hardware.fake import FakeOperator, FakeRobot, perturbed_model
+
+        truth = (
+            perturbed_model(nominal, cfg["perturb_seed"])
+            if cfg.get("perturb_seed") is not None
+            else load_model(cfg["truth"])
+        )
+        pts = {k: layout.points[k] for k in layout.calibration}
+        operator = (
+            FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())
+            if per_point
+            else None
+        )
+        return FakeRobot(truth, FakeClock(), operator, seed=cfg["seed"])
+    if not cfg.get("host"):
+        raise LasercalError(f"--backend {backend} needs --host (the robot's or rosbridge's address)")
+    if backend == "franky":
+        from lasercal.collector.hardware.franky import FrankyRobot
+
+        return FrankyRobot(cfg["host"], cfg["dynamics"], _desk(cfg))
+    if backend == "panda-py":
+        from lasercal.collector.hardware.pandapy import PandaPyRobot
+
+        return PandaPyRobot(cfg["host"], cfg["dynamics"], _desk(cfg))
+    from lasercal.collector.hardware.ros import RosRobot
+
+    joints = cfg["ros_joints"].split(",") if cfg.get("ros_joints") else None
+    return RosRobot(cfg["host"], cfg["ros_port"], nominal.n, joints)
+
+
+def _layout_of(meta: dict, folder: Path) -> Layout:
+    """The layout a session was started with, from its session.yaml (the folder is self-contained)."""
+    c = meta.get("collector") or {}
+    pts = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
+    return Layout(
+        str(folder / "session.yaml"),
+        float(meta["plane"]["z"]),
+        pts,
+        tuple(meta["requested"]),
+        tuple(meta.get("validation") or ()),
+        dict(c.get("aiming") or {}),
+    )
+
+
+def _capture_settings(args) -> tuple[dict, Layout]:
+    """The settings and layout of a new session (command line) or a resumed one (its session.yaml + command
+    line)."""
+    given = _settings(args)
+    for key in ("per_point", "aim_noise"):
+        if getattr(args, key) is not None:
+            given[key] = getattr(args, key)
+    if not args.resume:
+        missing = [
+            f
+            for f, v in (
+                ("--layout", args.layout),
+                ("--per-point", args.per_point),
+                ("-o", args.output),
+                ("--backend", args.backend),
+            )
+            if v is None
+        ]
+        if missing:
+            raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
+        if args.per_point < 1:
+            raise SessionError("--per-point must be at least 1")
+        return {**DEFAULTS, **given}, load_layout(args.layout)
+    if args.output or args.layout:
+        raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")
+    folder = Path(args.resume)
+    if not (folder / "session.yaml").is_file():
+        raise SessionError(f"{folder} is not a session folder (no session.yaml): nothing to resume")
+    meta = load_yaml(folder / "session.yaml")
+    stored = meta.get("collector") if isinstance(meta, dict) else None
+    if not stored:
+        raise SessionError(f"{folder} was not started by lasercal capture: nothing to resume")
+    for k in FIXED:
+        if k in given and given[k] != stored.get(k):
+            raise SessionError(
+                f"{folder} was started with {k.replace('_', '-')} {stored.get(k)}: it cannot change on resume"
+            )
+    return {**DEFAULTS, **stored, **given}, _layout_of(meta, folder)
+
+
+def cmd_capture(args) -> int:
+    cfg, layout = _capture_settings(args)
+    if args.auto and cfg["backend"] != "fake":
+        raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
+    nominal = load_model(cfg["robot"])
+    robot = make_robot(cfg, nominal, layout, cfg["per_point"])
+    rangefinder = None
+    if cfg.get("rangefinder") == "fake":
+        if cfg["backend"] != "fake":
+            raise LasercalError("--rangefinder fake needs --backend fake")
+        rangefinder = FakeRangefinder(robot, layout.plane_z, seed=cfg["seed"])
+    elif cfg.get("rangefinder"):
+        query = (cfg.get("rangefinder_query") or "").encode().decode("unicode_escape").encode()
+        rangefinder = SerialRangefinder.from_url(cfg["rangefinder"], query)
+    trigger = AutoTrigger(args.auto_pace or 0.0) if args.auto else make_trigger(cfg["trigger"], robot)
+    if args.resume:  # devices first, folder last: a device that fails leaves nothing to clean up
+        store = CaptureStore.open(args.resume)
+        if store.recovered:
+            print(
+                f"cut off a torn last line ({store.recovered} bytes): the capture in flight when the session "
+                "stopped"
+            )
+        print(f"resuming {store.folder}: {len(store.point)} captures on disk")
+    else:
+        columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
+        aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if cfg["backend"] == "fake" else None)
+        collector = {
+            **cfg,
+            "aperture_z": aperture,
+            "layout": str(Path(args.layout).resolve()),
+            "aiming": layout.aiming,
+            "extra_columns": columns,
+            "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        }
+        extra = {"collector": collector}
+        if cfg["backend"] == "fake":
+            extra["simulated"] = {
+                "truth": robot.truth.name,
+                "aim_noise_mm": cfg["aim_noise"],
+                "seed": cfg["seed"],
+            }
+        store = CaptureStore.create(
+            args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
+        )
+    opts = CaptureOptions(cfg["per_point"], cfg["speed_threshold"], cfg["hold"], auto_discard=args.auto)
+    hint = f"lasercal capture --resume {store.folder}" + (" --auto" if args.auto else "")
+    try:
+        run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint)
+    finally:
+        store.close()
+        trigger.close()
+        if rangefinder is not None:
+            rangefinder.close()
+    return 0
+
+
+def cmd_validate(args) -> int:
+    cfg = {**DEFAULTS, **_settings(args)}
+    if args.backend is None:
+        raise LasercalError("validate needs --backend (fake, franky, panda-py or ros)")
+    cfg["backend"] = args.backend
+    layout = load_layout(args.layout)
+    point = validation_point(layout, args.point)
+    model = load_model(args.model)
+    robot = make_robot(cfg, load_model(cfg["robot"]), layout)
+    camera_spec = args.camera or ("fake" if args.backend == "fake" else None)
+    measure = None
+    if camera_spec == "fake":
+        if args.backend != "fake":
+            raise LasercalError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
+        view = fake_view(layout.points[point][:2], layout.plane_z)
+        camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
+        measure = lambda img, name: measure_known_view(img, name, view)  # noqa: E731
+    elif camera_spec is None:
+        raise LasercalError(
+            "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"
+        )
+    else:
+        camera = OpenCVCamera(int(camera_spec) if camera_spec.isdigit() else camera_spec)
+        from lasercal.vision.plane import load_layout as load_markers
+
+        markers = load_markers(args.layout)
+        if markers is not None:
+            measure = lambda img, name: measure_with_markers(img, name, markers)  # noqa: E731
+    trigger = None
+    if args.guide or not robot.can_move:
+        trigger = AutoTrigger() if args.backend == "fake" else make_trigger(cfg["trigger"], robot)
+    opts = ValidateOptions(args.n, cfg["seed"], args.guide, cfg["speed_threshold"], cfg["hold"])
+    res = run_validation(
+        args.output, model, str(args.model), layout, point, robot, camera, opts, trigger, measure
+    )
+    print(f"wrote {res.path} ({res.photos} photos)")
+    if len(res.spots) > 1:
+        s = spot_stats(res.spots, layout.points[point])
+        print(
+            f"{point}: {s.n} spots measured: scatter mean {s.scatter_mean:.3f} mm (std {s.scatter_std:.3f}), "
+            f"error mean {s.error_mean:.3f} mm (max {s.error_max:.3f})"
+        )
+    else:
+        print(
+            f"measure the photos with: lasercal spots {res.path.parent}/photos/*.png --layout "
+            "LAYOUT_WITH_MARKERS.yaml"
+        )
+    return 0

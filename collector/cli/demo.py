@@ -1,0 +1,36 @@
+"""``lasercal demo`` subcommand: the whole workflow on the simulated Panda, with a progress bar."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tqdm import tqdm
+
+from lasercal.collector.demo import DemoOptions, format_summary, run_demo
+
+
+def args_demo(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal demo``."""
+    p.add_argument(
+        "-o",
+        "--output",
+        default="lasercal-demo",
+        help="folder for the session, models, validations and report (default: ./lasercal-demo)",
+    )
+    p.add_argument("--seed", type=int, default=0)
+
+
+def cmd_demo(args) -> int:
+    opts = DemoOptions(seed=args.seed)
+    with tqdm(
+        total=opts.units(), desc="demo", unit="step", leave=False, delay=0.5
+    ) as bar:  # delay: no bar for an instant error
+
+        def progress(stage: str) -> None:
+            bar.set_description(stage, refresh=False)
+            bar.update()
+
+        s = run_demo(Path(args.output), opts, progress)
+    print(format_summary(s))
+    return 0

@@ -1,0 +1,163 @@
+"""The ``lasercal`` command: one table of subcommands, each imported only when it runs.
+
+Every subcommand is a thin handler (parse arguments, call one library function, print) in a
+module of this package. ``lasercal --help`` imports none of them, so it starts fast. Any
+:class:`~lasercal.solver.errors.LasercalError` (or ``vision``'s ``VisionError``) becomes a
+one-line message and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from typing import NamedTuple
+
+
+class Command(NamedTuple):
+    """One subcommand: ``module`` (in lasercal.collector.cli) holds ``args_<name>`` and ``handler``."""
+
+    name: str
+    module: str
+    handler: str
+    help: str
+    description: str | None = None
+
+
+COMMANDS = (
+    Command(
+        "demo",
+        "demo",
+        "cmd_demo",
+        "the whole calibration story on the built-in simulated Panda (no robot, camera or keyboard)",
+    ),
+    Command(
+        "capture",
+        "capture",
+        "cmd_capture",
+        "guided capture session on a robot, or on the simulated one (--backend fake --auto)",
+    ),
+    Command("solve", "solve", "cmd_solve", "identify the robot's geometry from a capture session"),
+    Command(
+        "validate",
+        "capture",
+        "cmd_validate",
+        "photograph the spot at N configurations a model computes for a point (thesis Section 4.3)",
+    ),
+    Command(
+        "report",
+        "report",
+        "cmd_report",
+        "an HTML report with plots: calibration, validation before/after, diagnosis",
+    ),
+    Command("export", "report", "cmd_export", "the calibrated model as a URDF, a DH-style table or YAML"),
+    Command(
+        "predict", "solve", "cmd_predict", "where a model's beam meets the plane, for configurations in a CSV"
+    ),
+    Command("simulate", "solve", "cmd_simulate", "a synthetic capture session whose truth is a given robot"),
+    Command(
+        "diagnose",
+        "diagnose",
+        "cmd_diagnose",
+        "find the non-geometric effect the geometric model misses (or 'none')",
+    ),
+    Command(
+        "spots",
+        "vision",
+        "spots_command",
+        "measure laser spots in photos (px, and mm with a layout)",
+        "Detect laser spots and report sub-pixel centroids, and their position on the plane "
+        "(mm, base frame) when the layout has markers.",
+    ),
+    Command(
+        "beam-check",
+        "vision",
+        "beam_check_command",
+        "laser alignment: circle of spots while joint 7 turns",
+        "Fit a circle to the spots of photos taken while only joint 7 turns; report the beam's tilt "
+        "from the axis and the axis on the plane.",
+    ),
+    Command(
+        "camera-calibrate",
+        "vision",
+        "camera_calibrate_command",
+        "camera intrinsics and lens distortion from pattern photos",
+        "Calibrate a camera (cv2.calibrateCamera) from photos of a chessboard or a ChArUco board "
+        "and write a camera YAML.",
+    ),
+    Command(
+        "fullpose",
+        "fullpose",
+        "cmd_fullpose",
+        "full-pose POE calibration from circle-point measurements (or measured poses)",
+    ),
+    Command(
+        "simulate-fullpose",
+        "fullpose",
+        "cmd_simulate_fullpose",
+        "synthetic circle-point measurements whose truth is a given robot (Sensors 2013, Section 3)",
+    ),
+    Command(
+        "import-mukca",
+        "study",
+        "cmd_import",
+        "one point session from a MUKCa robot folder (real Panda socket data)",
+    ),
+    Command(
+        "study-mukca",
+        "study",
+        "cmd_study",
+        "the real-data study on MUKCa robots: calibration by leave-one-position-out, "
+        "simulation check, diagnosis, extension, outliers",
+    ),
+)
+BY_NAME = {c.name: c for c in COMMANDS}
+
+
+def load(cmd: Command):
+    """The command's module, imported now (``lasercal.collector.cli.<module>``)."""
+    return importlib.import_module(f"lasercal.collector.cli.{cmd.module}")
+
+
+def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
+    """The parser: every command listed, only ``selected``'s arguments (and module) loaded."""
+    parser = argparse.ArgumentParser(
+        prog="lasercal",
+        description="Kinematic calibration of a serial arm with a laser pointer, a table of reference points "
+        "and a camera.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for c in COMMANDS:
+        p = sub.add_parser(c.name, help=c.help, description=c.description or c.help[:1].upper() + c.help[1:])
+        if c.name == selected:
+            mod = load(c)
+            getattr(mod, "args_" + c.name.replace("-", "_"))(p)
+            p.set_defaults(func=getattr(mod, c.handler))
+    return parser
+
+
+def _user_errors() -> tuple:
+    from lasercal.solver.errors import LasercalError
+    from lasercal.vision.errors import VisionError
+
+    return LasercalError, VisionError
+
+
+def main(argv=None) -> int:
+    """Run ``lasercal``; returns the exit code (0 ok, 2 bad input or nothing measured)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    selected = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except _user_errors() as e:
+        print(f"lasercal: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("lasercal: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

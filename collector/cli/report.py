@@ -1,0 +1,88 @@
+"""``lasercal report`` and ``lasercal export``: thin layers over collector.report and solver.export."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from lasercal.collector.errors import SessionError
+from lasercal.collector.report.html import load_validation, write_report
+from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.export import FORMATS, export
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_session
+from lasercal.solver.identify.measurement import fit
+
+
+def args_report(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal report``."""
+    p.add_argument(
+        "folders",
+        nargs="+",
+        metavar="SESSION",
+        help="one capture session folder (session.yaml) and any number of lasercal validate folders "
+        "(validation.yaml) at one point, shown in the order given (e.g. the nominal model's first)",
+    )
+    p.add_argument(
+        "-o", "--output", required=True, metavar="DIR", help="folder for index.html and its PNG plots"
+    )
+    p.add_argument(
+        "--method", choices=("lm", "thesis"), default="lm", help="identification method (default lm)"
+    )
+    p.add_argument(
+        "--bootstrap",
+        type=int,
+        default=2000,
+        help="diagnosis: first-order bootstrap replicates (default 2000)",
+    )
+    p.add_argument(
+        "--refits", type=int, default=10, help="diagnosis: full simulations with refits (default 10)"
+    )
+    p.add_argument("--seed", type=int, default=0)
+
+
+def args_export(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal export``."""
+    p.add_argument("model", help="robot model YAML (e.g. written by lasercal solve) or a built-in name")
+    p.add_argument("--format", choices=FORMATS, default="urdf", help="urdf (default), dh or yaml")
+    p.add_argument("-o", "--output", metavar="FILE", help="write here (default: standard output)")
+
+
+def cmd_report(args) -> int:
+    sessions, validations = [], []
+    for f in map(Path, args.folders):
+        if (f / "session.yaml").is_file():
+            sessions.append(f)
+        elif (f / "validation.yaml").is_file():
+            validations.append(load_validation(f))
+        else:
+            raise FormatError(
+                f, "neither a capture session (session.yaml) nor a validation folder (validation.yaml)"
+            )
+    if len(sessions) != 1:
+        raise SessionError(
+            "report needs exactly one capture session folder (with session.yaml) among its folders, got "
+            f"{len(sessions)}"
+        )
+    session = load_session(sessions[0])
+    if session.measurement != "laser":
+        raise FormatError(
+            sessions[0], "the report covers laser sessions (spots on a plane)", field="measurement"
+        )
+    ident = fit(session, method=args.method)
+    d = diagnose(session, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
+    index = write_report(args.output, session, ident, d, validations)
+    print(f"wrote {index}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    text = export(load_model(args.model), args.format)
+    if args.output:
+        Path(args.output).write_text(text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0

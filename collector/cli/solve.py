@@ -1,0 +1,293 @@
+"""The solver's subcommands of ``lasercal``: solve, predict, simulate (thin layers over the library)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.collector.cli.diagnose import format_diagnosis
+from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.analysis.stats import cross_validate, solve_report
+from lasercal.solver.errors import FormatError, IdentificationError
+from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
+from lasercal.solver.formats.session import (
+    load_configs,
+    load_layout,
+    load_session,
+    session_meta,
+    write_session,
+)
+from lasercal.solver.identify.measurement import fit
+from lasercal.solver.identify.point import tips
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.effects import JOINT_EFFECTS, Extension, extension_from_model
+from lasercal.solver.kinematics.gravity import gravity_torques
+
+
+def args_solve(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal solve``."""
+    p.add_argument("session", help="session folder (session.yaml + captures.csv)")
+    p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    p.add_argument(
+        "--method",
+        choices=["lm", "thesis"],
+        default="lm",
+        help="lm (default, ours) or thesis (Section 3.2 as written)",
+    )
+    p.add_argument("--folds", type=int, default=5, help="K of the K-fold cross-validation (0: skip)")
+    p.add_argument("--no-robust", action="store_true", help="lm: do not flag or drop outlier captures")
+    p.add_argument(
+        "--extend",
+        default="none",
+        choices=["auto", "none"] + list(JOINT_EFFECTS) + ["reference_point_offset"],
+        help="auto: diagnose and fit the winning non-geometric effect; or name one (default none)",
+    )
+    p.add_argument("--json", action="store_true", help="print the statistics as JSON")
+
+
+def args_predict(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal predict``."""
+    p.add_argument("model", help="robot model YAML")
+    p.add_argument("configs", help="configurations CSV (q1..qN; t, tau1..tauN optional)")
+    p.add_argument("--plane-z", type=float, help="plane height, mm (default: the model's plane)")
+
+
+def args_simulate(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal simulate``."""
+    p.add_argument("truth", help="true robot model YAML (or built-in name)")
+    p.add_argument("--layout", required=True, help="layout YAML with the reference points")
+    p.add_argument("--per-point", type=int, default=15, help="captures per calibration point")
+    p.add_argument("--aim-noise", type=float, default=1.0, help="aiming noise std per axis, mm")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
+    )
+    p.add_argument(
+        "--effect",
+        choices=list(JOINT_EFFECTS) + ["reference_point_offset"],
+        help="hide a non-geometric effect in the data",
+    )
+    p.add_argument(
+        "--effect-joints", default="2", help="1-based joints of a joint effect, comma-separated (default 2)"
+    )
+    p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
+    p.add_argument(
+        "--effect-size",
+        type=float,
+        help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
+    )
+    p.add_argument("-o", "--output", required=True, help="session folder to write")
+
+
+def print_report(rep: dict, out=None) -> None:
+    """The solve statistics as a readable table."""
+    w = (out or sys.stdout).write
+    idf = rep["identifiability"]
+    w(
+        f"method {rep['method']}: {'converged' if rep['converged'] else 'NOT converged'} after "
+        f"{rep['iterations']} iterations, {rep['seconds']:.3f} s\n"
+    )
+    w(
+        f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, aiming noise estimate "
+        f"{rep['sigma_mm']:.3f} mm per axis\n"
+    )
+    w(
+        f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number "
+        f"{idf['condition']:.3g}\n"
+    )
+    for u in idf["unidentifiable"]:
+        w(f"  not seen by the data (held at nominal): {u}\n")
+    if rep["outliers"]:
+        w(
+            f"outlier captures (left out): {len(rep['outliers'])}: "
+            + ", ".join(f"#{o['index']} (line {o['line']}, {o['point']})" for o in rep["outliers"][:20])
+            + ("..." if len(rep["outliers"]) > 20 else "")
+            + "\n"
+        )
+    if rep.get("measurement") == "point":
+        w(f"\n{'point':24} {'spread RMS before':>18} {'after':>8}   (mm, tool points about their mean)\n")
+        for nm, b in rep["before"]["points"].items():
+            w(
+                f"{nm:24} {b['spread_rms_mm']:18.3f} "
+                f"{rep['after']['points'].get(nm, {}).get('spread_rms_mm', float('nan')):8.3f}\n"
+            )
+        for nm, b in rep["before"]["distances"].items():
+            w(
+                f"|d - d0| {nm}: before {b:.3f} mm, after "
+                f"{rep['after']['distances'].get(nm, float('nan')):.3f} mm\n"
+            )
+    else:
+        _print_points(rep, w)
+    cv = rep.get("cross_validation")
+    if cv:
+        w(
+            f"\n{cv['folds']}-fold cross-validated prediction error: RMS {cv['holdout_rms_mm']:.3f} mm, mean "
+            f"{cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS "
+            f"{cv['nominal_rms_mm']:.3f})\n"
+        )
+
+
+def _print_points(rep: dict, w) -> None:
+    w(
+        f"\n{'point':8} {'':7} {'n':>4} {'scatter mean':>13} {'scatter std':>12} {'error mean':>11} "
+        f"{'error max':>10}   (mm)\n"
+    )
+    for nm, d in rep["points"].items():
+        for lab in ("before", "after"):
+            s = d[lab]
+            if s:
+                w(
+                    f"{nm:8} {lab:7} {s['n']:4d} {s['scatter_mean']:13.3f} {s['scatter_std']:12.3f} "
+                    f"{s['error_mean']:11.3f} {s['error_max']:10.3f}\n"
+                )
+
+
+def cmd_solve(args) -> int:
+    session = load_session(args.session)
+    diagnosis = None
+    if args.extend != "none" and args.method != "lm":
+        raise IdentificationError("--extend needs --method lm")
+    if args.extend != "none":
+        diagnosis = diagnose(
+            session, n_boot=0, effect=None if args.extend == "auto" else args.extend
+        )  # the decision needs no bootstrap
+        ident = diagnosis.extended or diagnosis.geometric
+        session = diagnosis.session
+    else:
+        if session.measurement == "point" and args.method != "lm":
+            raise IdentificationError("point sessions are identified by --method lm")
+        ident = fit(session, method=args.method, robust=not args.no_robust)
+    cv = (
+        cross_validate(session, args.method, args.folds, inlier=ident.weights > 0)
+        if args.folds and args.folds > 1
+        else None
+    )
+    rep = solve_report(session, ident, cv)
+    if diagnosis is not None:
+        rep["diagnosis"] = diagnosis.as_dict()
+    meta = {
+        k: rep[k]
+        for k in (
+            "method",
+            "converged",
+            "iterations",
+            "captures",
+            "fit_rms_mm",
+            "sigma_mm",
+            "identifiability",
+        )
+    }
+    meta.update(
+        {
+            "measurement": session.measurement,
+            "session": str(Path(args.session).resolve()),
+            "units": "mm, rad",
+            "std_errors": rep.get("std_errors", {}),
+        }
+    )
+    for k in ("cross_validation", "diagnosis"):
+        if k in rep:
+            meta[k] = rep[k]
+    ident.model.replace(identification=meta).save(args.output)
+    if args.json:
+        print(json.dumps(rep, indent=2))
+    else:
+        print_report(rep)
+        if diagnosis is not None:
+            print("\n" + format_diagnosis(diagnosis))
+        print(f"\nwrote {args.output}")
+    return 0
+
+
+def cmd_predict(args) -> int:
+    model = load_model(args.model)
+    cfg = load_configs(args.configs, model)
+    point = model.identification.get("measurement") == "point"
+    z = args.plane_z if args.plane_z is not None else model.plane_z
+    if z is None and not point:
+        raise FormatError(args.model, "the model has no plane; pass --plane-z", field="plane")
+    if point and model.tool_point is None:
+        raise FormatError(args.model, "a point model needs a tool point (tool: {point: [...]})", field="tool")
+    ext = extension_from_model(model.extensions, args.model, model.n)
+    q = cfg.q
+    if ext is not None:
+        tau = cfg.tau
+        if "tau" in ext.needs() and tau is None:
+            tau = gravity_torques(model, q)  # no logged torques: the robot's gravity model at these poses
+        if "t" in ext.needs() and cfg.t is None:
+            raise FormatError(
+                args.configs, f"the model's {ext.effect} extension needs a 't' column (s)", line=1, field="t"
+            )
+        q = ext.true_q(q, cfg.t, tau)
+    w = csv.writer(sys.stdout, lineterminator="\n")
+    if point:
+        w.writerow(cfg.header + ["tip_x", "tip_y", "tip_z"])
+        for row, p in zip(cfg.rows, tips(model, q)):
+            w.writerow(row + [f"{c:.6f}" for c in p])
+        return 0
+    spots, length = predict_spots(model, q, z)
+    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length"])
+    for row, s, t in zip(cfg.rows, spots, length):
+        w.writerow(row + [f"{s[0]:.6f}", f"{s[1]:.6f}", f"{t:.6f}"])
+    return 0
+
+
+def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension | None:
+    """The effect ``simulate --effect`` hides, with its true parameters (random phase/direction from the
+    seed)."""
+    if not args.effect:
+        return None
+    if args.effect_size is None:
+        raise FormatError("--effect-size", "give the size of the hidden effect")
+    size = args.effect_size
+    if args.effect == "reference_point_offset":
+        if args.effect_point not in layout.points:
+            raise FormatError(
+                args.layout,
+                f"--effect-point {args.effect_point!r} is not a point of the layout",
+                field="points",
+            )
+        phi = rng.uniform(0, 2 * np.pi)
+        return Extension(args.effect, (), args.effect_point, size * np.array([np.cos(phi), np.sin(phi)]))
+    try:
+        joints = tuple(int(j) for j in str(args.effect_joints).split(","))
+    except ValueError:
+        raise FormatError("--effect-joints", "joints must be comma-separated integers") from None
+    if any(not 1 <= j <= n for j in joints):
+        raise FormatError("--effect-joints", f"joints are numbered 1..{n}")
+    if args.effect == "encoder_eccentricity":
+        phi = rng.uniform(0, 2 * np.pi, len(joints))
+        params = np.stack([size * np.cos(phi), size * np.sin(phi)], axis=1).ravel()
+    else:
+        params = np.full(len(joints), size)
+    return Extension(args.effect, joints, None, params)
+
+
+def cmd_simulate(args) -> int:
+    path = resolve_robot_path(args.truth)
+    truth = load_model(path)
+    raw = load_yaml(path)
+    nominal = args.robot or raw.get("nominal") or str(path.resolve())
+    layout = load_layout(args.layout)
+    rng = np.random.default_rng(args.seed)
+    effect = hidden_effect(args, layout, truth.n, rng)
+    c = simulate_captures(truth, layout, args.per_point, args.aim_noise, rng, effect=effect)
+    sim = {"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed}
+    if effect is not None:
+        sim["effect"] = {"name": effect.effect, **effect.to_dict()}
+    meta = session_meta(nominal, layout, truth.aperture[2], simulated=sim)
+    write_session(args.output, meta, c.point, c.t, c.q, tau=c.tau)
+    hidden = (
+        f", hidden {effect.effect} {effect.names} = {np.round(effect.params, 9).tolist()}" if effect else ""
+    )
+    print(
+        f"wrote {args.output}: {len(c.q)} captures at {', '.join(layout.calibration)} (truth {truth.name}, "
+        f"aiming noise {args.aim_noise} mm{hidden})"
+    )
+    return 0

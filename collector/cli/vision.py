@@ -1,0 +1,399 @@
+"""The vision subcommands: ``spots``, ``beam-check``, ``camera-calibrate``.
+
+Handlers print results to stdout and per-photo problems as warnings to stderr while the
+batch goes on; they return 0, or 2 when nothing could be measured. Errors that stop the
+whole command are raised as :class:`~lasercal.vision.errors.VisionError` for the main
+program to report.
+
+Units: pixels (OpenCV convention unless ``--convention imagej``: +0.5 px), mm on
+the plane in the robot base frame, tilt in mrad and degrees.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.vision.beamcheck import fit_circle, tilt
+from lasercal.vision.camera import calibrate, load_camera, save_camera
+from lasercal.vision.errors import CalibrationError, VisionError
+from lasercal.vision.images import chroma_subsampled, read_image, to_gray
+from lasercal.vision.measure import Options, measure_photo, median_reference, spot_dicts
+from lasercal.vision.overlay import draw, write
+from lasercal.vision.plane import load_layout
+
+
+def _warn(msg: str) -> None:
+    print(f"lasercal: warning: {msg}", file=sys.stderr)
+
+
+def _expect(text: str) -> int | None:
+    if text == "any":
+        return None
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of spots or 'any', got '{text}'") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError("expected at least 1 spot (or 'any')")
+    return n
+
+
+def _pattern_size(text: str) -> tuple[int, int]:
+    try:
+        cols, rows = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected COLSxROWS like 9x6, got '{text}'") from None
+    if cols < 2 or rows < 2:
+        raise argparse.ArgumentTypeError("COLS and ROWS must be at least 2")
+    return cols, rows
+
+
+def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> None:
+    p.add_argument(
+        "--layout", metavar="LAYOUT.yaml", help="layout with a 'markers' section: report x_mm, y_mm"
+    )
+    p.add_argument(
+        "--camera", metavar="CAMERA.yaml", help="camera YAML from camera-calibrate: undo lens distortion"
+    )
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--overlay", metavar="DIR", help="write annotated PNGs to DIR")
+    p.add_argument(
+        "--method",
+        choices=("precise", "imagej"),
+        default="precise",
+        help="centroid method (default precise: background-subtracted weighted centroid)",
+    )
+    p.add_argument(
+        "--imagej-mode",
+        choices=("centroid", "com"),
+        default="centroid",
+        help="imagej: Measure's Centroid or Center of Mass (default centroid)",
+    )
+    p.add_argument(
+        "--imagej-threshold",
+        choices=("default", "otsu"),
+        default="default",
+        help="imagej: auto-threshold method (default: ImageJ's Default, modified IsoData)",
+    )
+    p.add_argument(
+        "--imagej-box",
+        type=int,
+        default=64,
+        metavar="PX",
+        help="imagej: side of the box drawn around each spot, px; 0: the whole photo (default 64)",
+    )
+    p.add_argument(
+        "--convention",
+        choices=("opencv", "imagej"),
+        default="opencv",
+        help="pixel coordinates: opencv (pixel centres at integers) or imagej (+0.5 px)",
+    )
+    p.add_argument(
+        "--reference",
+        metavar="OFF.jpg|median",
+        help="laser-off photo of the same view, or 'median' of the photos given",
+    )
+    p.add_argument(
+        "--expect",
+        type=_expect,
+        default=_expect(expect_default),
+        metavar="N|any",
+        help=f"spots expected per photo; more is an error for that photo (default {expect_default})",
+    )
+    p.add_argument("--color", dest="colour", choices=("red", "green"), default="red", help="laser colour")
+    p.add_argument(
+        "--gamma",
+        type=float,
+        default=2.2,
+        help="encoding gamma of the photos (2.2 camera JPEG, 1 linear data)",
+    )
+    p.add_argument(
+        "--channel",
+        choices=("auto", "laser", "luma"),
+        default="auto",
+        help="precise centroid on the laser's colour channel or the luma; auto: luma for JPEGs "
+        "with subsampled colour, else the laser's channel",
+    )
+
+
+def args_spots(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal spots``."""
+    p.add_argument("images", nargs="+", metavar="IMAGE")
+    _add_measure_args(p)
+
+
+def args_beam_check(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal beam-check``."""
+    p.add_argument("images", nargs="+", metavar="IMAGE")
+    p.add_argument(
+        "--laser-length",
+        type=float,
+        metavar="MM",
+        help="distance from where the beam meets the joint-7 axis to the plane, mm (for the tilt)",
+    )
+    _add_measure_args(p)
+
+
+def args_camera_calibrate(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal camera-calibrate``."""
+    p.add_argument("photos", nargs="+", metavar="PHOTO")
+    p.add_argument("-o", "--output", required=True, metavar="CAMERA.yaml")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--chessboard", type=_pattern_size, metavar="COLSxROWS", help="inner corners, e.g. 9x6")
+    g.add_argument("--charuco", type=_pattern_size, metavar="COLSxROWS", help="squares, e.g. 7x5")
+    p.add_argument("--square", type=float, required=True, metavar="MM", help="square side, mm")
+    p.add_argument("--marker", type=float, metavar="MM", help="ChArUco marker side, mm")
+    p.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary (default DICT_4X4_50)")
+
+
+def _options(args) -> Options:
+    return Options(
+        args.method,
+        args.imagej_mode,
+        args.imagej_threshold,
+        args.imagej_box,
+        args.colour,
+        args.expect,
+        args.gamma,
+        args.channel,
+    )
+
+
+def _context(args):
+    """Layout, camera and reference photo shared by a batch (errors stop the command)."""
+    layout = load_layout(args.layout) if args.layout else None
+    if args.layout and layout is None:
+        _warn(f"{args.layout} has no 'markers' section: positions in px only")
+    camera = load_camera(args.camera) if args.camera else None
+    if args.reference == "median":
+        reference = median_reference(args.images)
+    else:
+        reference = read_image(args.reference) if args.reference else None
+    return layout, camera, reference
+
+
+def _measure_all(args):
+    """Measure every photo; a photo that fails becomes a warning and an entry with ``error``."""
+    layout, camera, reference = _context(args)
+    opts = _options(args)
+    results = []
+    for path in args.images:
+        entry = {
+            "image": path,
+            "spots": [],
+            "warnings": [],
+            "error": None,
+            "plane": None,
+            "method": opts.method,
+            "convention": args.convention,
+        }
+        try:
+            img = read_image(path)
+            res = measure_photo(img, path, opts, layout, camera, reference, chroma_subsampled(path))
+        except VisionError as exc:
+            entry["error"] = str(exc)
+            entry["warnings"].append(str(exc))
+            _warn(str(exc))
+            results.append((entry, None))
+            continue
+        entry["spots"] = spot_dicts(res.spots, args.convention)
+        entry["warnings"] = res.warnings
+        for w in res.warnings:
+            _warn(f"{path}: {w}")
+        if res.plane is not None:
+            pm = res.plane
+            entry["plane"] = {
+                "markers": list(pm.fiducials.marker_ids),
+                "charuco_corners": pm.fiducials.charuco,
+                "rms_mm": round(pm.rms_mm, 4),
+                "max_mm": round(pm.max_mm, 4),
+                "outliers": int((~pm.inliers).sum()),
+                "mm_per_px": round(pm.mm_per_px, 5),
+                "z_mm": layout.plane_z,
+            }
+        if args.overlay:
+            name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
+            how = (
+                opts.method
+                if opts.method == "precise"
+                else f"imagej {opts.imagej_threshold} {opts.imagej_mode}"
+            )
+            write(name, draw(img, res.spots, res.plane, f"{path}  [{how}]", args.convention))
+        results.append((entry, res))
+    return results
+
+
+def _fmt(x, spec):
+    return "-" if x is None else format(x, spec)
+
+
+def spots_command(args) -> int:
+    """``lasercal spots``: print spots per photo; 2 when no photo gave a spot."""
+    results = _measure_all(args)
+    entries = [e for e, _ in results]
+    if args.json:
+        print(json.dumps(entries, indent=2))
+    else:
+        print(f"# pixels: {args.convention} convention; mm: base frame on the plane; method: {args.method}")
+        head = (
+            "image",
+            "#",
+            "u_px",
+            "v_px",
+            "sd_u",
+            "sd_v",
+            "x_mm",
+            "y_mm",
+            "sd_x",
+            "sd_y",
+            "peak",
+            "sat",
+            "area",
+        )
+        print(
+            "{:<28} {:>2} {:>10} {:>10} {:>6} {:>6} {:>10} {:>10} {:>6} {:>6} {:>6} {:>3} {:>6}".format(*head)
+        )
+        for e in entries:
+            if e["error"]:
+                print(f"{e['image']:<28}  error: {e['error']}")
+            for n, s in enumerate(e["spots"], 1):
+                print(
+                    f"{e['image']:<28} {n:>2} {s['u']:>10.3f} {s['v']:>10.3f} "
+                    f"{_fmt(s['sigma_u'], '6.3f'):>6} "
+                    f"{_fmt(s['sigma_v'], '6.3f'):>6} {_fmt(s['x_mm'], '10.3f'):>10} "
+                    f"{_fmt(s['y_mm'], '10.3f'):>10} "
+                    f"{_fmt(s['sigma_x_mm'], '6.3f'):>6} {_fmt(s['sigma_y_mm'], '6.3f'):>6} "
+                    f"{s['peak']:>6.0f} "
+                    f"{'yes' if s['saturated'] else 'no':>3} {s['area']:>6}"
+                )
+            if e["plane"]:
+                p = e["plane"]
+                print(
+                    f"{'':<28}    plane: {len(p['markers'])} markers, {p['charuco_corners']} ChArUco "
+                    "corners, "
+                    f"fit RMS {p['rms_mm']:.3f} mm, {p['mm_per_px']:.4f} mm/px"
+                )
+    return 0 if any(e["spots"] for e in entries) else 2
+
+
+def beam_check_command(args) -> int:
+    """``lasercal beam-check``: circle through the spots of a joint-7 turn."""
+    if args.laser_length is not None and args.laser_length <= 0:
+        raise VisionError(f"--laser-length must be positive, got {args.laser_length} mm")
+    if args.expect != 1:
+        raise VisionError("beam-check takes one spot per photo (--expect 1)")
+    results = [(e, r) for e, r in _measure_all(args) if r is not None]
+    photo_warnings = [f"{e['image']}: {w}" for e, _ in results for w in e["warnings"]]  # already printed
+    warnings = []
+    if len(results) < 3:
+        raise CalibrationError(
+            f"beam-check needs at least 3 photos with a spot, {len(results)} of {len(args.images)} had one"
+        )
+    uv = np.array([[r.spots[0].u, r.spots[0].v] for _, r in results])
+    c_px = fit_circle(uv)
+    mm = all(r.plane is not None for _, r in results)
+    c_mm = fit_circle(np.array([[r.spots[0].x_mm, r.spots[0].y_mm] for _, r in results])) if mm else None
+    t = None
+    if args.laser_length is not None:
+        if c_mm is None:
+            warnings.append("tilt needs the radius in mm: give --layout with markers")
+        else:
+            t = tilt(c_mm.radius, args.laser_length)
+    if len(results) == 3:
+        warnings.append("3 spots define a circle exactly: no check of the fit (take more photos)")
+    if c_px.arc_deg < 90:
+        warnings.append(
+            f"the spots span only {c_px.arc_deg:.0f} deg of the circle: radius and centre are "
+            "poorly determined (turn joint 7 further)"
+        )
+    for w in warnings:
+        _warn(w)
+    shift = 0.5 if args.convention == "imagej" else 0.0
+
+    def r4(x):
+        return None if x is None or not np.isfinite(x) else round(float(x), 4)
+
+    out = {
+        "images": [e["image"] for e, _ in results],
+        "spots": [{"image": e["image"], **e["spots"][0]} for e, _ in results],
+        "convention": args.convention,
+        "centre_px": [r4(c_px.centre[0] + shift), r4(c_px.centre[1] + shift)],
+        "radius_px": r4(c_px.radius),
+        "radius_sigma_px": r4(c_px.radius_sigma),
+        "rms_px": r4(c_px.rms),
+        "centre_mm": None if c_mm is None else [r4(c_mm.centre[0]), r4(c_mm.centre[1])],
+        "radius_mm": None if c_mm is None else r4(c_mm.radius),
+        "radius_sigma_mm": None if c_mm is None else r4(c_mm.radius_sigma),
+        "rms_mm": None if c_mm is None else r4(c_mm.rms),
+        "arc_deg": r4(c_px.arc_deg),
+        "laser_length_mm": args.laser_length,
+        "tilt_mrad": None if t is None else r4(t * 1e3),
+        "tilt_deg": None if t is None else r4(np.degrees(t)),
+        "warnings": photo_warnings + warnings,
+    }
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"beam-check: {len(results)} spots, arc {c_px.arc_deg:.0f} deg")
+        print(
+            f"  circle (px): centre ({out['centre_px'][0]:.2f}, {out['centre_px'][1]:.2f}), radius "
+            f"{c_px.radius:.3f} px, fit RMS {c_px.rms:.3f} px"
+        )
+        if c_mm is not None:
+            print(
+                f"  circle (mm): centre = joint-7 axis on the plane ({c_mm.centre[0]:.3f}, "
+                f"{c_mm.centre[1]:.3f}) mm, "
+                f"radius {c_mm.radius:.3f} +- {_fmt(out['radius_sigma_mm'], '.3f')} mm, fit RMS "
+                f"{c_mm.rms:.3f} mm"
+            )
+        if t is not None:
+            print(
+                f"  beam tilt from the joint-7 axis: {t * 1e3:.3f} mrad = {np.degrees(t):.4f} deg "
+                f"(laser length {args.laser_length:g} mm; an upper bound if the beam misses the axis)"
+            )
+    return 0
+
+
+def camera_calibrate_command(args) -> int:
+    """``lasercal camera-calibrate``: write a camera YAML."""
+    if args.square <= 0:
+        raise VisionError(f"--square must be positive, got {args.square} mm")
+    if args.charuco:
+        if args.marker is None or not 0 < args.marker < args.square:
+            raise VisionError("--charuco needs --marker MM, smaller than --square")
+        pattern = {
+            "type": "charuco",
+            "cols": args.charuco[0],
+            "rows": args.charuco[1],
+            "square": args.square,
+            "marker": args.marker,
+            "dictionary": args.dictionary,
+        }
+    else:
+        pattern = {
+            "type": "chessboard",
+            "cols": args.chessboard[0],
+            "rows": args.chessboard[1],
+            "square": args.square,
+        }
+    images = []
+    for path in args.photos:
+        try:
+            images.append((path, to_gray(read_image(path))))
+        except VisionError as exc:
+            _warn(str(exc))
+    if not images:
+        raise CalibrationError("no readable photo")
+    cam, used = calibrate(images, pattern, _warn)
+    save_camera(args.output, cam, pattern, used)
+    print(
+        f"camera: {cam.size[0]}x{cam.size[1]} px, fx {cam.K[0, 0]:.2f} fy {cam.K[1, 1]:.2f} px, "
+        f"centre ({cam.K[0, 2]:.2f}, {cam.K[1, 2]:.2f}) px, dist {np.round(cam.dist[:5], 5).tolist()}, "
+        f"RMS reprojection {cam.rms_px:.3f} px from {used} photos -> {args.output}"
+    )
+    return 0

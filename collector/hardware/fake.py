@@ -1,0 +1,242 @@
+"""The ``fake`` backend: a simulated Panda and a simulated operator, on a simulated clock.
+
+* The robot's true geometry differs from nominal: a robot file (by default the thesis's
+  identified Panda, Table 4.3) or a seeded random perturbation of the nominal model.
+* The operator hand-guides the arm to each reference point: for the k-th capture at a
+  point they take the k-th of a set of diverse aiming poses of the *true* robot and
+  aim with Gaussian noise per in-plane axis (mm), realised exactly with ``polish``.
+  Every random draw is keyed by (seed, point, k, attempt), so a session that is
+  interrupted and resumed captures exactly what an uninterrupted one would.
+* Motion: a minimum-jerk transit to the pose, then a release jiggle whose joint speed
+  decays exponentially, plus velocity-sensor noise -- the standstill detector has to
+  wait for it. Torques: the true robot's gravity torques plus sensor noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lasercal.collector.errors import RobotConnectionError
+from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
+from lasercal.solver.errors import AimingError
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.aim import aim, polish, spot_error
+from lasercal.solver.kinematics.gravity import gravity_torques
+from lasercal.solver.kinematics.laser import LaserParams
+from lasercal.solver.kinematics.model import RobotModel
+
+
+@dataclass(frozen=True)
+class Motion:
+    """How the fake arm moves (rad, s).
+
+    Attributes
+    ----------
+    speed : float, peak joint speed of a commanded move, rad/s (the largest joint move sets its duration)
+    guide_time : (min, max), duration of a hand-guided transit, s (uniform)
+    settle_speed : float, std of each joint's speed just after arrival (the release jiggle), rad/s
+    settle_tau : float, time constant of its exponential decay, s
+    dq_noise : float, std of the velocity sensor noise, rad/s
+    tau_noise : float, std of the torque sensor noise, Nm
+    """
+
+    speed: float = 0.6
+    guide_time: tuple = (2.0, 5.0)
+    settle_speed: float = 0.05
+    settle_tau: float = 0.3
+    dq_noise: float = 1e-3
+    tau_noise: float = 0.05
+
+
+def perturbed_model(
+    nominal: RobotModel, seed: int, rotation: float = 3e-3, offset: float = 1.5
+) -> RobotModel:
+    """A seeded random 'true' robot near ``nominal``.
+
+    Every joint axis is tilted by N(0, rotation) rad about two axes and shifted by
+    N(0, offset) mm in two directions (minimal POE), the laser direction tilted by
+    N(0, rotation) and the aperture moved by N(0, offset) mm per axis.
+    """
+    P = LaserParams(nominal)
+    rng = np.random.default_rng([seed, 0xFA4E])
+    scale = np.r_[
+        np.tile([rotation, rotation, offset, offset], nominal.n), rotation, rotation, offset, offset, offset
+    ]
+    return P.to_model(P.x0() + rng.normal(0.0, scale), name=f"{nominal.name}_perturbed_{seed}")
+
+
+class FakeOperator:
+    """Aims the true robot's beam at reference points with Gaussian aiming noise.
+
+    Parameters
+    ----------
+    truth : RobotModel
+    points : dict name -> (3,) array, mm
+    per_point : int, size of each point's set of diverse poses
+    aim_noise : float, std of the aiming error per in-plane axis, mm
+    seed : int
+    aim_kw : dict, keyword arguments of :func:`solver.aim.aim` (the layout's hints)
+    wrong : dict (point, index) -> other point: first attempts aimed at the wrong point (tests)
+    """
+
+    def __init__(
+        self,
+        truth: RobotModel,
+        points: dict,
+        per_point: int,
+        aim_noise: float,
+        seed: int,
+        aim_kw: dict | None = None,
+        wrong: dict | None = None,
+    ):
+        self.truth, self.points, self.per_point = truth, points, per_point
+        self.aim_noise, self.seed, self.aim_kw, self.wrong = aim_noise, seed, aim_kw or {}, wrong or {}
+        self._poses: dict = {}
+
+    def key(self, name: str) -> int:
+        """The point's number, part of every random key."""
+        return list(self.points).index(name)
+
+    def poses(self, name: str) -> np.ndarray:
+        """The diverse aiming poses (per_point, n) of the true robot at a point, rad."""
+        if name not in self._poses:
+            rng = np.random.default_rng([self.seed, self.key(name)])
+            self._poses[name] = aim(self.truth, self.points[name], self.per_point, rng, **self.aim_kw)
+        return self._poses[name]
+
+    def configuration(self, name: str, index: int, attempt: int) -> np.ndarray:
+        """Where the operator brings the arm for capture ``index`` at ``name`` (try ``attempt``), (n,) rad."""
+        rng = np.random.default_rng([self.seed, self.key(name), index, attempt])
+        aimed = self.wrong.get((name, index), name) if attempt == 0 else name
+        hit = self.points[aimed] + np.r_[rng.normal(0.0, self.aim_noise, 2), 0.0]
+        poses = self.poses(aimed)
+        for k in range(
+            self.per_point
+        ):  # a pose whose polish does not land on the hit is passed over for the next
+            q = polish(self.truth, poses[(index + k) % self.per_point][None], hit)
+            if spot_error(self.truth, q, hit)[0] < 1e-6 and self.truth.within_limits(q)[0]:
+                return q[0]
+        raise AimingError(f"the simulated operator cannot aim at {aimed} with these poses")
+
+
+class FakeRobot(RobotAdapter):
+    """A simulated arm whose true geometry is ``truth``, on a :class:`FakeClock`.
+
+    Parameters
+    ----------
+    truth : RobotModel, the true geometry (with link masses for the torques)
+    clock : FakeClock
+    operator : FakeOperator or None (None: nobody guides the arm)
+    motion : Motion
+    seed : int, seed of the motion and sensor noise
+    disconnect_at : float or None, simulated time after which every read fails, s (tests)
+    """
+
+    name = "fake"
+    can_move = True
+    guidance = "simulated robot: the simulated operator hand-guides the arm to each point"
+    extra_columns = ("robot_mode",)
+
+    def __init__(
+        self,
+        truth: RobotModel,
+        clock: FakeClock,
+        operator: FakeOperator | None = None,
+        motion: Motion = Motion(),
+        seed: int = 0,
+        disconnect_at: float | None = None,
+    ):
+        self.truth, self.clock, self.operator, self.motion = truth, clock, operator, motion
+        self.seed, self.disconnect_at = seed, disconnect_at
+        self._attempts: dict = {}
+        self._connected = False
+        home = np.array(truth.home if truth.home is not None else truth.limits.mean(axis=1), dtype=float)
+        self._q0 = self._q1 = home  # at rest at home until told otherwise
+        self._t0, self._T, self._v0, self._mode = clock.now(), 0.0, np.zeros_like(home), "Idle"
+        self._noise = np.random.default_rng([seed])
+        self._grid = None
+
+    # ------------------------------------------------------------ motion model
+
+    def _start(self, q: np.ndarray, mode: str, key: tuple, duration: float | None = None) -> None:
+        """Begin a transit from where the arm is now to q, ending in a release jiggle.
+
+        Every draw of the motion and of its sensor noise is keyed by ``key``; a hand-guided
+        transit's duration is drawn too (not taken from the distance), so that the same
+        capture comes out the same after a resume, whatever pose the arm started from.
+        """
+        q = np.asarray(q, dtype=float)
+        q_now, _ = self._kinematics(self.clock.now())
+        rng = np.random.default_rng([self.seed, *key])
+        self._v0 = rng.normal(0.0, self.motion.settle_speed, q.shape)
+        self._T = rng.uniform(*self.motion.guide_time) if duration is None else duration
+        self._noise = rng
+        self._q0, self._q1, self._t0, self._mode = q_now, q, self.clock.now(), mode
+        self._grid = None
+
+    def _kinematics(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-free q (rad) and dq (rad/s) at time t."""
+        tau = self.motion.settle_tau
+        arrive = self._q1 - self._v0 * tau  # the jiggle ends exactly at q1
+        u = (t - self._t0) / self._T if self._T > 0 else 1.0
+        if u < 1.0:
+            s = u**3 * (10 - 15 * u + 6 * u**2)
+            ds = 30 * u**2 * (1 - u) ** 2 / self._T
+            return self._q0 + (arrive - self._q0) * s, (arrive - self._q0) * ds
+        decay = np.exp(-(t - self._t0 - self._T) / tau)
+        return self._q1 - self._v0 * tau * decay, self._v0 * decay
+
+    # ------------------------------------------------------------ adapter
+    def connect(self) -> None:
+        self._connected = True
+
+    def read(self) -> JointState:
+        t = self.clock.now()
+        if not self._connected or (self.disconnect_at is not None and t >= self.disconnect_at):
+            raise RobotConnectionError("fake robot: connection lost (simulated)")
+        q, dq = self._kinematics(t)
+        dq = dq + self._noise.normal(0.0, self.motion.dq_noise, dq.shape)
+        # Gravity on a 1/8 s grid keeps the simulation cheap: a settling arm moves far less than the
+        # torque noise shows in that time (exact binary steps, so a resumed session repeats itself).
+        k = np.floor((t - self._t0) * 8.0)
+        if k != self._grid:
+            self._grid, self._gravity = (
+                k,
+                gravity_torques(self.truth, self._kinematics(self._t0 + k / 8.0)[0][None])[0],
+            )
+        tau = self._gravity + self._noise.normal(0.0, self.motion.tau_noise, q.shape)
+        return JointState(q, dq, tau, t, {"robot_mode": self._mode})
+
+    def close(self) -> None:
+        self._connected = False
+
+    def move_to(self, q: np.ndarray) -> None:
+        """Move to q like a position-controlled arm; returns on arrival (the jiggle follows)."""
+        self._attempts["move"] = self._attempts.get("move", 0) + 1
+        q_now, _ = self._kinematics(self.clock.now())
+        duration = max(
+            1.875 * np.abs(np.asarray(q) - q_now).max() / self.motion.speed, 0.5
+        )  # 1.875: min-jerk peak/mean speed
+        self._start(q, "Move", (0x30FE, self._attempts["move"]), duration)
+        self.clock.sleep(self._T)
+
+    def prompt_point(self, name: str, xyz: np.ndarray, index: int) -> None:
+        if self.operator is None:
+            return
+        attempt = self._attempts.get((name, index), 0)
+        self._attempts[(name, index)] = attempt + 1
+        q = self.operator.configuration(name, index, attempt)
+        self._start(q, "Guiding", (self.operator.key(name), index, attempt))
+
+    def prompt_configuration(self, q: np.ndarray) -> None:
+        self._attempts["guide"] = self._attempts.get("guide", 0) + 1
+        self._start(q, "Guiding", (0x6D1E, self._attempts["guide"]))
+
+    # ------------------------------------------------------------ truth, for the fake camera and rangefinder
+    def true_spot(self, z: float) -> tuple[np.ndarray, float]:
+        """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""
+        q, _ = self._kinematics(self.clock.now())
+        spot, length = predict_spots(self.truth, q[None], z)
+        return spot[0], float(length[0])

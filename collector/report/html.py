@@ -1,0 +1,469 @@
+"""``lasercal report``: one HTML page with PNG plots that a person reads.
+
+The page (``index.html``) and its plots are files in one folder, with relative links and
+no scripts, styles or fonts from elsewhere: copy or zip the folder and it still opens.
+
+Contents, in the thesis's terms (Section 4.3):
+
+* the laser spots at the validation point, before and after calibration (Figure 4.5),
+  and their mean and max absolute error (Figure 4.6), from ``lasercal validate`` folders;
+* the parameter table, nominal vs identified with standard errors (Table 4.3): the joint
+  screws (omega, v), the laser direction and the aperture, the standard errors propagated
+  from the fit's covariance through the minimal-POE parametrisation;
+* per reference point: the spot statistics before and after, and residual plots;
+* the identifiability summary (rank, condition number, what the data cannot see);
+* the diagnosis (``solver.diagnose``): the finding, its evidence and plots.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.collector.cli.diagnose import format_diagnosis
+from lasercal.collector.report.plots import diagnosis_plots
+from lasercal.solver.analysis.diagnose import Diagnosis
+from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.robots import load_yaml
+from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.spot import Identification, spot_residuals
+from lasercal.solver.kinematics.laser import LaserParams
+
+_STAT_KEYS = ("scatter_mean", "scatter_std", "error_mean", "error_max")
+
+
+@dataclass(frozen=True, eq=False)
+class Validation:
+    """A validation run read back from its folder.
+
+    Attributes
+    ----------
+    folder : Path
+    label : str, the folder's name (how the report names the run)
+    model : str, how validation.yaml names the model under test
+    point : str, the validation point
+    xyz : (3,) array, its position, mm
+    spots : (k, 2) array, the measured spots, mm
+    photos : int, rows in validation.csv (measured or not)
+    """
+
+    folder: Path
+    label: str
+    model: str
+    point: str
+    xyz: np.ndarray
+    spots: np.ndarray
+    photos: int
+
+    @property
+    def stats(self) -> SpotStats:
+        """Scatter radius and absolute error of the spots (Figures 4.5-4.6)."""
+        return spot_stats(self.spots, self.xyz)
+
+
+def load_validation(folder) -> Validation:
+    """Read a folder written by ``lasercal validate`` (validation.yaml and validation.csv with x_mm, y_mm).
+
+    Raises
+    ------
+    FormatError
+        A missing or malformed file, or no measured spot (naming file, line and column).
+    """
+    folder = Path(folder)
+    ypath, cpath = folder / "validation.yaml", folder / "validation.csv"
+    meta = load_yaml(ypath)
+    try:
+        point, xyz = str(meta["point"]["name"]), np.array(meta["point"]["xyz"], dtype=float).reshape(3)
+    except (TypeError, KeyError, ValueError):
+        raise FormatError(
+            ypath, "not a lasercal validation (expected point: {name, xyz})", field="point"
+        ) from None
+    try:
+        text = cpath.read_text()
+    except OSError as e:
+        raise FormatError(cpath, f"cannot read file ({e.strerror})") from None
+    rows = [
+        (ln, r)
+        for ln, r in enumerate(csv.reader(io.StringIO(text)), start=1)
+        if r and not r[0].startswith("#")
+    ]
+    if not rows or not {"x_mm", "y_mm"} <= set(rows[0][1]):
+        raise FormatError(cpath, "expected a header with x_mm and y_mm", line=rows[0][0] if rows else None)
+    header = rows[0][1]
+    ix, iy = header.index("x_mm"), header.index("y_mm")
+    spots = []
+    for ln, r in rows[1:]:
+        if len(r) != len(header):
+            raise FormatError(cpath, f"expected {len(header)} values, found {len(r)}", line=ln)
+        if not r[ix].strip() and not r[iy].strip():
+            continue  # a photo not measured
+        for j in (ix, iy):
+            try:
+                v = float(r[j])
+            except ValueError:
+                v = np.nan
+            if not np.isfinite(v):
+                raise FormatError(cpath, f"not a finite number: {r[j]!r}", line=ln, field=header[j])
+        spots.append((float(r[ix]), float(r[iy])))
+    if not spots:
+        raise FormatError(
+            cpath, "no measured spot (x_mm, y_mm empty): measure the photos first (lasercal spots)"
+        )
+    return Validation(
+        folder, folder.resolve().name, str(meta.get("model", "?")), point, xyz, np.array(spots), len(rows) - 1
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterRow:
+    """One row of the parameter table: a 3-vector of the model, nominal and identified.
+
+    Attributes
+    ----------
+    name : str, e.g. 'joint2 omega', 'laser v', 'M'
+    unit : str
+    nominal, identified : (3,) arrays
+    std_error : (3,) array or None (the thesis method gives none)
+    """
+
+    name: str
+    unit: str
+    nominal: np.ndarray
+    identified: np.ndarray
+    std_error: np.ndarray | None
+
+
+def parameter_table(ident: Identification) -> list[ParameterRow]:
+    """Nominal vs identified screws, laser direction and aperture, with standard errors (Table 4.3).
+
+    The standard errors of the vectors come from the fit's covariance of the minimal-POE
+    parameters (``ident.extra['cov']``) through the exact derivative of the parametrisation
+    (:func:`solver.minimal.screw_from_eta`); the aperture's height along the beam is fixed by the
+    measured p_Mz, so its covariance is already the gauge-fixed one.
+    """
+    nom, mod = ident.nominal, ident.model
+    cov = ident.extra.get("cov")
+    se = None
+    if cov is not None:
+        P = LaserParams(nom)
+        p = P.size
+        _, dS, _, dvp, _ = P.geometry(ident.estimate[:p])
+        D = np.zeros((6 * nom.n + 6, p))
+        for i, d in enumerate(dS):
+            D[6 * i : 6 * i + 6, 4 * i : 4 * i + 4] = d
+        D[6 * nom.n : 6 * nom.n + 3, P.slice_laser] = dvp
+        D[6 * nom.n + 3 :, P.slice_M] = np.eye(3)
+        se = np.sqrt(np.clip(np.diag(D @ cov[:p, :p] @ D.T), 0, None))
+    rows = []
+    for i, nm in enumerate(nom.joint_names):
+        for k, (part, unit) in enumerate((("omega", ""), ("v", "mm"))):
+            sl = slice(6 * i + 3 * k, 6 * i + 3 * k + 3)
+            rows.append(
+                ParameterRow(
+                    f"{nm} {part}",
+                    unit,
+                    nom.screws[i, 3 * k : 3 * k + 3],
+                    mod.screws[i, 3 * k : 3 * k + 3],
+                    None if se is None else se[sl],
+                )
+            )
+    n6 = 6 * nom.n
+    rows.append(
+        ParameterRow("laser v", "", nom.laser_dir, mod.laser_dir, None if se is None else se[n6 : n6 + 3])
+    )
+    rows.append(
+        ParameterRow("M (aperture)", "mm", nom.aperture, mod.aperture, None if se is None else se[n6 + 3 :])
+    )
+    return rows
+
+
+# ------------------------------------------------------------------ plots
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    _plt().close(fig)
+    return path
+
+
+def scatter_plot(validations, path: Path) -> Path:
+    """Figure 4.5: the spots at the validation point, one panel per run (mm from the point)."""
+    plt = _plt()
+    k = len(validations)
+    fig, axs = plt.subplots(1, k, figsize=(3.6 * k, 3.8), squeeze=False)
+    for ax, v in zip(axs[0], validations):
+        s = v.stats
+        d = v.spots - v.xyz[:2]
+        lim = 1.15 * max(np.abs(d).max(), 1.0)
+        ax.scatter(d[:, 0], d[:, 1], s=10, c="tab:red", alpha=0.8, label="spots")
+        ax.plot(*(d.mean(axis=0)), "k+", ms=10, label="their mean")
+        ax.plot(0, 0, "bx", ms=9, mew=2, label=v.point)
+        ax.add_patch(plt.Circle((0, 0), s.error_mean, fill=False, ls="--", color="0.4"))
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_title(
+            f"{v.label}: error {s.error_mean:.2f} mm mean\nscatter {s.scatter_mean:.2f} mm mean", fontsize=9
+        )
+        ax.set_xlabel(f"x - {v.point}x (mm)")
+        ax.set_ylabel(f"y - {v.point}y (mm)")
+    axs[0][0].legend(fontsize=7, loc="lower left")
+    return _save(fig, path)
+
+
+def error_bars(validations, reference: dict, path: Path) -> Path:
+    """Figure 4.6: mean and max absolute error at the validation point per run (and published references)."""
+    plt = _plt()
+    labels = [v.label for v in validations] + list(reference)
+    stats = [v.stats.as_dict() for v in validations] + list(reference.values())
+    x = np.arange(len(labels))
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.3 * len(labels)), 3.8))
+    hatch = [""] * len(validations) + ["//"] * len(reference)
+    for off, key, colour in ((-0.2, "error_mean", "tab:blue"), (0.2, "error_max", "tab:orange")):
+        vals = [s[key] for s in stats]
+        bars = ax.bar(x + off, vals, 0.4, color=colour, label=key.replace("_", " "))
+        for b, h, val in zip(bars, hatch, vals):
+            b.set_hatch(h)
+            ax.annotate(
+                f"{val:.2f}", (b.get_x() + b.get_width() / 2, val), ha="center", va="bottom", fontsize=7
+            )
+    ax.set_xticks(x, labels, rotation=20, ha="right", fontsize=8)
+    ax.set_ylabel("absolute error (mm)")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    ax.set_title(
+        f"error at {validations[0].point}" + (" (hatched: published)" if reference else ""), fontsize=9
+    )
+    return _save(fig, path)
+
+
+def residual_plots(session: Session, ident: Identification, path: Path) -> Path:
+    """Per reference point: the nominal model's spot errors on the captures (top) and the fit's residuals
+    (bottom)."""
+    plt = _plt()
+    names = list(dict.fromkeys(session.point))
+    before = spot_residuals(ident.nominal, session.q, session.target)
+    fig, axs = plt.subplots(2, len(names), figsize=(3.4 * len(names), 6.6), squeeze=False)
+    used = ident.weights > 0
+    for j, nm in enumerate(names):
+        sel = session.point == nm
+        for row, (r, what) in enumerate(
+            ((before, "nominal model"), (ident.residuals, f"identified ({ident.method})"))
+        ):
+            ax = axs[row][j]
+            ok = sel & (used if row else np.ones_like(used))
+            ax.scatter(r[ok, 0], r[ok, 1], s=9, c="tab:red" if row == 0 else "tab:blue")
+            if row and np.any(sel & ~used):
+                ax.scatter(
+                    r[sel & ~used, 0], r[sel & ~used, 1], marker="x", c="k", s=25, label="outliers (left out)"
+                )
+                ax.legend(fontsize=7)
+            rms = float(np.sqrt(np.mean(np.sum(r[ok] ** 2, axis=1))))
+            ax.axhline(0, color="0.8", lw=0.8)
+            ax.axvline(0, color="0.8", lw=0.8)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_title(f"{nm}, {what}: RMS {rms:.2f} mm", fontsize=9)
+            ax.set_xlabel("spot - point, x (mm)")
+            ax.set_ylabel("y (mm)")
+    return _save(fig, path)
+
+
+# ------------------------------------------------------------------ HTML
+
+_CSS = """body{font-family:sans-serif;max-width:1150px;margin:1.5em auto;padding:0 1em;color:#222}
+h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.5em 0;font-size:.85em}
+th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}
+th:first-child,td:first-child{text-align:left}tr.ref td{color:#777;font-style:italic}
+img{max-width:100%;display:block;margin:.6em 0}
+pre{background:#f6f6f6;padding:.6em;font-size:.8em;overflow-x:auto}
+.note{color:#555;font-size:.9em}"""
+
+
+def _table(tid: str, header, rows, classes=None) -> str:
+    esc = html.escape
+    out = [f'<table id="{tid}"><tr>' + "".join(f"<th>{esc(str(h))}</th>" for h in header) + "</tr>"]
+    for i, r in enumerate(rows):
+        cls = f' class="{classes[i]}"' if classes and classes[i] else ""
+        out.append(f"<tr{cls}>" + "".join(f"<td>{esc(str(c))}</td>" for c in r) + "</tr>")
+    return "\n".join(out) + "</table>"
+
+
+def _vec(a, fmt: str) -> str:
+    return "—" if a is None else ", ".join(format(float(x), fmt) for x in a)
+
+
+def _img(name: str, alt: str) -> str:
+    return f'<img src="{name}" alt="{html.escape(alt)}">'
+
+
+def write_report(
+    out,
+    session: Session,
+    ident: Identification,
+    diagnosis: Diagnosis | None = None,
+    validations=(),
+    reference: dict | None = None,
+    title: str | None = None,
+) -> Path:
+    """Write ``index.html`` and its PNG plots into the folder ``out``.
+
+    Parameters
+    ----------
+    out : folder (created)
+    session : Session, the calibration session (laser spots)
+    ident : Identification, its calibration (parameter table, residuals, identifiability)
+    diagnosis : Diagnosis or None
+    validations : sequence of Validation at one point, in the order to show (e.g. nominal first)
+    reference : dict label -> {scatter_mean, scatter_std, error_mean, error_max}, published figures
+        shown beside
+    title : str, the page's heading
+
+    Returns
+    -------
+    Path of index.html
+    """
+    if session.measurement != "laser":
+        raise FormatError(
+            session.path, "the report covers laser sessions (spots on a plane)", field="measurement"
+        )
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    reference = reference or {}
+    esc = html.escape
+    rep = solve_report(session, ident)
+    idf = rep["identifiability"]
+    title = title or f"lasercal report: {session.path.resolve().name}"
+    parts = [
+        '<!DOCTYPE html>\n<html lang="en"><head><meta '
+        f'charset="utf-8"><title>{esc(title)}</title><style>{_CSS}</style></head><body>',
+        f"<h1>{esc(title)}</h1>",
+        (
+            f'<p class="note">Session {esc(str(session.path))}: {session.m} captures at '
+            f"{esc(', '.join(dict.fromkeys(session.point)))}, "
+            f"nominal robot {esc(session.robot.name)}, calibrated by the <b>{esc(ident.method)}</b> method "
+            f"({ident.iterations} iterations, {'converged' if ident.converged else 'not converged'}). "
+            "Lengths in mm.</p>"
+        ),
+    ]
+
+    if validations:
+        points = {v.point for v in validations}
+        if len(points) > 1:
+            raise FormatError(
+                validations[1].folder,
+                f"validations at different points ({', '.join(sorted(points))}): report one point at a time",
+            )
+        v0 = validations[0]
+        scatter_plot(validations, out / "validation_spots.png")
+        error_bars(validations, reference, out / "validation_errors.png")
+        rows = [
+            [v.label, v.model, f"{len(v.spots)}/{v.photos}"]
+            + [f"{v.stats.as_dict()[k]:.3f}" for k in _STAT_KEYS]
+            for v in validations
+        ]
+        rows += [[lab, "published", ""] + [f"{r[k]:.3f}" for k in _STAT_KEYS] for lab, r in reference.items()]
+        classes = [""] * len(validations) + ["ref"] * len(reference)
+        parts += [
+            f"<h2>Validation at {esc(v0.point)} {esc(str(tuple(float(c) for c in v0.xyz)))}</h2>",
+            (
+                '<p class="note">Each model computes configurations that put its beam on the point; the arm '
+                "goes there and a "
+                "camera photographs the spot. Scatter radius: distance of each spot from the spots' mean; "
+                "error: distance from "
+                "the point (thesis Figures 4.5 and 4.6).</p>"
+            ),
+            _table(
+                "validation-stats",
+                ["run", "model", "spots measured", "scatter mean", "scatter std", "error mean", "error max"],
+                rows,
+                classes,
+            ),
+            _img("validation_spots.png", "laser spots at the validation point (Figure 4.5)"),
+            _img("validation_errors.png", "mean and max error at the validation point (Figure 4.6)"),
+        ]
+
+    prow = [
+        [
+            r.name + (f" ({r.unit})" if r.unit else ""),
+            _vec(r.nominal, ".6g"),
+            _vec(r.identified, ".6g"),
+            _vec(r.std_error, ".2g"),
+        ]
+        for r in parameter_table(ident)
+    ]
+    parts += [
+        "<h2>Parameters: nominal vs identified</h2>",
+        (
+            '<p class="note">Joint screws (omega, v) in the base frame at q = 0, the laser direction and the '
+            "aperture M "
+            "(thesis Table 4.3); standard errors from the fit's covariance (one standard deviation).</p>"
+        ),
+        _table("parameters", ["parameter", "nominal", "identified", "standard error"], prow),
+    ]
+
+    prows = []
+    for nm, d in rep["points"].items():
+        for when in ("before", "after"):
+            s = d[when]
+            if s is not None:
+                prows.append([nm, when, s["n"]] + [f"{s[k]:.3f}" for k in _STAT_KEYS])
+    residual_plots(session, ident, out / "residuals.png")
+    parts += [
+        "<h2>Calibration points</h2>",
+        (
+            '<p class="note">Where each model says the captured beams land, per reference point (before: '
+            "nominal; after: "
+            "identified, outliers left out).</p>"
+        ),
+        _table(
+            "points",
+            ["point", "model", "captures", "scatter mean", "scatter std", "error mean", "error max"],
+            prows,
+        ),
+        _img("residuals.png", "residuals per reference point"),
+    ]
+
+    irows = [
+        ["parameters", idf["parameters"]],
+        ["rank", idf["rank"]],
+        ["condition number", f"{idf['condition']:.1f}"],
+        ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
+        ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
+        ["outliers", ", ".join(f"line {o['line']} ({o['point']})" for o in rep["outliers"]) or "none"],
+    ]
+    irows += [[f"not identifiable ({k + 1})", u] for k, u in enumerate(idf["unidentifiable"])]
+    parts += [
+        "<h2>Identifiability</h2>",
+        '<p class="note">SVD of the column-scaled Jacobian: combinations below the rank are held at their '
+        "start values.</p>",
+        _table("identifiability", ["", ""], irows),
+    ]
+
+    if diagnosis is not None:
+        names = [p.name for p in diagnosis_plots(diagnosis, out)]
+        parts += [
+            "<h2>Diagnosis: what the geometric model misses</h2>",
+            f'<pre id="diagnosis">{esc(format_diagnosis(diagnosis))}</pre>',
+        ]
+        parts += [_img(nm, nm.replace("_", " ").removesuffix(".png")) for nm in names]
+    parts.append("</body></html>\n")
+    index = out / "index.html"
+    index.write_text("\n".join(parts), encoding="utf-8")
+    return index

@@ -1,0 +1,1 @@
+"""Capture and validation sessions on a robot, and their crash-safe store on disk."""

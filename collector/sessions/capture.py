@@ -1,0 +1,315 @@
+"""The guided capture session (``lasercal capture``) as a library function.
+
+The operator brings the laser spot onto each requested reference point in turn and
+triggers; the session waits until the arm is still (every joint slower than a threshold
+for a hold time), logs the joint state, appends it durably to captures.csv and shows
+where the nominal model says this beam lands relative to the point -- a capture aimed at
+the wrong point, or far off, is flagged at once and can be discarded -- and whether the
+pose resembles an earlier one (and which joints to vary instead).
+
+Everything the session needs comes in as objects (robot adapter, trigger, output
+stream), so tests and ``--backend fake --auto`` run it without a terminal.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from lasercal.collector.errors import DeviceError, RobotConnectionError
+from lasercal.collector.hardware.base import JointState, RobotAdapter
+from lasercal.collector.hardware.triggers import Trigger
+from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.model import RobotModel
+
+
+@dataclass(frozen=True)
+class CaptureOptions:
+    """How a capture session behaves.
+
+    Attributes
+    ----------
+    per_point : int, captures wanted at each requested point
+    speed_threshold : float, the arm is still when every joint is slower than this, rad/s
+    hold : float, ... for this long, s
+    still_timeout : float, give up waiting for standstill after this long, s
+    poll : float, interval between joint-state reads while waiting, s
+    check_mm : float, flag a capture whose nominal spot is farther than this from its point, mm
+    similar_rad : float, a pose closer than this (joint-space distance) to an earlier capture
+        at the same point is reported as similar, rad
+    auto_discard : bool, discard flagged captures without asking (the simulated operator)
+    """
+
+    per_point: int
+    speed_threshold: float = 0.005
+    hold: float = 0.5
+    still_timeout: float = 30.0
+    poll: float = (
+        1 / 64
+    )  # a power of two: simulated times sum exactly, so a resumed fake session repeats bit for bit
+    check_mm: float = 40.0
+    similar_rad: float = 0.5
+    auto_discard: bool = False
+
+
+@dataclass(frozen=True)
+class Check:
+    """What the nominal model says about one capture.
+
+    Attributes
+    ----------
+    point : str, the point the operator was asked for
+    offset : (2,) array, nominal spot minus the point, mm (NaN when the beam points away from the plane)
+    nearest : str, the reference point nearest to the nominal spot
+    flag : str, why the capture looks wrong ('' when it looks right)
+    similar_to : int or None, 1-based number (at this point) of the most similar earlier capture
+    distance : float, its joint-space distance, rad
+    vary : tuple of int, 1-based joints whose spread over this point's captures is smallest
+    """
+
+    point: str
+    offset: np.ndarray
+    nearest: str
+    flag: str
+    similar_to: int | None
+    distance: float
+    vary: tuple
+
+
+@dataclass(frozen=True)
+class CaptureResult:
+    """How a session run ended: ``complete`` or stopped by the operator; captures per point on disk."""
+
+    complete: bool
+    counts: dict
+    captured: int
+    discarded: int
+
+
+def check_capture(
+    nominal: RobotModel, points: dict, name: str, q: np.ndarray, earlier: np.ndarray, opts: CaptureOptions
+) -> Check:
+    """The nominal-model check and the pose-diversity hint of a new capture.
+
+    Parameters
+    ----------
+    nominal : RobotModel
+    points : dict name -> (3,) array, mm
+    name : str, the point the operator was asked for
+    q : (n,) array, the captured configuration, rad
+    earlier : (k, n) array, earlier captures at this point, rad
+    opts : CaptureOptions
+    """
+    p = points[name]
+    spot, length = predict_spots(nominal, q[None], p[2])
+    if length[0] <= 0:
+        return Check(
+            name, np.full(2, np.nan), "", "the nominal beam points away from the table", None, np.nan, ()
+        )
+    offset = spot[0, :2] - p[:2]
+    names = list(points)
+    nearest = names[int(np.argmin([np.linalg.norm(spot[0, :2] - points[k][:2]) for k in names]))]
+    flag = ""
+    if nearest != name:
+        flag = f"the beam lands nearest to {nearest}, not {name}: aimed at the wrong point?"
+    elif np.linalg.norm(offset) > opts.check_mm:
+        flag = (
+            f"{np.linalg.norm(offset):.0f} mm from {name} by the nominal model (more than {opts.check_mm:g} "
+            "mm): "
+            "aimed at the wrong place, or the arm moved?"
+        )
+    similar_to, distance, vary = None, np.nan, ()
+    if len(earlier):
+        d = np.linalg.norm(earlier - q, axis=1)
+        k = int(np.argmin(d))
+        distance = float(d[k])
+        if distance < opts.similar_rad:
+            similar_to = k + 1
+            spread = np.vstack([earlier, q]).std(axis=0) / np.ptp(nominal.limits, axis=1)
+            vary = tuple(int(j) + 1 for j in np.argsort(spread)[:2])
+    return Check(name, offset, nearest, flag, similar_to, distance, vary)
+
+
+def wait_still(
+    robot: RobotAdapter, threshold: float, hold: float, timeout: float, poll: float
+) -> tuple[JointState | None, float]:
+    """Poll the arm until every joint has been slower than ``threshold`` (rad/s) for ``hold`` s.
+
+    Parameters
+    ----------
+    robot : RobotAdapter
+    threshold : float, rad/s
+    hold : float, s
+    timeout : float, give up after this long, s
+    poll : float, interval between reads, s
+
+    Returns
+    -------
+    state : the reading that completed the hold, or None after ``still_timeout``
+    peak : float, largest joint speed of the last reading, rad/s
+    """
+    clock = robot.clock
+    start = clock.now()
+    since = None
+    while True:
+        s = robot.read()
+        peak = float(np.abs(s.dq).max())
+        if peak < threshold:
+            since = s.t if since is None else since
+            if s.t - since >= hold:
+                return s, peak
+        else:
+            since = None
+        if s.t - start > timeout:
+            return None, peak
+        clock.sleep(poll)
+
+
+def progress_lines(counts: dict, per_point: int, width: int = 20) -> list[str]:
+    """One progress bar per point: done and left."""
+    out = []
+    for nm, k in counts.items():
+        full = round(width * min(k, per_point) / per_point)
+        out.append(
+            f"  {nm:<6} [{'#' * full}{'-' * (width - full)}] {k:3d}/{per_point}  {max(per_point - k, 0):3d} "
+            "left"
+        )
+    return out
+
+
+def _report(check: Check, number: int, t: float, peak: float, length: float | None) -> list[str]:
+    lines = [
+        f"captured {check.point} #{number} at t = {t:.1f} s (still, max |dq| {peak:.4f} rad/s)"
+        + (f", laser length {length:.1f} mm" if length is not None else "")
+    ]
+    if np.all(np.isfinite(check.offset)):
+        dx, dy = check.offset
+        lines.append(
+            f"  nominal model: the beam lands {np.hypot(dx, dy):.1f} mm from {check.point} (dx {dx:+.1f}, dy "
+            f"{dy:+.1f} mm)"
+        )
+    if check.flag:
+        lines.append(f"  ! {check.flag} -- discard it?")
+    if check.similar_to is not None:
+        joints = " and ".join(str(j) for j in check.vary)
+        lines.append(
+            f"  ~ similar to capture #{check.similar_to} at {check.point} (joint distance "
+            f"{check.distance:.2f} rad): "
+            f"vary joints {joints} for the next ones"
+        )
+    return lines
+
+
+def run_capture(
+    store: CaptureStore,
+    robot: RobotAdapter,
+    trigger: Trigger,
+    nominal: RobotModel,
+    opts: CaptureOptions,
+    out=sys.stdout,
+    rangefinder=None,
+    resume_hint: str = "",
+) -> CaptureResult:
+    """Run (or continue) a capture session until every requested point has its captures.
+
+    Parameters
+    ----------
+    store : CaptureStore, a new or reopened session; its session.yaml names the points and the order
+    robot : RobotAdapter, connected by this function and closed when it returns
+    trigger : Trigger
+    nominal : RobotModel, the model the session names (for the on-screen check)
+    opts : CaptureOptions
+    out : text stream, the operator's screen
+    rangefinder : object with ``measure() -> mm`` or None
+    resume_hint : str, the command that resumes this session (said when it stops early)
+
+    Returns
+    -------
+    CaptureResult
+
+    Raises
+    ------
+    RobotConnectionError
+        The robot cannot be reached or stopped answering; the message says how to resume.
+    """
+    meta = store.meta
+    points = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
+    requested = list(meta["requested"])
+    counts = store.counts(requested)
+    w = out.write
+    captured = discarded = 0
+
+    def saved() -> str:
+        k = len(store.point)
+        safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {store.path}"
+        return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
+
+    try:
+        robot.connect()
+        if robot.guidance:
+            w(f"{robot.name}: {robot.guidance}\n")
+        t_run = robot.clock.now()
+        t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
+        while True:
+            todo = [nm for nm in requested if counts[nm] < opts.per_point]
+            if not todo:
+                break
+            name = todo[0]
+            robot.prompt_point(name, points[name], counts[name])
+            x, y, z = points[name]
+            w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
+            w(
+                f"aim at {name} ({x:.1f}, {y:.1f}, {z:.1f}) mm: capture {counts[name] + 1} of "
+                f"{opts.per_point}   [{trigger.hint}]\n"
+            )
+            cmd = trigger.wait()
+            if cmd == "quit":
+                w(f"stopped: {saved()}\n")
+                return CaptureResult(False, counts, captured, discarded)
+            if cmd == "discard":
+                gone = store.discard_last()
+                if gone is None:
+                    w("nothing to discard\n")
+                else:
+                    if gone in counts:  # a row at a point no longer requested counts nowhere
+                        counts[gone] -= 1
+                    discarded += 1
+                    w(f"discarded the last capture at {gone}\n")
+                continue
+            state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
+            if state is None:
+                w(
+                    f"the arm did not come to rest within {opts.still_timeout:g} s (max |dq| {peak:.4f} "
+                    "rad/s): not captured\n"
+                )
+                continue
+            length = rangefinder.measure() if rangefinder is not None else None
+            earlier = np.array([q for p, q in zip(store.point, store.q) if p == name]).reshape(
+                -1, len(state.q)
+            )
+            check = check_capture(nominal, points, name, state.q, earlier, opts)
+            t = t_offset + (state.t - t_run)
+            extra = dict(state.extra)
+            if length is not None:
+                extra["laser_length_measured"] = length
+            store.append({"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, **extra})
+            counts[name] += 1
+            captured += 1
+            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n")
+            if check.flag and opts.auto_discard:
+                store.discard_last()
+                counts[name] -= 1
+                discarded += 1
+                w("discarded it (the simulated operator heeds the warning)\n")
+    except RobotConnectionError as e:
+        raise RobotConnectionError(f"{e}; {saved()}") from None
+    except DeviceError as e:
+        raise DeviceError(f"{e}; {saved()}") from None
+    finally:
+        robot.close()
+    w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
+    w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
+    return CaptureResult(True, counts, captured, discarded)

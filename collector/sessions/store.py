@@ -1,0 +1,204 @@
+"""Crash-safe session folders: session.yaml written atomically, captures.csv appended row by row.
+
+Every capture is one line written with a single ``write`` on a file opened in append
+mode, then ``fsync``-ed before :meth:`CaptureStore.append` returns: a kill at any moment
+loses at most the capture in flight. A kill (or power cut) in the middle of a write can
+leave a torn last line; :meth:`CaptureStore.open` cuts it off, never touching the rows
+before it, and then checks the whole folder with :func:`solver.session.load_session`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from lasercal.collector.errors import SessionError
+from lasercal.solver.formats.robots import load_model, load_yaml
+from lasercal.solver.formats.session import Session, captures_header, format_row, load_session
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make a new or renamed file's directory entry durable."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Replace ``path`` by ``text`` all at once (write a temporary file, fsync, rename)."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def csv_line(cells: list) -> bytes:
+    """One CSV row, numbers at full precision, ending in a newline."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(
+        [c if isinstance(c, str) else format_row([c])[0] for c in cells]
+    )
+    return buf.getvalue().encode("utf-8")
+
+
+def append_durably(fd: int, line: bytes, path) -> None:
+    """Append one line with a single write and fsync it before returning."""
+    if os.write(fd, line) != len(line):
+        raise SessionError(f"{path}: short write (disk full?); the last row was not saved")
+    os.fsync(fd)
+
+
+class CsvLog:
+    """A CSV file grown one durable row at a time (validation runs).
+
+    Parameters
+    ----------
+    path : Path, created with ``comment`` lines (each starting with '#') and the header
+    header : list of str
+    comment : list of str
+    """
+
+    def __init__(self, path: Path, header: list[str], comment=()):
+        if path.exists():
+            raise SessionError(f"{path} exists: choose another folder")
+        write_atomic(path, "".join(f"# {c}\n" for c in comment) + csv_line(header).decode())
+        self.path, self.header = path, header
+        self._fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+
+    def append(self, row: dict) -> None:
+        """Append a row given as column -> value (missing columns left empty)."""
+        append_durably(self._fd, csv_line([row.get(h, "") for h in self.header]), self.path)
+
+    def close(self) -> None:
+        os.close(self._fd)
+
+
+class CaptureStore:
+    """The captures of one session folder, appended crash-safely.
+
+    Use :meth:`create` for a new session and :meth:`open` to resume one.
+
+    Attributes
+    ----------
+    folder : Path
+    meta : dict, the session.yaml mapping
+    header : list of str, the captures.csv columns
+    point : list of str, the point of each capture on disk
+    t : list of float, s
+    q : list of (n,) arrays, rad
+    recovered : int, bytes of a torn last line cut off when the session was opened
+    """
+
+    def __init__(
+        self, folder: Path, meta: dict, header: list[str], session: Session | None, recovered: int = 0
+    ):
+        self.folder, self.meta, self.header, self.recovered = folder, meta, header, recovered
+        self.point = [] if session is None else [str(p) for p in session.point]
+        self.t = [] if session is None else [float(t) for t in session.t]
+        self.q = [] if session is None else list(session.q)
+        self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+
+    @property
+    def path(self) -> Path:
+        """captures.csv"""
+        return self.folder / "captures.csv"
+
+    @classmethod
+    def create(cls, folder, meta: dict, n: int, extra_columns=()) -> CaptureStore:
+        """Start a new session folder: session.yaml, then captures.csv holding only its header.
+
+        Raises
+        ------
+        SessionError
+            The folder already holds captures (resume it instead).
+        """
+        folder = Path(folder)
+        if (folder / "captures.csv").exists():
+            raise SessionError(
+                f"{folder} already holds a session: resume it with --resume {folder}, or choose another "
+                "folder"
+            )
+        folder.mkdir(parents=True, exist_ok=True)
+        write_atomic(folder / "session.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
+        header = captures_header(n, dq=True, tau=True, extra=extra_columns)
+        write_atomic(folder / "captures.csv", csv_line(header).decode())
+        return cls(folder, meta, header, None)
+
+    @classmethod
+    def open(cls, folder) -> CaptureStore:
+        """Reopen an interrupted session: cut a torn last line, validate, and append after it.
+
+        Raises
+        ------
+        SessionError
+            Not a session folder started by ``lasercal capture``.
+        FormatError
+            A malformed session.yaml or captures.csv (names file, line and column).
+        """
+        folder = Path(folder)
+        cpath = folder / "captures.csv"
+        if not (folder / "session.yaml").is_file():
+            raise SessionError(f"{folder} is not a session folder (no session.yaml): nothing to resume")
+        meta = load_yaml(folder / "session.yaml")
+        if not cpath.exists():  # killed between writing session.yaml and the header
+            n = load_model(meta.get("robot"), base=folder).n
+            extra = (meta.get("collector") or {}).get("extra_columns", [])
+            write_atomic(cpath, csv_line(captures_header(n, True, True, extra)).decode())
+        data = cpath.read_bytes()
+        keep = data.rfind(b"\n") + 1  # every row ends with a newline: anything after the last one is torn
+        if keep < len(data):
+            with open(cpath, "r+b") as f:
+                f.truncate(keep)
+                os.fsync(f.fileno())
+        session = load_session(folder)
+        header = next(csv.reader(io.StringIO(data[:keep].decode("utf-8", "replace").split("\n", 1)[0])))
+        return cls(folder, meta, [h.strip() for h in header], session, len(data) - keep)
+
+    def append(self, values: dict) -> None:
+        """Append one capture and make it durable before returning.
+
+        Parameters
+        ----------
+        values : dict column -> value: 'point' (str), 't' (s), 'q' (n,) rad, 'dq' (n,) rad/s,
+            'tau' (n,) Nm, and extra columns by name (missing extras are left empty)
+        """
+        cells = {"point": values["point"], "t": values["t"]}
+        for key in ("q", "dq", "tau"):
+            cells.update({f"{key}{j + 1}": v for j, v in enumerate(np.asarray(values[key], dtype=float))})
+        append_durably(
+            self._fd,
+            csv_line([cells[h] if h in cells else values.get(h, "") for h in self.header]),
+            self.path,
+        )
+        self.point.append(str(values["point"]))
+        self.t.append(float(values["t"]))
+        self.q.append(np.asarray(values["q"], dtype=float))
+
+    def discard_last(self) -> str | None:
+        """Remove the last capture from the file (durably); returns its point, or None if there is none."""
+        if not self.point:
+            return None
+        data = self.path.read_bytes()
+        cut = data.rstrip(b"\n").rfind(b"\n") + 1
+        os.ftruncate(self._fd, cut)
+        os.fsync(self._fd)
+        self.t.pop()
+        self.q.pop()
+        return self.point.pop()
+
+    def counts(self, names) -> dict:
+        """Captures on disk per point name."""
+        return {nm: self.point.count(nm) for nm in names}
+
+    def close(self) -> None:
+        os.close(self._fd)

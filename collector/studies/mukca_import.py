@@ -1,0 +1,121 @@
+"""MUKCa socket data (Franzese et al., arXiv 2503.12584) as lasercal point sessions.
+
+A ball on the Franka hand sits in one of two conical sockets 50 mm apart while the arm is
+hand-guided; each ``<robot>/<position>/hole_k.csv`` holds joint angles (rad, no header, in
+recording order) that all put the ball centre at one unknown point. One session per robot:
+points ``<position>/hole_0``, ``<position>/hole_1`` (unknown, identified), a 50 mm distance
+per position, ``t`` = recording order (a count, not seconds: the data have no times). The order
+is chronological within a socket file only: positions follow in alphabetical order, so a drift
+found on these data is weak evidence.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, write_session
+
+HOLE_DISTANCE = 50.0  # mm, checked with calipers by the authors
+# Nominal ball centre at q = 0: the hand's TCP is 103.4 mm beyond the flange (88, 0, 926) along
+# the flange z axis (down at q = 0), and the ball centre 30.1 mm beyond the TCP.
+NOMINAL_TOOL = (88.0, 0.0, 926.0 - 103.4 - 30.1)
+
+
+def read_hole(path: Path) -> np.ndarray:
+    """Joint angles (k, 7) rad of one hole file, with errors naming file, line and column."""
+    rows = []
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    for ln, row in enumerate(csv.reader(text.splitlines()), start=1):
+        if not row or row[0].lstrip().startswith("#"):
+            continue
+        if len(row) != 7:
+            raise FormatError(path, f"expected 7 joint angles, found {len(row)}", line=ln)
+        try:
+            rows.append([float(v) for v in row])
+        except ValueError:
+            bad = next(i for i, v in enumerate(row) if not _is_float(v))
+            raise FormatError(path, f"not a number: {row[bad]!r}", line=ln, field=f"q{bad + 1}") from None
+    if not rows:
+        raise FormatError(path, "no joint angles")
+    return np.array(rows)
+
+
+def _is_float(v: str) -> bool:
+    try:
+        float(v)
+    except ValueError:
+        return False
+    return True
+
+
+def positions(robot_dir: Path) -> list[str]:
+    """Tool positions (folders holding hole_0.csv and hole_1.csv), sorted."""
+    return sorted(
+        p.name
+        for p in Path(robot_dir).iterdir()
+        if (p / "hole_0.csv").is_file() and (p / "hole_1.csv").is_file()
+    )
+
+
+def import_mukca(robot_dir, out, only: list[str] | None = None) -> Path:
+    """Write one point session for a MUKCa robot folder.
+
+    Parameters
+    ----------
+    robot_dir : folder such as .../mukca/panda_1
+    out : session folder to write
+    only : tool positions to import (default: all)
+
+    Returns
+    -------
+    the session folder
+    """
+    robot_dir = Path(robot_dir)
+    if not robot_dir.is_dir():
+        raise FormatError(robot_dir, "not a MUKCa robot folder")
+    pos = positions(robot_dir)
+    if only:
+        missing = [p for p in only if p not in pos]
+        if missing:
+            raise FormatError(robot_dir, f"no tool position {missing[0]!r} (has {', '.join(pos)})")
+        pos = [p for p in pos if p in only]
+    if not pos:
+        raise FormatError(robot_dir, "no <position>/hole_0.csv, hole_1.csv found")
+    names, qs = [], []
+    for p in pos:
+        for h in ("hole_0", "hole_1"):
+            q = read_hole(robot_dir / p / f"{h}.csv")
+            qs.append(q)
+            names += [f"{p}/{h}"] * len(q)
+    q = np.concatenate(qs)
+    robot = load_model("panda")
+    bad = ~robot.within_limits(q, margin=-1e-6)
+    if bad.any():  # report rather than refuse: it is real data; the solver's limit check would stop it
+        i = int(np.flatnonzero(bad)[0])
+        raise FormatError(
+            robot_dir / names[i],
+            f"joint angles outside the Panda's limits at row {i + 1}: {np.round(q[i], 4).tolist()}",
+        )
+    meta = {
+        "format": SESSION_FORMAT,
+        "robot": "panda",
+        "measurement": "point",
+        "units": dict(UNITS),
+        "tool": {"point": list(NOMINAL_TOOL)},
+        "points": {f"{p}/{h}": None for p in pos for h in ("hole_0", "hole_1")},
+        "constraints": {"distances": [[f"{p}/hole_0", f"{p}/hole_1", HOLE_DISTANCE] for p in pos]},
+        "source": {
+            "dataset": "MUKCa",
+            "folder": str(robot_dir.resolve()),
+            "note": "t is the recording order (a count), not seconds",
+        },
+    }
+    return write_session(out, meta, np.array(names, dtype=object), np.arange(len(q), dtype=float), q)

@@ -1,0 +1,418 @@
+"""Model discrepancy: where measured data disagree with the geometric model, which effect explains it.
+
+Procedure (documented in README "Diagnosis"):
+
+1. Fit the geometric model (``lm``). Its residuals should be aiming noise: unstructured,
+   of one size.
+2. Test every candidate extension of :mod:`solver.effects` (each effect on each joint, or
+   an offset of each reference point) against the geometric model with a nested-model
+   F test, linearised at the geometric solution (the score form: the residual's squared
+   projection on the candidate's columns after removing what the geometry can already
+   explain). Candidate p-values are Bonferroni-corrected over all candidates. The
+   smallest corrected p-value below ``alpha`` names the effect; further joints of the same
+   effect are added while their conditional test (after refitting) stays significant.
+   Otherwise the answer is ``none``.
+3. Show the disagreement by simulation: a parametric bootstrap re-runs the experiment on
+   the identified geometric robot (same poses, the estimated aiming noise) -- many
+   first-order replicates recompute the strongest candidate's statistic (the measured
+   value's rank among them is a significance level that needs no F-distribution
+   assumption), and a few full nonlinear re-simulations with refits give the residual
+   size the experiment should show.
+4. Fit the winning extension jointly with the geometry and measure the gain by
+   cross-validation (the same stratified folds for both models).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import stats
+
+from lasercal.solver.analysis.stats import folds
+from lasercal.solver.errors import ModelError
+from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.measurement import fit, residuals
+from lasercal.solver.identify.point import polish_point, session_targets, tip_joint_jacobian
+from lasercal.solver.identify.spot import Identification
+from lasercal.solver.kinematics.aim import polish
+from lasercal.solver.kinematics.effects import Extension, candidates
+from lasercal.solver.kinematics.gravity import gravity_torques
+from lasercal.solver.kinematics.laser import spot_joint_jacobian
+
+ALPHA = 0.01  # family-wise false-alarm rate of the decision
+_RTOL = 1e-6
+_AMBIGUOUS = (
+    0.97  # a runner-up explaining this share of the winner's residual drop is reported as indistinguishable
+)
+
+
+@dataclass(frozen=True)
+class CandidateTest:
+    """Nested-model F test of one candidate extension against the current model."""
+
+    extension: Extension
+    F: float
+    df: int
+    p: float
+    p_adjusted: float
+    rss_drop: float
+
+    @property
+    def label(self) -> str:
+        e = self.extension
+        return f"{e.effect}[{e.point}]" if e.point else f"{e.effect}[joint {','.join(map(str, e.joints))}]"
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """The finding, with the evidence.
+
+    Attributes
+    ----------
+    effect : str, one of effects.EFFECTS
+    extension : Extension or None, the fitted effect with standard errors
+    p_value : float, Bonferroni-corrected p of the first selected candidate (or of the best one, for 'none')
+    tests : list of CandidateTest, every candidate against the geometric model, best first
+    geometric, extended : Identification
+    holdout_rms : dict 'geometric'/'extended' -> mm, K-fold cross-validated, over the captures
+        the robust geometric fit does not flag as outliers
+    bootstrap : dict, the simulated distribution of the best statistic and of the residual RMS
+    torque_source : str, 'logged' or 'gravity model' or 'none'
+    seconds : float
+    session : Session, the diagnosed session (with the torques used)
+    residuals_holdout : dict 'geometric'/'extended' -> (m, 2) cross-validated residuals, mm
+    ambiguous_with : tuple of str, candidates that explain the data (nearly) as well as the winner
+        -- e.g. with three reference points an offset of any one of them looks alike, because the
+        geometry absorbs a planar similarity of the whole layout
+    """
+
+    effect: str
+    extension: Extension | None
+    p_value: float
+    tests: list
+    geometric: Identification
+    extended: Identification | None
+    holdout_rms: dict
+    bootstrap: dict
+    torque_source: str
+    seconds: float
+    residuals_holdout: dict = field(default_factory=dict)
+    ambiguous_with: tuple = ()
+    session: Session | None = None
+
+    @property
+    def gain_percent(self) -> float:
+        g, e = self.holdout_rms["geometric"], self.holdout_rms["extended"]
+        return float(100.0 * (g - e) / g) if g > 0 else 0.0
+
+    def as_dict(self) -> dict:
+        """The ``lasercal diagnose --json`` object."""
+        ext = self.extension
+        params = {}
+        if ext is not None:
+            for nm, v, se in zip(
+                ext.names, ext.params, ext.std_errors if ext.std_errors is not None else [np.nan] * ext.size
+            ):
+                params[nm] = {"value": float(v), "std_error": float(se), "units": _unit(ext.effect)}
+        return {
+            "effect": self.effect,
+            "joints": [int(j) for j in ext.joints] if ext else [],
+            "point": ext.point if ext else None,
+            "parameters": params,
+            "p_value": float(self.p_value),
+            "holdout_rms_mm": {k: round(float(v), 6) for k, v in self.holdout_rms.items()},
+            "gain_percent": round(self.gain_percent, 3),
+            "details": {
+                "alpha": ALPHA,
+                "bootstrap_p_value": self.bootstrap.get("p_value"),
+                "bootstrap_replicates": self.bootstrap.get("replicates"),
+                "torques": self.torque_source,
+                "ambiguous_with": list(self.ambiguous_with),
+                "seconds": round(self.seconds, 3),
+                "candidates": [
+                    {
+                        "candidate": t.label,
+                        "F": round(t.F, 4),
+                        "df": t.df,
+                        "p": float(f"{t.p:.4g}"),
+                        "p_adjusted": float(f"{t.p_adjusted:.4g}"),
+                    }
+                    for t in self.tests[:8]
+                ],
+            },
+        }
+
+
+def _unit(effect: str) -> str:
+    from lasercal.solver.kinematics.effects import UNITS
+
+    return UNITS[effect]
+
+
+def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, str]:
+    """Logged joint torques, or the robot's gravity model at the logged poses, or None."""
+    if session.tau is not None:
+        return session.tau, "logged"
+    if session.robot.links:
+        return gravity_torques(session.robot, session.q, payload), "gravity model"
+    return None, "none"
+
+
+def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
+    """d(residual)/dq (m, d, n) of the fitted model: spot in the plane, or tool point."""
+    if session.measurement == "point":
+        return tip_joint_jacobian(model, q)[1]
+    return spot_joint_jacobian(model, q, session.target[:, 2])[1]
+
+
+def _candidate_columns(ext: Extension, session: Session, Jq: np.ndarray, tau) -> np.ndarray:
+    """d(residual)/d(parameters) of a candidate at zero effect, (m, 2, k)."""
+    m = session.m
+    if ext.effect == "reference_point_offset":  # laser sessions only: point sessions identify their points
+        C = np.zeros((m, 2, 2))
+        C[session.point == ext.point] = -np.eye(2)
+        return C
+    idx, G = ext.regressors(session.q, session.t, tau)
+    return Jq[:, :, idx] * G[:, None, :]
+
+
+def _orthonormal(A: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the column space of A (rank by SVD with a relative tolerance)."""
+    if A.shape[1] == 0:
+        return A
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, _ = np.linalg.svd(A / scale, full_matrices=False)
+    return U[:, : int(np.sum(s > _RTOL * max(s[0], 1e-300)))]
+
+
+class Tester:
+    """Nested-model F tests of candidate extensions against a fitted model (linearised at its solution).
+
+    F = (drop / k) / ((RSS - drop) / (N - r - k)), drop = |Q^T res|^2 with Q the candidate's
+    columns made orthogonal to what the fit could absorb (rank r); Bonferroni over the candidates.
+    Prepared once, it tests any residual vector: the data's, or simulated ones.
+
+    Parameters
+    ----------
+    session : Session
+    ident : Identification, the fitted model (geometric, or already extended)
+    exts : list of Extension, the candidates
+    tau : (m, n) array or None
+    """
+
+    def __init__(self, session: Session, ident: Identification, exts: list, tau):
+        used = ident.weights > 0
+        qt = ident.extension.true_q(session.q, session.t, tau) if ident.extension else session.q
+        Jq = joint_jacobian(session, ident.model, qt)
+        d = ident.residuals.shape[1]  # 2 (spot in the plane) or 3 (tool point)
+        # What the fit could absorb: its Jacobian in its own identifiable subspace (extension included),
+        # with its constraint rows -- without them a world scaling, which scales every residual, would
+        # seem to explain any residual (the known distances are what pin the scale).
+        Jc = ident.extra.get("constraint_span", np.zeros((0, ident.extra["span"].shape[2])))
+        self.U = _orthonormal(np.vstack([ident.extra["span"][used].reshape(d * used.sum(), -1), Jc]))
+        self.n_capture_rows = d * used.sum()
+        self.res = np.r_[ident.residuals[used].ravel(), ident.extra.get("constraint_residuals", np.zeros(0))]
+        self.exts = exts
+        self.Q = []
+        for e in exts:
+            C = np.vstack(
+                [
+                    _candidate_columns(e, session, Jq, tau)[used].reshape(self.n_capture_rows, -1),
+                    np.zeros((len(Jc), e.size)),
+                ]
+            )
+            self.Q.append(_orthonormal(C - self.U @ (self.U.T @ C)))
+
+    def tests(self, res: np.ndarray | None = None) -> list[CandidateTest]:
+        """Every candidate's test on ``res`` (default: the data's residuals), best first."""
+        res = self.res if res is None else res
+        rss, N, r = float(res @ res), res.size, self.U.shape[1]
+        out = []
+        for e, Q in zip(self.exts, self.Q):
+            k = Q.shape[1]
+            if k == 0 or N - r - k <= 0:
+                out.append(CandidateTest(e, 0.0, 0, 1.0, 1.0, 0.0))
+                continue
+            drop = float(np.sum((Q.T @ res) ** 2))
+            F = (drop / k) / max((rss - drop) / (N - r - k), 1e-300)
+            p = float(stats.f.sf(F, k, N - r - k))
+            out.append(CandidateTest(e, F, k, p, min(1.0, p * len(self.exts)), drop))
+        return sorted(out, key=lambda c: (c.p, -c.F))
+
+    def best_statistic(self, R: np.ndarray) -> np.ndarray:
+        """max over candidates of -log10 p for each column of R (N, B): vectorised for simulations."""
+        rss = np.sum(R**2, axis=0)
+        N, r = R.shape[0], self.U.shape[1]
+        best = np.zeros(R.shape[1])
+        for Q in self.Q:
+            k = Q.shape[1]
+            if k == 0 or N - r - k <= 0:
+                continue
+            drop = np.sum((Q.T @ R) ** 2, axis=0)
+            F = (drop / k) / np.maximum((rss - drop) / (N - r - k), 1e-300)
+            best = np.maximum(best, -np.log10(np.maximum(stats.f.sf(F, k, N - r - k), 1e-300)))
+        return best
+
+
+def score_tests(session: Session, ident: Identification, exts: list, tau) -> list[CandidateTest]:
+    """:class:`Tester` on the data's residuals."""
+    return Tester(session, ident, exts, tau).tests()
+
+
+def bootstrap(
+    session: Session, ident: Identification, tester: Tester, B: int, n_refit: int, rng: np.random.Generator
+) -> dict:
+    """Parametric bootstrap: the experiment re-simulated on the identified geometric robot.
+
+    Two levels. (1) ``B`` first-order simulations: Gaussian aiming noise at the estimated
+    sigma on the same poses, refitted to first order (the residual is the noise minus its
+    projection on what the fit absorbs), tested like the data -- this calibrates the
+    strongest-candidate statistic, multiple comparisons included, with no F-distribution
+    assumption. (2) ``n_refit`` full simulations (the robot's true configurations polished onto
+    noisy targets, a nonlinear refit) give the residual RMS the experiment should show.
+    """
+    N = tester.res.size
+    E = np.zeros((N, B))
+    E[: tester.n_capture_rows] = rng.normal(0, ident.sigma_mm, (tester.n_capture_rows, B))
+    R = E - tester.U @ (tester.U.T @ E)
+    best = tester.best_statistic(R)
+    observed = float(tester.best_statistic(tester.res[:, None])[0])
+    used = ident.weights > 0
+    s = session.subset(used)
+    point = s.measurement == "point"
+    target = session_targets(s, ident.extra.get("points", {})) if point else s.target
+    rms = []
+    for _ in range(n_refit):
+        if point:
+            qb = polish_point(ident.model, s.q, target + rng.normal(0, ident.sigma_mm, target.shape))
+        else:
+            qb = polish(
+                ident.model, s.q, target + np.c_[rng.normal(0, ident.sigma_mm, (s.m, 2)), np.zeros(s.m)]
+            )
+        rms.append(fit(replace(s, q=qb), nominal=ident.model, robust=False).rms_mm)
+    return {
+        "replicates": B,
+        "refits": n_refit,
+        "best_stat": best.tolist(),
+        "rms_mm": rms,
+        "observed_best_stat": observed,
+        "observed_rms_mm": ident.rms_mm,
+        "p_value": float((1 + np.sum(best >= observed)) / (B + 1)),
+    }
+
+
+def holdout(session: Session, fit, k: int = 5, seed: int = 0) -> np.ndarray:
+    """Cross-validated residuals (m, d): ``fit(train) -> predict(test) -> (k, d)``."""
+    f = folds(session, k, seed)
+    out = np.empty((session.m, 3 if session.measurement == "point" else 2))
+    for i in range(k):
+        test = f == i
+        out[test] = fit(session.subset(~test))(session.subset(test))
+    return out
+
+
+def diagnose(
+    session: Session,
+    alpha: float = ALPHA,
+    n_boot: int = 2000,
+    seed: int = 0,
+    k: int = 5,
+    payload=None,
+    effect: str | None = None,
+    n_refit: int = 10,
+) -> Diagnosis:
+    """Find, name and fit the non-geometric effect the data carry (or 'none').
+
+    Parameters
+    ----------
+    session : Session
+    alpha : float, family-wise significance level of the decision
+    n_boot : int, first-order parametric-bootstrap replicates (0 skips the bootstrap)
+    n_refit : int, full (nonlinear) simulations with refits, for the residual RMS distribution
+    seed : int
+    k : int, cross-validation folds (0 or 1: skip, report fit residuals instead)
+    payload : (kg, (3,) mm), extra mass on the flange for the gravity model when torques are not logged
+    effect : str, restrict the catalogue to one effect (``solve --extend EFFECT``): the best
+        candidate of that effect is fitted even when not significant
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    tau, tau_src = session_torques(session, payload)
+    session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
+    geo = fit(session)
+    pts = [] if session.measurement == "point" else list(dict.fromkeys(session.point))
+    exts = candidates(session.robot.n, pts, tau is not None, session.t is not None and np.ptp(session.t) > 0)
+    if effect is not None:
+        exts = [e for e in exts if e.effect == effect]
+        if not exts:
+            raise ModelError(
+                f"effect {effect!r} cannot be tested on this session (it needs "
+                f"{'torques' if effect == 'joint_compliance' else 'times'})"
+            )
+    tester = Tester(session, geo, exts, tau)
+    tests = tester.tests()
+    best = tests[0]
+    chosen = None
+    if best.p_adjusted < alpha or effect is not None:
+        chosen = best.extension
+        ext_fit = fit(session, chosen)
+        if chosen.effect != "reference_point_offset":  # more joints of the same effect, while significant
+            while True:
+                rest = [e for e in exts if e.effect == chosen.effect and e.joints[0] not in chosen.joints]
+                if not rest:
+                    break
+                nxt = score_tests(session, ext_fit, rest, tau)[0]
+                if nxt.p_adjusted >= alpha:
+                    break
+                chosen = Extension(
+                    chosen.effect,
+                    tuple(sorted(chosen.joints + nxt.extension.joints)),
+                    None,
+                    np.zeros(chosen.size + nxt.extension.size),
+                )
+                ext_fit = fit(session, chosen)
+    ambiguous = tuple(
+        t.label
+        for t in tests[1:]
+        if chosen is not None and t.rss_drop >= _AMBIGUOUS * best.rss_drop and t.p_adjusted < alpha
+    )
+    boot = bootstrap(session, geo, tester, n_boot, n_refit, rng) if n_boot else {}
+
+    def fit_geo(train):
+        g = fit(train)
+        return lambda test: residuals(g.model, None, test, g.extra.get("points"))
+
+    def fit_ext(train):
+        e = fit(train, chosen)
+        return lambda test: residuals(e.model, e.extension, test, e.extra.get("points"))
+
+    if k > 1:
+        r_geo = holdout(session, fit_geo, k, seed)
+        r_ext = holdout(session, fit_ext, k, seed) if chosen else r_geo
+    else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
+        r_geo = geo.residuals
+        r_ext = ext_fit.residuals if chosen else r_geo
+    inlier = geo.weights > 0  # captures the robust fit flags (mis-aims) are reported, not averaged in
+    rms = lambda r: float(np.sqrt(np.mean(np.sum(r[inlier] ** 2, axis=1))))  # noqa: E731
+    return Diagnosis(
+        chosen.effect if chosen else "none",
+        ext_fit.extension if chosen else None,
+        best.p_adjusted,
+        tests,
+        geo,
+        ext_fit if chosen else None,
+        {"geometric": rms(r_geo), "extended": rms(r_ext)},
+        boot,
+        tau_src,
+        time.perf_counter() - t0,
+        {"geometric": r_geo, "extended": r_ext},
+        ambiguous,
+        session,
+    )

@@ -1,0 +1,102 @@
+"""Synthetic experiments: sessions whose truth is a known robot, and simulated validation runs.
+
+Aiming noise follows the thesis (Section 4.2): Gaussian noise is added to the reference
+point before the true robot's configuration is computed, so the operator's beam hits a
+point near, not at, the reference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lasercal.solver.errors import AimingError
+from lasercal.solver.formats.session import Layout
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.aim import aim, polish
+from lasercal.solver.kinematics.effects import JOINT_EFFECTS, Extension
+from lasercal.solver.kinematics.gravity import gravity_torques
+from lasercal.solver.kinematics.model import RobotModel
+
+
+@dataclass(frozen=True)
+class SimulatedCaptures:
+    """Captures of a simulated session (the columns of captures.csv).
+
+    Attributes
+    ----------
+    point : (m,) array of str
+    t : (m,) array, s
+    q : (m, n) array, rad
+    hit : (m, 3) array, where the true beam really met the plane, mm
+    tau : (m, n) array or None, logged joint torques (gravity model plus sensor noise), Nm
+    """
+
+    point: np.ndarray
+    t: np.ndarray
+    q: np.ndarray
+    hit: np.ndarray
+    tau: np.ndarray | None = None
+
+
+def simulate_captures(
+    truth: RobotModel,
+    layout: Layout,
+    per_point: int,
+    aim_noise: float,
+    rng: np.random.Generator,
+    points=None,
+    effect: Extension | None = None,
+    tau_noise: float = 0.05,
+) -> SimulatedCaptures:
+    """Configurations of the true robot aimed at each reference point with aiming noise.
+
+    Parameters
+    ----------
+    truth : RobotModel, the robot's true geometry
+    layout : Layout
+    per_point : int, captures per point
+    aim_noise : float, std of the in-plane aiming error per axis, mm
+    rng : numpy Generator
+    points : list of point names (default: the layout's calibration points)
+    effect : Extension, a hidden non-geometric effect with its true parameters: the logged
+        angles are the true ones minus the effect's correction (solved by fixed-point
+        iteration), or the operator aims at the point's true position (point offset)
+    tau_noise : float, std of the logged joint torques about the gravity model, Nm
+
+    Returns
+    -------
+    SimulatedCaptures, in the order an operator takes them (point by point), t ~ 20 s apart
+    """
+    names = list(points or layout.calibration)
+    qs, hits = [], []
+    for name in names:
+        p = layout.points[name]
+        q = aim(truth, p, per_point, rng, **layout.aim_kwargs())
+        hit = p + np.c_[rng.normal(0, aim_noise, (per_point, 2)), np.zeros(per_point)]
+        if effect is not None and effect.point == name:
+            hit[:, :2] += effect.params[:2]
+        qs.append(polish(truth, q, hit) if aim_noise > 0 else q)
+        hits.append(hit)
+    q = np.concatenate(qs)
+    if not truth.within_limits(q).all():  # polishing moved a pose by far less than aim()'s limit margin
+        raise AimingError("a noisy aim left the joint limits; lower the aiming noise")
+    t = np.cumsum(rng.uniform(10.0, 30.0, len(q)))
+    tau_true = gravity_torques(truth, q) if truth.links else None
+    if effect is not None and effect.effect in JOINT_EFFECTS:
+        q = effect.logged_q(q, t, tau_true)
+    tau = None if tau_true is None else tau_true + rng.normal(0, tau_noise, tau_true.shape)
+    return SimulatedCaptures(
+        np.repeat(np.array(names, dtype=object), per_point), t, q, np.concatenate(hits), tau
+    )
+
+
+def validation_spots(
+    truth: RobotModel, model: RobotModel, point, n: int, rng: np.random.Generator, **aim_kw
+) -> np.ndarray:
+    """The thesis's validation (Section 4.3): ``model`` computes n configurations aiming at the
+    point; the true robot's beam lands at the returned spots (n, 3), mm."""
+    point = np.asarray(point, dtype=float)
+    q = aim(model, point, n, rng, **aim_kw)
+    return predict_spots(truth, q, point[2])[0]

@@ -1,0 +1,210 @@
+"""Before/after error statistics and cross-validation (thesis Section 4.3, Figures 4.5-4.6).
+
+For a set of laser spots meant to hit one reference point:
+
+* scatter radius -- distance of each spot from the spots' own mean (mean, std), Figure 4.5;
+* absolute error -- distance of each spot from the reference point (mean, max), Figure 4.6.
+
+For a session, the spots are where a model says each captured beam lands: with the
+nominal model they scatter as the thesis's "before" photos did, with the identified
+model as its "after" photos (to first order the same errors, seen from the other side).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.measurement import fit, residuals
+from lasercal.solver.identify.point import tips
+from lasercal.solver.identify.spot import Identification, predict_spots
+from lasercal.solver.kinematics.model import RobotModel
+
+
+@dataclass(frozen=True)
+class SpotStats:
+    """Statistics of k spots aimed at one point (mm)."""
+
+    n: int
+    scatter_mean: float
+    scatter_std: float
+    error_mean: float
+    error_max: float
+    error_rms: float
+
+    def as_dict(self) -> dict:
+        return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in asdict(self).items()}
+
+
+def spot_stats(spots: np.ndarray, point: np.ndarray) -> SpotStats:
+    """Scatter radius about the spots' mean and absolute error from the point (Figures 4.5-4.6).
+
+    Parameters
+    ----------
+    spots : (k, 2) or (k, 3) array, mm (only x, y are used)
+    point : (2,) or (3,) array, mm
+    """
+    xy = np.asarray(spots, dtype=float)[:, :2]
+    radius = np.linalg.norm(xy - xy.mean(axis=0), axis=1)
+    err = np.linalg.norm(xy - np.asarray(point, dtype=float)[:2], axis=1)
+    return SpotStats(
+        len(xy),
+        float(radius.mean()),
+        float(radius.std(ddof=1)) if len(xy) > 1 else 0.0,
+        float(err.mean()),
+        float(err.max()),
+        float(np.sqrt(np.mean(err**2))),
+    )
+
+
+def per_point(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:
+    """:func:`spot_stats` per reference point of the spots ``model`` predicts for the captures."""
+    mask = np.ones(session.m, bool) if mask is None else mask
+    spots, _ = predict_spots(model, session.q[mask], session.target[mask, 2])
+    names = session.point[mask]
+    return {nm: spot_stats(spots[names == nm], session.points[nm]) for nm in dict.fromkeys(names)}
+
+
+def folds(session: Session, k: int, seed: int = 0) -> np.ndarray:
+    """Fold index (m,) for K-fold cross-validation, stratified by point.
+
+    Captures sharing a ``group`` column value (repeated captures of one pose) stay in one
+    fold, so that no capture is predicted by a fit that saw it or its twin.
+    """
+    rng = np.random.default_rng(seed)
+    groups = session.extra.get("group", np.arange(session.m).astype(str))
+    out = np.empty(session.m, dtype=int)
+    for nm in dict.fromkeys(session.point):
+        sel = np.flatnonzero(session.point == nm)
+        uniq = list(dict.fromkeys(groups[sel]))
+        order = rng.permutation(len(uniq))
+        fold_of = {uniq[g]: i % k for i, g in enumerate(order)}
+        out[sel] = [fold_of[g] for g in groups[sel]]
+    return out
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """K-fold held-out prediction errors (mm): per capture and summarised.
+
+    ``inlier`` marks the captures the summary counts: a capture the robust fit of the whole
+    session flags as an outlier (a mis-aim) says nothing about the model's accuracy and would
+    dominate an RMS, so it is reported as an outlier, not averaged in.
+    """
+
+    k: int
+    errors: np.ndarray
+    fold: np.ndarray
+    nominal_errors: np.ndarray
+    inlier: np.ndarray | None = None
+
+    def as_dict(self) -> dict:
+        keep = np.ones(len(self.errors), bool) if self.inlier is None else self.inlier
+        e, e0 = self.errors[keep], self.nominal_errors[keep]
+        return {
+            "folds": self.k,
+            "captures_counted": int(keep.sum()),
+            "holdout_rms_mm": float(np.sqrt(np.mean(e**2))),
+            "holdout_mean_mm": float(e.mean()),
+            "holdout_max_mm": float(e.max()),
+            "nominal_rms_mm": float(np.sqrt(np.mean(e0**2))),
+        }
+
+
+def cross_validate(
+    session: Session, method: str = "lm", k: int = 5, seed: int = 0, inlier: np.ndarray | None = None
+) -> CrossValidation:
+    """Held-out error of each capture, predicted by a model fitted on the other folds.
+
+    Parameters
+    ----------
+    session : Session
+    method : str, identification method
+    k : int, number of folds
+    seed : int, fold assignment seed
+    inlier : (m,) bool array, the captures the summary counts (default: all)
+
+    Returns
+    -------
+    CrossValidation (in-plane spot errors, or tool-point errors against the training fit's points)
+    """
+    f = folds(session, k, seed)
+    err = np.empty(session.m)
+    for i in range(k):
+        test = f == i
+        train = fit(session.subset(~test), method=method)
+        r = residuals(train.model, train.extension, session.subset(test), train.extra.get("points"))
+        err[test] = np.linalg.norm(r, axis=1)
+    return CrossValidation(k, err, f, np.linalg.norm(residuals(session.robot, None, session), axis=1), inlier)
+
+
+def point_session_stats(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:
+    """Per point: spread of the model's tool points about their mean (RMS, mean; mm); per known
+    distance: |d - d0| between the mean tool points (mm). MUKCa's self-consistency metrics."""
+    mask = np.ones(session.m, bool) if mask is None else mask
+    p = tips(model, session.q[mask], model.tool_point if model.tool_point is not None else session.tool_point)
+    names = session.point[mask]
+    centre, out = {}, {"points": {}, "distances": {}}
+    for nm in dict.fromkeys(names):
+        x = p[names == nm]
+        centre[nm] = x.mean(axis=0)
+        r = np.linalg.norm(x - centre[nm], axis=1)
+        out["points"][nm] = {
+            "n": int(len(x)),
+            "spread_rms_mm": round(float(np.sqrt(np.mean(r**2))), 6),
+            "spread_mean_mm": round(float(r.mean()), 6),
+        }
+    for a, b, d0 in session.distances:
+        if a in centre and b in centre:
+            out["distances"][f"{a}-{b}"] = round(float(abs(np.linalg.norm(centre[a] - centre[b]) - d0)), 6)
+    return out
+
+
+def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
+    """The statistics ``lasercal solve`` prints, as a JSON-ready mapping."""
+    used = ident.weights > 0
+    idf = ident.identifiability
+    rep = {
+        "method": ident.method,
+        "converged": ident.converged,
+        "iterations": ident.iterations,
+        "seconds": round(ident.seconds, 4),
+        "captures": session.m,
+        "fit_rms_mm": round(ident.rms_mm, 6),
+        "sigma_mm": round(ident.sigma_mm, 6),
+        "outliers": [
+            {"index": i, "line": int(session.lines[i]), "point": str(session.point[i])}
+            for i in ident.outliers
+        ],
+        "identifiability": {
+            "parameters": idf.n_params,
+            "rank": idf.rank,
+            "condition": round(idf.condition, 3),
+            "unidentifiable": idf.unidentifiable,
+        },
+    }
+    if session.measurement == "point":
+        nominal = (
+            ident.nominal
+            if ident.nominal.tool_point is not None
+            else ident.nominal.replace(tool_point=session.tool_point)
+        )
+        rep["measurement"] = "point"
+        rep["before"] = point_session_stats(nominal, session)
+        rep["after"] = point_session_stats(ident.model, session, used)
+        rep["identified_points"] = {
+            k: [round(x, 4) for x in v] for k, v in ident.extra.get("points", {}).items()
+        }
+    else:
+        before, after = per_point(ident.nominal, session), per_point(ident.model, session, used)
+        rep["points"] = {
+            nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None}
+            for nm in before
+        }
+    if ident.std_errors:
+        rep["std_errors"] = {k: float(f"{v:.4g}") for k, v in ident.std_errors.items()}
+    if cv is not None:
+        rep["cross_validation"] = cv.as_dict()
+    return rep

@@ -1,0 +1,2 @@
+"""File formats: robot models, layouts, capture sessions, configurations, circle-point measurements and
+exports (URDF, DH). Every file states its units."""

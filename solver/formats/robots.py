@@ -1,0 +1,167 @@
+"""Robot model files: ``lasercal-robot/1`` YAML (mm, rad) parsed and validated into a RobotModel.
+
+Built-in robots live in the package's data (``lasercal.data``, found with importlib.resources),
+so an installed wheel finds them from any folder.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.data import resolve
+from lasercal.solver.kinematics.minimal import normalise_screw
+from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
+
+_TOL_UNIT = 1e-6  # a printed axis further than this from unit length is reported
+
+
+def _vec(d: dict, key: str, n: int, path, where: str) -> np.ndarray:
+    if key not in d:
+        raise FormatError(path, f"missing '{key}' in {where}", field=f"{where}.{key}")
+    try:
+        a = np.array(d[key], dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise FormatError(path, f"'{key}' in {where} must be {n} numbers", field=f"{where}.{key}") from None
+    if a.size != n or not np.all(np.isfinite(a)):
+        raise FormatError(
+            path, f"'{key}' in {where} must be {n} finite numbers, got {d[key]!r}", field=f"{where}.{key}"
+        )
+    return a
+
+
+def _checked_screw(w, v, path, where: str, notes: list) -> np.ndarray:
+    S, norm_err, pitch = normalise_screw(np.concatenate([w, v]))
+    if norm_err > _TOL_UNIT or abs(pitch) > 1e-6:
+        notes.append(
+            f"{where}: printed axis has |axis| off unit by {norm_err:.3g} and pitch {pitch:.3g} mm; "
+            "normalised on load"
+        )
+    return S
+
+
+def model_from_dict(d: dict, path="<model>") -> RobotModel:
+    """Build and validate a :class:`RobotModel` from a parsed YAML mapping."""
+    if not isinstance(d, dict):
+        raise FormatError(path, "a robot model must be a YAML mapping")
+    fmt = d.get("format", FORMAT)
+    if fmt != FORMAT:
+        raise FormatError(path, f"unsupported format {fmt!r} (expected {FORMAT})", field="format")
+    units = d.get("units", {}) or {}
+    if units.get("length", "mm") != "mm" or units.get("angle", "rad") != "rad":
+        raise FormatError(path, "only length: mm and angle: rad are supported", field="units")
+    joints = d.get("joints")
+    if not isinstance(joints, list) or not joints:
+        raise FormatError(path, "'joints' must be a non-empty list", field="joints")
+    notes: list[str] = list(d.get("notes", []) or [])
+    names, screws, limits = [], [], []
+    for i, j in enumerate(joints):
+        where = f"joints[{i}]"
+        if not isinstance(j, dict):
+            raise FormatError(path, "each joint must be a mapping", field=where)
+        w = _vec(j, "omega", 3, path, where)
+        if np.linalg.norm(w) < 0.5:
+            raise FormatError(
+                path,
+                "joint axis omega must be (close to) a unit vector; only revolute arm joints are supported",
+                field=f"{where}.omega",
+            )
+        screws.append(
+            _checked_screw(w, _vec(j, "v", 3, path, where), path, f"{where} ({j.get('name', i + 1)})", notes)
+        )
+        lim = _vec(j, "limits", 2, path, where)
+        if not lim[0] < lim[1]:
+            raise FormatError(
+                path, "limits must be [lower, upper] with lower < upper", field=f"{where}.limits"
+            )
+        limits.append(lim)
+        names.append(str(j.get("name", f"joint{i + 1}")))
+    n = len(screws)
+    laser = d.get("laser")
+    if not isinstance(laser, dict):
+        raise FormatError(path, "missing 'laser' mapping (omega, v, M)", field="laser")
+    lw = np.array(laser.get("omega", [0, 0, 0]), dtype=float)
+    if np.linalg.norm(lw) > 0:
+        raise FormatError(
+            path, "the laser is a prismatic joint: its omega must be [0, 0, 0]", field="laser.omega"
+        )
+    lv = _vec(laser, "v", 3, path, "laser")
+    if np.linalg.norm(lv) < 0.5:
+        raise FormatError(path, "laser direction v must be (close to) a unit vector", field="laser.v")
+    laser_S = _checked_screw(np.zeros(3), lv, path, "laser", notes)
+    aperture = _vec(laser, "M", 3, path, "laser")
+    plane = d.get("plane")
+    plane_z = float(plane["z"]) if isinstance(plane, dict) and "z" in plane else None
+    home = _vec(d, "home", n, path, "model") if d.get("home") is not None else None
+    tool = d.get("tool")
+    tool_point = (
+        _vec(tool, "point", 3, path, "tool")
+        if isinstance(tool, dict) and tool.get("point") is not None
+        else None
+    )
+    ee = d.get("ee")
+    ee_pose = None
+    if isinstance(ee, dict) and ee.get("M") is not None:
+        ee_pose = _vec(ee, "M", 16, path, "ee").reshape(4, 4)
+        R = ee_pose[:3, :3]
+        if (
+            np.abs(R.T @ R - np.eye(3)).max() > 1e-6
+            or np.linalg.det(R) < 0
+            or np.abs(ee_pose[3] - [0, 0, 0, 1]).max() > 0
+        ):
+            raise FormatError(
+                path, "ee.M must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field="ee.M"
+            )
+    links = tuple(
+        Link(float(lk["mass"]), _frozen(_vec(lk, "com", 3, path, f"links[{i}]")))
+        for i, lk in enumerate(d.get("links", []) or [])
+    )
+    if links and len(links) != n:
+        raise FormatError(path, f"'links' must have one entry per joint ({n})", field="links")
+    return RobotModel(
+        name=str(d.get("name", Path(str(path)).stem)),
+        joint_names=tuple(names),
+        screws=_frozen(screws),
+        limits=_frozen(limits),
+        laser_dir=_frozen(laser_S[3:]),
+        aperture=_frozen(aperture),
+        plane_z=plane_z,
+        home=None if home is None else _frozen(home),
+        tool_point=None if tool_point is None else _frozen(tool_point),
+        ee_pose=None if ee_pose is None else _frozen(ee_pose),
+        links=links,
+        extensions=dict(d.get("extensions", {}) or {}),
+        identification=dict(d.get("identification", {}) or {}),
+        notes=tuple(notes),
+    )
+
+
+def resolve_robot_path(name_or_path, base: Path | None = None) -> Path:
+    """A robot file from a built-in name ('panda') or a path (relative to ``base`` first)."""
+    return resolve("robots", name_or_path, base)
+
+
+def load_yaml(path) -> Any:
+    """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        raise FormatError(
+            path, f"invalid YAML: {getattr(e, 'problem', e)}", line=None if mark is None else mark.line + 1
+        ) from None
+
+
+def load_model(name_or_path, base: Path | None = None) -> RobotModel:
+    """Load and validate a robot model by name ('panda', 'puma560', ...) or path."""
+    path = resolve_robot_path(name_or_path, base)
+    return model_from_dict(load_yaml(path), path)

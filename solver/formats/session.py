@@ -1,0 +1,456 @@
+"""Session, layout and configuration files: read, validate, write (formats in README).
+
+* Layout ``lasercal-layout/1`` (YAML): ``plane: {z}``, ``points: {NAME: [x, y, z]}`` (mm, base
+  frame), optional ``calibration``/``validation`` name lists, ``aiming`` hints and ``markers``
+  (read by ``vision``).
+* Session: a folder with ``session.yaml`` (``format: lasercal-session/1``) and ``captures.csv``
+  (``point,t,q1..qN[,dq1..dqN][,tau1..tauN][,extra...]``; mm, rad, Nm, s).
+* Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through.
+
+Every malformed input raises :class:`~solver.errors.FormatError` naming file, line and column.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.data import resolve
+from lasercal.solver.formats.robots import load_model, load_yaml
+from lasercal.solver.kinematics.model import RobotModel
+
+SESSION_FORMAT = "lasercal-session/1"
+LAYOUT_FORMAT = "lasercal-layout/1"
+UNITS = {"length": "mm", "angle": "rad", "torque": "Nm", "time": "s"}
+_LIMIT_TOL = 1e-6  # rad: logged angles are allowed to sit on a limit up to rounding
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Reference points on the table.
+
+    Attributes
+    ----------
+    path : str
+    plane_z : float, mm
+    points : dict name -> (3,) array, mm, base frame
+    calibration, validation : tuple of point names
+    aiming : dict, hints for the aiming IK (``tilt_deg``, ``length``)
+    raw : dict, the whole mapping (other packages read their own sections, e.g. ``markers``)
+    """
+
+    path: str
+    plane_z: float
+    points: dict
+    calibration: tuple
+    validation: tuple
+    aiming: dict = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)
+
+    def aim_kwargs(self) -> dict:
+        """Keyword arguments for :func:`solver.aim.aim` from the ``aiming`` hints."""
+        kw = {}
+        if "tilt_deg" in self.aiming:
+            kw["tilt"] = tuple(math.radians(float(a)) for a in self.aiming["tilt_deg"])
+        if "length" in self.aiming:
+            kw["length"] = tuple(float(a) for a in self.aiming["length"])
+        return kw
+
+
+def _points(d, path, key="points", allow_unknown: bool = False) -> dict:
+    pts = d.get(key)
+    if not isinstance(pts, dict) or not pts:
+        raise FormatError(path, f"'{key}' must be a mapping NAME: [x, y, z] (mm)", field=key)
+    out = {}
+    for name, xyz in pts.items():
+        if xyz is None and allow_unknown:  # point measurements: identified with the robot
+            out[str(name)] = None
+            continue
+        try:
+            a = np.array(xyz, dtype=float).ravel()
+        except (TypeError, ValueError):
+            a = np.array([])
+        if a.size != 3 or not np.all(np.isfinite(a)):
+            raise FormatError(
+                path, f"point {name!r} must be [x, y, z] in mm, got {xyz!r}", field=f"{key}.{name}"
+            )
+        out[str(name)] = a
+    return out
+
+
+def _plane_z(d, path) -> float:
+    plane = d.get("plane")
+    try:
+        return float(plane["z"])
+    except (TypeError, KeyError, ValueError):
+        raise FormatError(path, "'plane' must be a mapping {z: <mm>}", field="plane") from None
+
+
+def _names(d, key, points, path) -> tuple:
+    names = d.get(key)
+    if names is None:
+        return ()
+    if not isinstance(names, list):
+        raise FormatError(path, f"'{key}' must be a list of point names", field=key)
+    for nm in names:
+        if str(nm) not in points:
+            raise FormatError(path, f"'{key}' names unknown point {nm!r}", field=key)
+    return tuple(str(n) for n in names)
+
+
+def load_layout(path) -> Layout:
+    """Load and validate a layout YAML, given by path or built-in name ('thesis', 'puma')."""
+    path = resolve("layouts", path)
+    d = load_yaml(path)
+    if not isinstance(d, dict):
+        raise FormatError(path, "a layout must be a YAML mapping")
+    if d.get("format", LAYOUT_FORMAT) != LAYOUT_FORMAT:
+        raise FormatError(
+            path, f"unsupported format {d.get('format')!r} (expected {LAYOUT_FORMAT})", field="format"
+        )
+    points = _points(d, path)
+    calib = _names(d, "calibration", points, path)
+    valid = _names(d, "validation", points, path)
+    if not calib:
+        calib = tuple(p for p in points if p not in valid)
+    return Layout(str(path), _plane_z(d, path), points, calib, valid, dict(d.get("aiming", {}) or {}), d)
+
+
+@dataclass(frozen=True, eq=False)
+class Session:
+    """A capture session: where the operator aimed, and the logged joint states.
+
+    Attributes
+    ----------
+    path : Path, the session folder
+    meta : dict, the parsed session.yaml
+    robot : RobotModel, the nominal model the session names
+    plane_z : float, mm
+    aperture_z : float or None, measured p_Mz, mm
+    points : dict name -> (3,) array, mm
+    point : (m,) array of str, the point each capture aimed at
+    target : (m, 3) array, that point's coordinates, mm
+    t : (m,) array, s since the session started
+    q : (m, n) array, rad
+    dq : (m, n) array or None, rad/s
+    tau : (m, n) array or None, Nm
+    extra : dict column -> (m,) array of str, kept and ignored
+    lines : (m,) array of int, the CSV line of each capture
+    measurement : str, 'laser' (spot on a plane) or 'point' (a tool point held at a point)
+    tool_point : (3,) array or None, nominal tool point at q = 0 (point measurements), mm
+    distances : tuple of (A, B, mm), known distances between points (point measurements)
+    """
+
+    path: Path
+    meta: dict
+    robot: RobotModel
+    plane_z: float
+    aperture_z: float | None
+    points: dict
+    point: np.ndarray
+    target: np.ndarray
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray | None
+    tau: np.ndarray | None
+    extra: dict
+    lines: np.ndarray
+    measurement: str = "laser"
+    tool_point: np.ndarray | None = None
+    distances: tuple = ()
+
+    @property
+    def m(self) -> int:
+        """Number of captures."""
+        return len(self.point)
+
+    def subset(self, idx) -> Session:
+        """The same session restricted to captures idx (bool mask or indices)."""
+        pick = lambda a: None if a is None else a[idx]  # noqa: E731
+        seen = set(self.point[idx])
+        # an unknown point with no capture left cannot be identified: drop it and its distances
+        points = {k: v for k, v in self.points.items() if v is not None or k in seen}
+        distances = tuple(d for d in self.distances if d[0] in points and d[1] in points)
+        return Session(
+            self.path,
+            self.meta,
+            self.robot,
+            self.plane_z,
+            self.aperture_z,
+            points,
+            self.point[idx],
+            self.target[idx],
+            self.t[idx],
+            self.q[idx],
+            pick(self.dq),
+            pick(self.tau),
+            {k: v[idx] for k, v in self.extra.items()},
+            self.lines[idx],
+            self.measurement,
+            self.tool_point,
+            distances,
+        )
+
+
+def _joint_columns(prefix: str, n: int) -> list[str]:
+    return [f"{prefix}{i}" for i in range(1, n + 1)]
+
+
+def captures_header(n: int, dq: bool = False, tau: bool = False, extra=()) -> list[str]:
+    """The captures.csv header for an n-joint robot."""
+    return (
+        ["point", "t"]
+        + _joint_columns("q", n)
+        + (_joint_columns("dq", n) if dq else [])
+        + (_joint_columns("tau", n) if tau else [])
+        + list(extra)
+    )
+
+
+def _read_csv(path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    try:
+        text = Path(path).read_bytes().decode("utf-8")
+    except OSError as e:
+        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise FormatError(path, "not a text CSV file") from None
+    reader = csv.reader(io.StringIO(text))
+    rows = [(reader.line_num, r) for r in reader]
+    rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise FormatError(path, "empty file: expected a header line")
+    header = [h.strip() for h in rows[0][1]]
+    return header, rows[1:]
+
+
+def _numeric_block(path, rows, header, cols, required=True) -> np.ndarray | None:
+    """Columns ``cols`` of the rows as floats, with errors naming line and column."""
+    missing = [c for c in cols if c not in header]
+    if missing:
+        if required or len(missing) < len(cols):
+            raise FormatError(
+                path, f"missing column(s) {', '.join(missing)} in the header", line=1, field=missing[0]
+            )
+        return None
+    idx = [header.index(c) for c in cols]
+    out = np.empty((len(rows), len(cols)))
+    for r, (ln, row) in enumerate(rows):
+        if len(row) != len(header):
+            raise FormatError(path, f"expected {len(header)} values, found {len(row)}", line=ln)
+        for k, (c, j) in enumerate(zip(cols, idx)):
+            try:
+                v = float(row[j])
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v):
+                what = "missing value" if not row[j].strip() else f"not a finite number: {row[j]!r}"
+                raise FormatError(path, what, line=ln, field=c)
+            out[r, k] = v
+    return out
+
+
+def check_limits(path, robot: RobotModel, q: np.ndarray, lines) -> None:
+    """Raise FormatError at the first logged angle outside the robot's joint limits."""
+    bad = (q < robot.limits[:, 0] - _LIMIT_TOL) | (q > robot.limits[:, 1] + _LIMIT_TOL)
+    if bad.any():
+        r, j = np.argwhere(bad)[0]
+        lo, hi = robot.limits[j]
+        raise FormatError(
+            path,
+            f"joint {j + 1} = {q[r, j]:.6g} rad is outside its limits [{lo:.4f}, {hi:.4f}]",
+            line=int(lines[r]),
+            field=f"q{j + 1}",
+        )
+
+
+def load_session(folder) -> Session:
+    """Load and validate a session folder (session.yaml + captures.csv)."""
+    folder = Path(folder)
+    ypath, cpath = folder / "session.yaml", folder / "captures.csv"
+    if not folder.is_dir():
+        raise FormatError(
+            folder, "not a session folder (expected a folder with session.yaml and captures.csv)"
+        )
+    meta = load_yaml(ypath)
+    if not isinstance(meta, dict):
+        raise FormatError(ypath, "session.yaml must be a YAML mapping")
+    if meta.get("format") != SESSION_FORMAT:
+        raise FormatError(
+            ypath, f"expected 'format: {SESSION_FORMAT}', got {meta.get('format')!r}", field="format"
+        )
+    units = meta.get("units") or {}
+    for k, v in UNITS.items():
+        if units.get(k, v) != v:
+            raise FormatError(ypath, f"units.{k} must be {v!r}", field=f"units.{k}")
+    if "robot" not in meta:
+        raise FormatError(ypath, "missing 'robot' (a name under data/robots/ or a path)", field="robot")
+    robot = load_model(meta["robot"], base=folder)
+    measurement = meta.get("measurement", "laser")
+    if measurement not in ("laser", "point"):
+        raise FormatError(
+            ypath, f"measurement must be 'laser' or 'point', got {measurement!r}", field="measurement"
+        )
+    points = _points(meta, ypath, allow_unknown=measurement == "point")
+    tool_point, distances = None, ()
+    if measurement == "point":
+        tool = meta.get("tool")
+        if not isinstance(tool, dict):
+            raise FormatError(
+                ypath, "a point session needs 'tool: {point: [x, y, z]}' (mm, at q = 0)", field="tool"
+            )
+        tool_point = np.array(_points({"tool": {"point": tool.get("point")}}, ypath, "tool")["point"])
+        distances = _distances(meta, points, ypath)
+    plane_z = (
+        _plane_z(meta, ypath) if measurement == "laser" or meta.get("plane") is not None else float("nan")
+    )
+    laser = meta.get("laser") or {}
+    aperture_z = None
+    if laser.get("aperture_z") is not None:
+        try:
+            aperture_z = float(laser["aperture_z"])
+        except (TypeError, ValueError):
+            raise FormatError(
+                ypath, "laser.aperture_z must be a number (mm)", field="laser.aperture_z"
+            ) from None
+    header, rows = _read_csv(cpath)
+    n = robot.n
+    if header[:2] != ["point", "t"]:
+        raise FormatError(
+            cpath,
+            f"header must start with 'point,t,q1..q{n}', got {','.join(header[:3])}...",
+            line=1,
+            field=header[0],
+        )
+    qcols = _joint_columns("q", n)
+    q = _numeric_block(cpath, rows, header, qcols)
+    t = _numeric_block(cpath, rows, header, ["t"])[:, 0]
+    dq = _numeric_block(cpath, rows, header, _joint_columns("dq", n), required=False)
+    tau = _numeric_block(cpath, rows, header, _joint_columns("tau", n), required=False)
+    names = []
+    for ln, row in rows:
+        nm = row[0].strip()
+        if nm not in points:
+            raise FormatError(
+                cpath,
+                f"unknown point {nm!r} (session.yaml defines {', '.join(points)})",
+                line=ln,
+                field="point",
+            )
+        names.append(nm)
+    lines = np.array([ln for ln, _ in rows], dtype=int)
+    check_limits(cpath, robot, q, lines)
+    known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
+    extra = {
+        h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
+    }
+    names = np.array(names, dtype=object)
+    target = np.array([np.full(3, np.nan) if points[nm] is None else points[nm] for nm in names]).reshape(
+        -1, 3
+    )
+    return Session(
+        folder,
+        meta,
+        robot,
+        plane_z,
+        aperture_z,
+        points,
+        names,
+        target,
+        t,
+        q,
+        dq,
+        tau,
+        extra,
+        lines,
+        measurement,
+        tool_point,
+        distances,
+    )
+
+
+def _distances(meta: dict, points: dict, path) -> tuple:
+    """``constraints: {distances: [[A, B, mm], ...]}``, validated."""
+    cons = meta.get("constraints") or {}
+    out = []
+    for i, row in enumerate(cons.get("distances", []) or []):
+        field = f"constraints.distances[{i}]"
+        if not isinstance(row, (list, tuple)) or len(row) != 3:
+            raise FormatError(path, "each distance is [A, B, mm]", field=field)
+        a, b, dist = row
+        if str(a) not in points or str(b) not in points:
+            raise FormatError(path, f"distance names unknown point(s) {a!r}, {b!r}", field=field)
+        try:
+            dist = float(dist)
+        except (TypeError, ValueError):
+            raise FormatError(path, f"distance must be a number (mm), got {dist!r}", field=field) from None
+        out.append((str(a), str(b), dist))
+    return tuple(out)
+
+
+def session_meta(robot_ref: str, layout: Layout, aperture_z: float | None, **extra) -> dict:
+    """The session.yaml mapping for a new session: the layout is copied in (a self-contained folder)."""
+    meta = {
+        "format": SESSION_FORMAT,
+        "robot": str(robot_ref),
+        "units": dict(UNITS),
+        "plane": {"z": float(layout.plane_z)},
+        "laser": {"aperture_z": None if aperture_z is None else float(aperture_z)},
+        "points": {k: [float(x) for x in v] for k, v in layout.points.items()},
+        "requested": list(layout.calibration),
+        "validation": list(layout.validation),
+    }
+    meta.update(extra)
+    return meta
+
+
+def format_row(values) -> list[str]:
+    """CSV cells with full float precision (repr round-trips exactly)."""
+    return [v if isinstance(v, str) else repr(float(v)) for v in values]
+
+
+def write_session(folder, meta: dict, point, t, q, dq=None, tau=None, extra: dict | None = None) -> Path:
+    """Write a complete session folder (simulations and imports; the collector appends instead)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "session.yaml").write_text(yaml.safe_dump(meta, sort_keys=False, width=120))
+    q = np.atleast_2d(q)
+    extra = extra or {}
+    header = captures_header(q.shape[1], dq is not None, tau is not None, extra)
+    with open(folder / "captures.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for i in range(len(point)):
+            vals = (
+                [point[i], t[i], *q[i]]
+                + ([] if dq is None else list(dq[i]))
+                + ([] if tau is None else list(tau[i]))
+            )
+            w.writerow(format_row(vals) + [str(extra[k][i]) for k in extra])
+    return folder
+
+
+@dataclass(frozen=True)
+class Configs:
+    """A configurations CSV: q (m, n) rad, optional t (m,) s and tau (m, n) Nm, and all columns as text."""
+
+    header: list
+    rows: list
+    q: np.ndarray
+    t: np.ndarray | None
+    tau: np.ndarray | None
+
+
+def load_configs(path, robot: RobotModel) -> Configs:
+    """Load a configurations CSV (columns q1..qN, optional t and tau1..tauN; others passed through)."""
+    header, rows = _read_csv(path)
+    q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
+    t = _numeric_block(path, rows, header, ["t"], required=False)
+    tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)
+    return Configs(header, [r for _, r in rows], q, None if t is None else t[:, 0], tau)

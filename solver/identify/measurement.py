@@ -1,0 +1,52 @@
+"""The two measurement types behind one interface: laser spots on a plane, tool points at points.
+
+``session.measurement`` selects the model: 'laser' (the beam meets the plane; residuals in the
+plane, (m, 2) mm) or 'point' (a tool point held at fixed points; residuals (m, 3) mm).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.point import identify_point, session_targets, tips
+from lasercal.solver.identify.spot import Identification, identify, spot_residuals
+from lasercal.solver.kinematics.effects import Extension
+from lasercal.solver.kinematics.model import RobotModel
+
+
+def fit(
+    session: Session,
+    extension: Extension | None = None,
+    nominal: RobotModel | None = None,
+    robust: bool = True,
+    method: str = "lm",
+) -> Identification:
+    """Identify the session's model ('lm' for both measurement types; 'thesis' for laser sessions)."""
+    if session.measurement == "point":
+        return identify_point(session, nominal, robust, extension)
+    if method == "thesis":
+        return identify(session, "thesis", nominal)
+    return identify(session, "lm", nominal, robust=robust, extension=extension)
+
+
+def residuals(
+    model: RobotModel, ext: Extension | None, session: Session, points: dict | None = None
+) -> np.ndarray:
+    """Residuals (m, d) of a model (and its extension) on captures: spot or tip minus target, mm.
+
+    For point sessions, unknown points come from ``points`` (e.g. a training fit's), or else are
+    taken as the mean of this model's own tips per point (a self-consistency residual).
+    """
+    q = ext.true_q(session.q, session.t, session.tau) if ext else session.q
+    if session.measurement == "point":
+        p = tips(model, q, model.tool_point if model.tool_point is not None else session.tool_point)
+        known = dict(points or {})
+        for nm in dict.fromkeys(session.point):
+            if session.points[nm] is None and nm not in known:
+                known[nm] = p[session.point == nm].mean(axis=0)
+        return p - session_targets(session, known)
+    target = session.target.copy()
+    if ext is not None:
+        target[:, :2] += ext.target_offset(session.point)
+    return spot_residuals(model, q, target)

@@ -1,0 +1,204 @@
+"""Catalogue of non-geometric effects: small extensions of the geometric model.
+
+Each effect adds a few parameters and is linear in them:
+
+* ``joint_compliance``      q_true_i = q_logged_i + c_i tau_i             (c: rad/Nm)
+* ``encoder_eccentricity``  q_true_i = q_logged_i + a_i sin q_i + b_i cos q_i   (a, b: rad)
+* ``drift``                 q_true_i = q_logged_i + r_i t                 (r: rad/s)
+* ``reference_point_offset`` the true point is the session's point + (dx, dy)    (mm)
+
+Sign convention: tau is the torque that holds the arm still against gravity, tau = dV/dq
+(:mod:`solver.gravity`, libfranka's ``tau_J`` at standstill). A joint that yields under load
+turns down the gradient, so a physical sag has c < 0 and the joint's stiffness is k = -1/c.
+
+A joint effect is written as q_true = q_logged + sum_k p_k g_k e_{j_k}: parameter k acts
+on joint j_k through the regressor g_k(q, t, tau) (m,). The spot's derivative with respect
+to p_k is then the spot's joint Jacobian column j_k times g_k.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lasercal.solver.errors import FormatError, ModelError
+
+JOINT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "drift")
+EFFECTS = JOINT_EFFECTS + ("reference_point_offset", "none")
+UNITS = {
+    "joint_compliance": "rad/Nm",
+    "encoder_eccentricity": "rad",
+    "drift": "rad/s",
+    "reference_point_offset": "mm",
+}
+_PARAMS = {
+    "joint_compliance": ("c",),
+    "encoder_eccentricity": ("a", "b"),
+    "drift": ("r",),
+    "reference_point_offset": ("dx", "dy"),
+}
+
+
+@dataclass(frozen=True)
+class Extension:
+    """One effect applied to some joints (1-based) or to one reference point, with its parameters.
+
+    ``params`` is ordered joint by joint, then by the effect's parameter names
+    (e.g. a_2, b_2, a_4, b_4 for eccentricity on joints 2 and 4), or (dx, dy) for a point.
+    """
+
+    effect: str
+    joints: tuple = ()
+    point: str | None = None
+    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    std_errors: np.ndarray | None = None
+
+    @property
+    def size(self) -> int:
+        """Number of parameters."""
+        per = len(_PARAMS[self.effect])
+        return per * (len(self.joints) if self.effect in JOINT_EFFECTS else 1)
+
+    @property
+    def names(self) -> list[str]:
+        """Parameter names, e.g. 'c2' or 'dx'."""
+        if self.effect == "reference_point_offset":
+            return [f"{self.point}.dx", f"{self.point}.dy"]
+        return [f"{p}{j}" for j in self.joints for p in _PARAMS[self.effect]]
+
+    def with_params(self, params, std_errors=None) -> Extension:
+        return Extension(
+            self.effect,
+            self.joints,
+            self.point,
+            np.asarray(params, float),
+            None if std_errors is None else np.asarray(std_errors, float),
+        )
+
+    def needs(self) -> set:
+        """Which logged signals the effect needs: 'tau', 't' or nothing."""
+        return {"joint_compliance": {"tau"}, "drift": {"t"}}.get(self.effect, set())
+
+    # ------------------------------------------------------------ joint effects
+    def regressors(
+        self, q: np.ndarray, t: np.ndarray | None, tau: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Joint index (k,) (0-based) and regressor values (m, k) of each parameter.
+
+        Parameters
+        ----------
+        q : (m, n) array, logged joint angles, rad
+        t : (m,) array, s (drift)
+        tau : (m, n) array, Nm (compliance)
+        """
+        cols, joints = [], []
+        for j in self.joints:
+            i = j - 1
+            if self.effect == "joint_compliance":
+                cols.append(tau[:, i])
+            elif self.effect == "encoder_eccentricity":
+                cols += [np.sin(q[:, i]), np.cos(q[:, i])]
+            elif self.effect == "drift":
+                cols.append(t)
+            joints += [i] * len(_PARAMS[self.effect])
+        return np.array(joints, dtype=int), np.stack(cols, axis=1) if cols else np.zeros((len(q), 0))
+
+    def true_q(self, q: np.ndarray, t: np.ndarray | None = None, tau: np.ndarray | None = None) -> np.ndarray:
+        """q_true (m, n) from the logged q (unchanged for a point offset)."""
+        if self.effect not in JOINT_EFFECTS or not self.joints:
+            return q
+        idx, G = self.regressors(q, t, tau)
+        dq = np.zeros_like(q)
+        np.add.at(dq.T, idx, (G * self.params).T)
+        return q + dq
+
+    def logged_q(
+        self,
+        q_true: np.ndarray,
+        t: np.ndarray | None = None,
+        tau: np.ndarray | None = None,
+        iterations: int = 6,
+    ) -> np.ndarray:
+        """The logged angles (m, n) whose corrected angles are ``q_true``: the inverse of :meth:`true_q`.
+
+        Fixed-point iteration q = q_true - dq(q); it converges fast because dq is milliradians.
+        """
+        q = np.array(q_true, dtype=float)
+        for _ in range(iterations):
+            q = q_true - (self.true_q(q, t, tau) - q)
+        return q
+
+    def target_offset(self, point_names: np.ndarray) -> np.ndarray:
+        """(m, 2) mm added to the session's targets (only a reference_point_offset moves them)."""
+        off = np.zeros((len(point_names), 2))
+        if self.effect == "reference_point_offset":
+            off[point_names == self.point] = self.params[:2]
+        return off
+
+    # ------------------------------------------------------------ model file
+    def to_dict(self) -> dict:
+        d = {"units": UNITS[self.effect]}
+        if self.effect == "reference_point_offset":
+            d["point"] = self.point
+        else:
+            d["joints"] = [int(j) for j in self.joints]
+        for k, name in enumerate(_PARAMS[self.effect]):
+            vals = self.params[k :: len(_PARAMS[self.effect])]
+            d[name] = [float(v) for v in vals]
+            if self.std_errors is not None:
+                d[f"{name}_std_error"] = [float(v) for v in self.std_errors[k :: len(_PARAMS[self.effect])]]
+        return d
+
+
+def extension_from_model(extensions: dict, path="<model>", n: int | None = None) -> Extension | None:
+    """The (single) joint effect a model file carries in ``extensions``, validated; None if none."""
+    joint = [e for e in (extensions or {}) if e in JOINT_EFFECTS]
+    unknown = [e for e in (extensions or {}) if e not in EFFECTS]
+    if unknown:
+        raise FormatError(
+            path,
+            f"unknown extension {unknown[0]!r} (known: {', '.join(EFFECTS[:-1])})",
+            field=f"extensions.{unknown[0]}",
+        )
+    if not joint:
+        return None
+    if len(joint) > 1:
+        raise FormatError(path, "only one joint effect per model is supported", field="extensions")
+    name = joint[0]
+    d = extensions[name]
+    try:
+        joints = tuple(int(j) for j in d["joints"])
+        cols = [np.array(d[p], dtype=float) for p in _PARAMS[name]]
+    except (KeyError, TypeError, ValueError):
+        raise FormatError(
+            path,
+            f"extension {name} needs 'joints' and {', '.join(_PARAMS[name])} lists",
+            field=f"extensions.{name}",
+        ) from None
+    if any(len(c) != len(joints) for c in cols) or (n is not None and any(not 1 <= j <= n for j in joints)):
+        raise FormatError(
+            path, f"extension {name}: one value per joint, joints numbered 1..{n}", field=f"extensions.{name}"
+        )
+    return Extension(name, joints, None, np.stack(cols, axis=1).ravel())
+
+
+def candidates(n: int, points, has_tau: bool, has_t: bool) -> list[Extension]:
+    """Every single-joint (or single-point) extension the data can test."""
+    out = []
+    for effect in JOINT_EFFECTS:
+        if (effect == "joint_compliance" and not has_tau) or (effect == "drift" and not has_t):
+            continue
+        out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect]))) for j in range(1, n + 1)]
+    out += [Extension("reference_point_offset", (), p, np.zeros(2)) for p in points]
+    return out
+
+
+def require(ext: Extension, t, tau) -> None:
+    """Raise when the data lack what the effect needs."""
+    if "tau" in ext.needs() and tau is None:
+        raise ModelError(
+            "joint_compliance needs joint torques (tau1..tauN columns, or a robot gravity model)"
+        )
+    if "t" in ext.needs() and t is None:
+        raise ModelError("drift needs the capture time t")

@@ -1,0 +1,57 @@
+"""Static joint torques from the robot's gravity model (link masses and centres of mass).
+
+At standstill the measured link-side joint torque (libfranka's ``tau_J``) is the gradient
+of the potential energy, tau_j = dV/dq_j = sum_{i>=j} m_i g (dc_i/dq_j)_z, where
+dc_i/dq_j = omega_j x c_i + v_j with (omega_j, v_j) = Ad(e^[S1]q1...e^[S(j-1)]q(j-1)) S_j,
+the joint's current screw (space Jacobian column), and c_i the centre of mass of link i,
+carried by the POE prefix product up to joint i.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lasercal.solver.errors import ModelError
+from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.poe import poe_chain, space_jacobian
+
+G = 9.81  # m/s^2; positions are in mm, so torques are divided by 1000 to give Nm
+
+
+def gravity_torques(
+    model: RobotModel, q: np.ndarray, payload: tuple[float, np.ndarray] | None = None
+) -> np.ndarray:
+    """Joint torques holding the arm still against gravity, (m, n) Nm.
+
+    Parameters
+    ----------
+    model : RobotModel with ``links`` (mass kg, centre of mass at q = 0 in mm)
+    q : (m, n) array, rad
+    payload : (mass kg, (3,) centre of mass at q = 0 in mm) carried by the last link, optional
+
+    Returns
+    -------
+    (m, n) array, Nm
+    """
+    if not model.links:
+        raise ModelError(
+            f"robot model {model.name!r} has no gravity model ('links' with masses and centres of mass)"
+        )
+    q = np.atleast_2d(q)
+    mass = np.array([lk.mass for lk in model.links])
+    com = np.array([lk.com for lk in model.links])
+    if payload is not None:
+        mass = np.r_[mass, payload[0]]
+        com = np.vstack([com, payload[1]])
+    owner = np.minimum(np.arange(len(mass)), model.n - 1)  # the payload rides on the last link
+    chain = poe_chain(model.screws, q)  # (m, n+1, 4, 4)
+    T = chain[:, owner + 1]  # each body's transform (m, b, 4, 4)
+    c = np.einsum("mbij,bj->mbi", T[..., :3, :3], com) + T[..., :3, 3]  # (m, b, 3) mm
+    J = space_jacobian(model.screws, chain)  # (m, 6, n)
+    w, v = J[:, :3], J[:, 3:]
+    # (omega_j x c_i + v_j)_z = omega_jx c_iy - omega_jy c_ix + v_jz
+    dz = (
+        w[:, None, 0, :] * c[:, :, 1, None] - w[:, None, 1, :] * c[:, :, 0, None] + v[:, None, 2, :]
+    )  # (m, b, n)
+    below = owner[:, None] >= np.arange(model.n)[None, :]  # link i moves with joint j only if i >= j
+    return G / 1000.0 * np.einsum("b,mbn->mn", mass, dz * below)

@@ -1,0 +1,139 @@
+"""Robot model: joint screws, limits, the laser (or tool point), loaded from YAML and validated.
+
+File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
+
+.. code-block:: yaml
+
+    format: lasercal-robot/1
+    name: panda
+    units: {length: mm, angle: rad}
+    joints:
+      - {name: joint1, omega: [0, 0, 1], v: [0, 0, 0], limits: [-2.8973, 2.8973]}
+    laser: {omega: [0, 0, 0], v: [0, 0, -1], M: [88, 0, 825]}   # M: aperture at q = 0
+    plane: {z: -8}
+    home: [...]            # optional: a configuration the aiming IK starts from
+    tool: {point: [...]}   # optional: a tool point at q = 0, for point measurements
+    ee: {M: [[...], ...]}  # optional: full end-effector frame at q = 0 (4x4, mm), full-pose models
+    links: [...]           # optional: masses (kg) and centres of mass at q = 0 (mm)
+    extensions: {}         # optional: non-geometric parameters (see solver.effects)
+    identification: {}     # written by `lasercal solve`: method, statistics, standard errors
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+FORMAT = "lasercal-robot/1"
+
+
+def _frozen(a, shape=None) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    if shape is not None:
+        a = a.reshape(shape)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class Link:
+    """Inertial data of one link for the gravity model: mass (kg), centre of mass at q = 0 (mm, base)."""
+
+    mass: float
+    com: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class RobotModel:
+    """A serial arm in minimal-POE form with a laser (a prismatic joint) or a tool point.
+
+    Attributes
+    ----------
+    name : str
+    joint_names : tuple of n str
+    screws : (n, 6) array, unit-omega joint screws (omega, v) in the base frame at q = 0, mm
+    limits : (n, 2) array, joint limits, rad
+    laser_dir : (3,) array, unit direction v_p of the laser screw S_p = (0, v_p) at q = 0
+    aperture : (3,) array, M: the laser aperture at q = 0, mm
+    plane_z : float or None, height of the table plane, mm
+    home : (n,) array or None, a configuration the aiming inverse kinematics starts from, rad
+    tool_point : (3,) array or None, a tool point at q = 0 (point measurements), mm
+    ee_pose : (4, 4) array or None, end-effector frame M at q = 0 (full-pose models), mm
+    links : tuple of Link, the gravity model (may be empty)
+    extensions : dict, non-geometric parameters by effect name
+    identification : dict, metadata written by an identification
+    notes : tuple of str, what was corrected on load (never silent)
+    """
+
+    name: str
+    joint_names: tuple
+    screws: np.ndarray
+    limits: np.ndarray
+    laser_dir: np.ndarray
+    aperture: np.ndarray
+    plane_z: float | None = None
+    home: np.ndarray | None = None
+    tool_point: np.ndarray | None = None
+    ee_pose: np.ndarray | None = None
+    links: tuple = ()
+    extensions: dict = field(default_factory=dict)
+    identification: dict = field(default_factory=dict)
+    notes: tuple = ()
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.screws.shape[0]
+
+    def replace(self, **changes) -> RobotModel:
+        """A copy with some fields changed (arrays are frozen again)."""
+        for k in ("screws", "limits", "laser_dir", "aperture", "home", "tool_point", "ee_pose"):
+            if k in changes and changes[k] is not None:
+                changes[k] = _frozen(changes[k])
+        return dataclasses.replace(self, **changes)
+
+    def within_limits(self, q: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Boolean (m,) mask: every joint of each configuration inside its limits (minus margin, rad)."""
+        q = np.atleast_2d(q)
+        return np.all((q >= self.limits[:, 0] + margin) & (q <= self.limits[:, 1] - margin), axis=1)
+
+    # ---------------------------------------------------------------- YAML
+    def to_dict(self) -> dict:
+        """The YAML-ready mapping of this model (format lasercal-robot/1)."""
+        r = lambda a: [float(round(x, 12)) for x in np.asarray(a).ravel()]  # noqa: E731
+        d: dict[str, Any] = {
+            "format": FORMAT,
+            "name": self.name,
+            "units": {"length": "mm", "angle": "rad", "mass": "kg"},
+        }
+        d["joints"] = [
+            {"name": nm, "omega": r(S[:3]), "v": r(S[3:]), "limits": r(lim)}
+            for nm, S, lim in zip(self.joint_names, self.screws, self.limits)
+        ]
+        d["laser"] = {"omega": [0.0, 0.0, 0.0], "v": r(self.laser_dir), "M": r(self.aperture)}
+        if self.plane_z is not None:
+            d["plane"] = {"z": float(self.plane_z)}
+        if self.home is not None:
+            d["home"] = r(self.home)
+        if self.tool_point is not None:
+            d["tool"] = {"point": r(self.tool_point)}
+        if self.ee_pose is not None:
+            d["ee"] = {"M": [r(row) for row in self.ee_pose]}
+        if self.links:
+            d["links"] = [{"mass": float(lk.mass), "com": r(lk.com)} for lk in self.links]
+        if self.extensions:
+            d["extensions"] = self.extensions
+        if self.identification:
+            d["identification"] = self.identification
+        if self.notes:
+            d["notes"] = list(self.notes)
+        return d
+
+    def save(self, path) -> None:
+        """Write the model as YAML."""
+        Path(path).write_text(yaml.safe_dump(self.to_dict(), sort_keys=False, width=120))

@@ -1,0 +1,118 @@
+"""The house rules, read from the source: who may import whom, one command table, no stray packages.
+
+- ``lasercal.solver`` is the core: it imports neither ``vision`` nor ``collector``, and never prints.
+- ``lasercal.vision`` stands alone (no ``solver``, no ``collector``) and has no import cycles.
+- ``lasercal.collector`` is the application; argparse lives only in its ``cli`` package.
+- every command in the table imports and declares its arguments and handler.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from lasercal.collector.cli.main import COMMANDS, build_parser, load
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = {"solver": ROOT / "solver", "vision": ROOT / "vision", "collector": ROOT / "collector"}
+
+
+def modules(pkg: str) -> dict[str, Path]:
+    """Dotted module name -> file, for every module of ``lasercal.<pkg>``."""
+    out = {}
+    for f in sorted(PACKAGES[pkg].rglob("*.py")):
+        parts = f.relative_to(ROOT).with_suffix("").parts
+        parts = parts[:-1] if parts[-1] == "__init__" else parts
+        out["lasercal." + ".".join(parts)] = f
+    return out
+
+
+def imports(path: Path) -> set[str]:
+    """The lasercal modules a file imports (absolute imports; the project uses no relative ones)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            assert node.level == 0, f"{path}: relative import"
+            if node.module and node.module.startswith("lasercal"):
+                found.add(node.module)
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("lasercal"))
+    return found
+
+
+@pytest.mark.parametrize(
+    "pkg, forbidden", [("solver", ("vision", "collector")), ("vision", ("solver", "collector"))]
+)
+def test_libraries_do_not_import_the_application(pkg, forbidden):
+    bad = {(name, m) for name, f in modules(pkg).items() for m in imports(f) if m.split(".")[1] in forbidden}
+    assert not bad
+
+
+def test_solver_never_prints_nor_parses_arguments():
+    for name, f in modules("solver").items():
+        tree = ast.parse(f.read_text())
+        calls = {
+            n.func.id for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
+        }
+        assert "print" not in calls, name
+        assert "argparse" not in f.read_text(), name
+
+
+def test_argparse_only_in_the_cli_package():
+    for pkg in PACKAGES:
+        for name, f in modules(pkg).items():
+            if not name.startswith("lasercal.collector.cli"):
+                assert "import argparse" not in f.read_text(), name
+
+
+def test_vision_has_no_import_cycles():
+    mods = modules("vision")
+    graph = {m: {i for i in imports(f) if i in mods and i != "lasercal.vision"} for m, f in mods.items()}
+
+    def reach(start, seen):
+        for nxt in graph[start]:
+            if nxt not in seen:
+                seen.add(nxt)
+                reach(nxt, seen)
+        return seen
+
+    assert not [m for m in graph if m in reach(m, set())]
+
+
+def test_every_declared_command_imports_with_arguments_and_handler():
+    assert len({c.name for c in COMMANDS}) == len(COMMANDS)
+    for c in COMMANDS:
+        mod = load(c)
+        assert callable(getattr(mod, c.handler)), c
+        assert callable(getattr(mod, "args_" + c.name.replace("-", "_"))), c
+        sub = next(a for a in build_parser(c.name)._actions if isinstance(a, argparse._SubParsersAction))
+        assert sub.choices[c.name].get_default("func") is getattr(mod, c.handler)
+
+
+def test_help_imports_no_command_module():
+    code = (
+        "import sys; from lasercal.collector.cli.main import main\n"
+        "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "cli = sorted(m for m in sys.modules if m.startswith('lasercal.collector.cli'))\n"
+        "print(cli, 'numpy' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "['lasercal.collector.cli', 'lasercal.collector.cli.main'] False"
+
+
+def test_pyproject_lists_every_package_and_only_lasercal():
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(conf["packages"])
+    on_disk = {"lasercal.data"} | {
+        "lasercal." + ".".join(p.parent.relative_to(ROOT).parts)
+        for pkg in PACKAGES.values()
+        for p in pkg.rglob("__init__.py")
+    }
+    assert listed == on_disk
+    assert all(p.split(".")[0] == "lasercal" for p in listed)
