@@ -7,32 +7,9 @@ import datetime
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from lasercal.collector.errors import SessionError
-from lasercal.collector.hardware import BACKENDS
-from lasercal.collector.hardware.base import RobotAdapter
-from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
-from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
-from lasercal.collector.sessions.capture import CaptureOptions, run_capture
-from lasercal.collector.sessions.store import CaptureStore
-from lasercal.collector.sessions.validate import (
-    FakeCamera,
-    OpenCVCamera,
-    ValidateOptions,
-    fake_view,
-    measure_known_view,
-    measure_with_markers,
-    run_validation,
-    validation_point,
-)
-from lasercal.solver.analysis.stats import spot_stats
-from lasercal.solver.errors import LasercalError
 from lasercal.solver.formats.data import builtin_dir
-from lasercal.solver.formats.robots import load_model, load_yaml
-from lasercal.solver.formats.session import Layout, load_layout, session_meta
-from lasercal.solver.kinematics.model import RobotModel
 
 THESIS_LAYOUT = builtin_dir("layouts") / "thesis.yaml"
 DEFAULTS = {
@@ -61,9 +38,16 @@ SETTINGS = FIXED + (
     "aperture_z",
 )
 
+if TYPE_CHECKING:  # annotations only: the modules load when a command runs
+    from lasercal.collector.hardware.base import RobotAdapter
+    from lasercal.solver.formats.session import Layout
+    from lasercal.solver.kinematics.model import RobotModel
+
 
 def _backend_options(p: argparse.ArgumentParser) -> None:
     """Options shared by capture and validate (None = not given, so a resume can tell)."""
+    from lasercal.collector.hardware import BACKENDS
+
     g = p.add_argument_group("robot backend")
     g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
     g.add_argument("--robot", help="nominal robot model: name under data/robots/ or YAML (default panda)")
@@ -190,6 +174,9 @@ def _desk(cfg: dict):
 
 def make_robot(cfg: dict, nominal: RobotModel, layout: Layout, per_point: int = 0) -> RobotAdapter:
     """The robot adapter a settings mapping asks for (keys as in SETTINGS, defaults applied)."""
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.robots import load_model
+
     backend = cfg["backend"]
     if backend == "fake":
         from lasercal.collector.hardware.base import FakeClock
@@ -225,6 +212,10 @@ def make_robot(cfg: dict, nominal: RobotModel, layout: Layout, per_point: int = 
 
 def _layout_of(meta: dict, folder: Path) -> Layout:
     """The layout a session was started with, from its session.yaml (the folder is self-contained)."""
+    import numpy as np
+
+    from lasercal.solver.formats.session import Layout
+
     c = meta.get("collector") or {}
     pts = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
     return Layout(
@@ -240,6 +231,10 @@ def _layout_of(meta: dict, folder: Path) -> Layout:
 def _capture_settings(args) -> tuple[dict, Layout]:
     """The settings and layout of a new session (command line) or a resumed one (its session.yaml + command
     line)."""
+    from lasercal.collector.errors import SessionError
+    from lasercal.solver.formats.robots import load_yaml
+    from lasercal.solver.formats.session import load_layout
+
     given = _settings(args)
     for key in ("per_point", "aim_noise"):
         if getattr(args, key) is not None:
@@ -278,6 +273,14 @@ def _capture_settings(args) -> tuple[dict, Layout]:
 
 
 def cmd_capture(args) -> int:
+    from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
+    from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
+    from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+    from lasercal.collector.sessions.store import CaptureStore
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.formats.session import session_meta
+
     cfg, layout = _capture_settings(args)
     if args.auto and cfg["backend"] != "fake":
         raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
@@ -334,6 +337,22 @@ def cmd_capture(args) -> int:
 
 
 def cmd_validate(args) -> int:
+    from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
+    from lasercal.collector.sessions.validate import (
+        FakeCamera,
+        OpenCVCamera,
+        ValidateOptions,
+        fake_view,
+        measure_known_view,
+        measure_with_markers,
+        run_validation,
+        validation_point,
+    )
+    from lasercal.solver.analysis.stats import spot_stats
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.formats.session import load_layout
+
     cfg = {**DEFAULTS, **_settings(args)}
     if args.backend is None:
         raise LasercalError("validate needs --backend (fake, franky, panda-py or ros)")

@@ -5,10 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
-from lasercal.collector.demo import DemoOptions, format_summary, run_demo
-
 
 def args_demo(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal demo``."""
@@ -22,6 +18,10 @@ def args_demo(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_demo(args) -> int:
+    from tqdm import tqdm
+
+    from lasercal.collector.demo import DemoOptions, format_summary, run_demo
+
     opts = DemoOptions(seed=args.seed)
     with tqdm(
         total=opts.units(), desc="demo", unit="step", leave=False, delay=0.5

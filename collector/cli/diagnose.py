@@ -6,11 +6,7 @@ import argparse
 import json
 import sys
 
-import numpy as np
-
-from lasercal.solver.analysis.diagnose import ALPHA, diagnose
-from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.session import load_session
+from lasercal.solver.analysis import ALPHA
 
 
 def args_diagnose(p: argparse.ArgumentParser) -> None:
@@ -41,6 +37,10 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
 
 def parse_payload(text: str | None):
     """'KG,X,Y,Z' -> (kg, (3,) mm), or None."""
+    import numpy as np
+
+    from lasercal.solver.errors import FormatError
+
     if not text:
         return None
     try:
@@ -54,6 +54,8 @@ def parse_payload(text: str | None):
 
 def format_diagnosis(d) -> str:
     """A person's summary of a Diagnosis."""
+    import numpy as np
+
     o = d.as_dict()
     lines = []
     if o["effect"] == "none":
@@ -96,6 +98,9 @@ def format_diagnosis(d) -> str:
 
 
 def cmd_diagnose(args) -> int:
+    from lasercal.solver.analysis.diagnose import diagnose
+    from lasercal.solver.formats.session import load_session
+
     d = diagnose(
         load_session(args.session),
         alpha=args.alpha,

@@ -5,20 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv, write_circlepoint_csv
-from lasercal.solver.formats.robots import load_model, resolve_robot_path
-from lasercal.solver.identify.fullpose import (
-    FullPoseCalibration,
-    calibrate_fullpose,
-    cross_validate,
-    default_target,
-    format_table,
-    simulate_circlepoint,
-)
+if TYPE_CHECKING:  # annotations only: the modules load when a command runs
+    from lasercal.solver.identify.fullpose import FullPoseCalibration
 
 
 def args_fullpose(p: argparse.ArgumentParser) -> None:
@@ -65,6 +55,8 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
 
 def _header(path: Path) -> list:
     """The first non-comment line's column names (to tell circle points from poses)."""
+    from lasercal.solver.errors import FormatError
+
     try:
         with open(path) as f:
             for line in f:
@@ -122,6 +114,10 @@ def report(cal: FullPoseCalibration, cv, source: str) -> dict:
 
 
 def cmd_fullpose(args) -> int:
+    from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv
+    from lasercal.solver.formats.robots import load_model, resolve_robot_path
+    from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
+
     model = load_model(args.robot)
     path = Path(args.measurements)
     if "r11" in _header(path):
@@ -194,6 +190,12 @@ def cmd_fullpose(args) -> int:
 
 
 def cmd_simulate_fullpose(args) -> int:
+    import numpy as np
+
+    from lasercal.solver.formats.fullpose_io import write_circlepoint_csv
+    from lasercal.solver.formats.robots import load_model, resolve_robot_path
+    from lasercal.solver.identify.fullpose import default_target, simulate_circlepoint
+
     path = resolve_robot_path(args.robot)
     truth = load_model(path)
     target = default_target(truth, args.radius, args.offset)

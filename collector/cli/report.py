@@ -6,14 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lasercal.collector.errors import SessionError
-from lasercal.collector.report.html import load_validation, write_report
-from lasercal.solver.analysis.diagnose import diagnose
-from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.export import FORMATS, export
-from lasercal.solver.formats.robots import load_model
-from lasercal.solver.formats.session import load_session
-from lasercal.solver.identify.measurement import fit
+from lasercal.solver.formats.export import FORMATS
 
 
 def args_report(p: argparse.ArgumentParser) -> None:
@@ -51,6 +44,13 @@ def args_export(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_report(args) -> int:
+    from lasercal.collector.errors import SessionError
+    from lasercal.collector.report.html import load_validation, write_report
+    from lasercal.solver.analysis.diagnose import diagnose
+    from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.session import load_session
+    from lasercal.solver.identify.measurement import fit
+
     sessions, validations = [], []
     for f in map(Path, args.folders):
         if (f / "session.yaml").is_file():
@@ -79,6 +79,9 @@ def cmd_report(args) -> int:
 
 
 def cmd_export(args) -> int:
+    from lasercal.solver.formats.export import export
+    from lasercal.solver.formats.robots import load_model
+
     text = export(load_model(args.model), args.format)
     if args.output:
         Path(args.output).write_text(text)

@@ -7,27 +7,14 @@ import csv
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from lasercal.solver.kinematics.effects import JOINT_EFFECTS
 
-from lasercal.collector.cli.diagnose import format_diagnosis
-from lasercal.solver.analysis.diagnose import diagnose
-from lasercal.solver.analysis.simulate import simulate_captures
-from lasercal.solver.analysis.stats import cross_validate, solve_report
-from lasercal.solver.errors import FormatError, IdentificationError
-from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
-from lasercal.solver.formats.session import (
-    load_configs,
-    load_layout,
-    load_session,
-    session_meta,
-    write_session,
-)
-from lasercal.solver.identify.measurement import fit
-from lasercal.solver.identify.point import tips
-from lasercal.solver.identify.spot import predict_spots
-from lasercal.solver.kinematics.effects import JOINT_EFFECTS, Extension, extension_from_model
-from lasercal.solver.kinematics.gravity import gravity_torques
+if TYPE_CHECKING:  # annotations only: the modules load when a command runs
+    import numpy as np
+
+    from lasercal.solver.kinematics.effects import Extension
 
 
 def args_solve(p: argparse.ArgumentParser) -> None:
@@ -149,6 +136,13 @@ def _print_points(rep: dict, w) -> None:
 
 
 def cmd_solve(args) -> int:
+    from lasercal.collector.cli.diagnose import format_diagnosis
+    from lasercal.solver.analysis.diagnose import diagnose
+    from lasercal.solver.analysis.stats import cross_validate, solve_report
+    from lasercal.solver.errors import IdentificationError
+    from lasercal.solver.formats.session import load_session
+    from lasercal.solver.identify.measurement import fit
+
     session = load_session(args.session)
     diagnosis = None
     if args.extend != "none" and args.method != "lm":
@@ -206,6 +200,14 @@ def cmd_solve(args) -> int:
 
 
 def cmd_predict(args) -> int:
+    from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.formats.session import load_configs
+    from lasercal.solver.identify.point import tips
+    from lasercal.solver.identify.spot import predict_spots
+    from lasercal.solver.kinematics.effects import extension_from_model
+    from lasercal.solver.kinematics.gravity import gravity_torques
+
     model = load_model(args.model)
     cfg = load_configs(args.configs, model)
     point = model.identification.get("measurement") == "point"
@@ -241,6 +243,11 @@ def cmd_predict(args) -> int:
 def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension | None:
     """The effect ``simulate --effect`` hides, with its true parameters (random phase/direction from the
     seed)."""
+    import numpy as np
+
+    from lasercal.solver.errors import FormatError
+    from lasercal.solver.kinematics.effects import Extension
+
     if not args.effect:
         return None
     if args.effect_size is None:
@@ -270,6 +277,12 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
 
 
 def cmd_simulate(args) -> int:
+    import numpy as np
+
+    from lasercal.solver.analysis.simulate import simulate_captures
+    from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
+    from lasercal.solver.formats.session import load_layout, session_meta, write_session
+
     path = resolve_robot_path(args.truth)
     truth = load_model(path)
     raw = load_yaml(path)

@@ -6,8 +6,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-from lasercal.collector.studies.mukca import QUICK, ROBOTS, StudyOptions, run_study
-from lasercal.collector.studies.mukca_import import import_mukca
+from lasercal.collector.studies.mukca import QUICK, ROBOTS, StudyOptions
 
 
 def args_import_mukca(p: argparse.ArgumentParser) -> None:
@@ -45,6 +44,8 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_import(args) -> int:
+    from lasercal.collector.studies.mukca_import import import_mukca
+
     only = [p.strip() for p in args.positions.split(",")] if args.positions else None
     out = import_mukca(args.robot_dir, args.output, only)
     print(f"wrote {out}")
@@ -52,6 +53,8 @@ def cmd_import(args) -> int:
 
 
 def cmd_study(args) -> int:
+    from lasercal.collector.studies.mukca import run_study
+
     opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed)
     if args.bootstrap is not None:
         opts = replace(opts, bootstrap=args.bootstrap)

@@ -15,16 +15,10 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from lasercal.vision.beamcheck import fit_circle, tilt
-from lasercal.vision.camera import calibrate, load_camera, save_camera
-from lasercal.vision.errors import CalibrationError, VisionError
-from lasercal.vision.images import chroma_subsampled, read_image, to_gray
-from lasercal.vision.measure import Options, measure_photo, median_reference, spot_dicts
-from lasercal.vision.overlay import draw, write
-from lasercal.vision.plane import load_layout
+if TYPE_CHECKING:  # annotations only: the modules load when a command runs
+    from lasercal.vision.measure import Options
 
 
 def _warn(msg: str) -> None:
@@ -152,6 +146,8 @@ def args_camera_calibrate(p: argparse.ArgumentParser) -> None:
 
 
 def _options(args) -> Options:
+    from lasercal.vision.measure import Options
+
     return Options(
         args.method,
         args.imagej_mode,
@@ -166,6 +162,11 @@ def _options(args) -> Options:
 
 def _context(args):
     """Layout, camera and reference photo shared by a batch (errors stop the command)."""
+    from lasercal.vision.camera import load_camera
+    from lasercal.vision.images import read_image
+    from lasercal.vision.measure import median_reference
+    from lasercal.vision.plane import load_layout
+
     layout = load_layout(args.layout) if args.layout else None
     if args.layout and layout is None:
         _warn(f"{args.layout} has no 'markers' section: positions in px only")
@@ -179,6 +180,11 @@ def _context(args):
 
 def _measure_all(args):
     """Measure every photo; a photo that fails becomes a warning and an entry with ``error``."""
+    from lasercal.vision.errors import VisionError
+    from lasercal.vision.images import chroma_subsampled, read_image
+    from lasercal.vision.measure import measure_photo, spot_dicts
+    from lasercal.vision.overlay import draw, write
+
     layout, camera, reference = _context(args)
     opts = _options(args)
     results = []
@@ -283,6 +289,11 @@ def spots_command(args) -> int:
 
 def beam_check_command(args) -> int:
     """``lasercal beam-check``: circle through the spots of a joint-7 turn."""
+    import numpy as np
+
+    from lasercal.vision.beamcheck import fit_circle, tilt
+    from lasercal.vision.errors import CalibrationError, VisionError
+
     if args.laser_length is not None and args.laser_length <= 0:
         raise VisionError(f"--laser-length must be positive, got {args.laser_length} mm")
     if args.expect != 1:
@@ -361,6 +372,12 @@ def beam_check_command(args) -> int:
 
 def camera_calibrate_command(args) -> int:
     """``lasercal camera-calibrate``: write a camera YAML."""
+    import numpy as np
+
+    from lasercal.vision.camera import calibrate, save_camera
+    from lasercal.vision.errors import CalibrationError, VisionError
+    from lasercal.vision.images import read_image, to_gray
+
     if args.square <= 0:
         raise VisionError(f"--square must be positive, got {args.square} mm")
     if args.charuco:

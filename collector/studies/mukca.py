@@ -45,7 +45,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 from lasercal.collector.studies.mukca_import import import_mukca, positions
 from lasercal.solver.analysis.diagnose import ALPHA, Diagnosis, Tester, diagnose, session_torques
@@ -220,6 +219,8 @@ def homogeneity(values: np.ndarray, covs: np.ndarray) -> dict:
     d = values - mean
     chi2 = float(np.einsum("ri,rij,rj->", d, W, d))
     dof = values.shape[1] * (len(values) - 1)
+    from scipy import stats  # imported when a study runs: it is slow to load
+
     return {"mean": mean.tolist(), "chi2": chi2, "dof": dof, "p": float(stats.chi2.sf(chi2, dof))}
 
 
@@ -361,6 +362,8 @@ def _scaled_chi2_p(sim: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """Upper-tail p of each observed mean square against its simulated ones (G, B), through the
     scaled chi-square with the simulated mean and variance (Satterthwaite): smooth beyond 1/B."""
     mean, var = sim.mean(axis=1), sim.var(axis=1)
+    from scipy import stats  # imported when a study runs: it is slow to load
+
     return stats.chi2.sf(observed * 2 * mean / var, 2 * mean**2 / var)
 
 
@@ -561,6 +564,8 @@ def outlier_audit(
     'screened_by_size' (positions whose kept rows are larger than simulated, corrected p < alpha),
     and 'clean' (rows of the kept positions flagged in the raw and in the clean fit)
     """
+    from scipy import stats  # imported when a study runs: it is slow to load
+
     pos = position_of(raw)
     flagged = geo.weights == 0
     rem = np.isin(pos, list(removed))

@@ -28,8 +28,9 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+from scipy.special import fdtrc  # survival function of the F distribution (scipy.stats.f.sf)
 
+from lasercal.solver.analysis import ALPHA
 from lasercal.solver.analysis.stats import folds
 from lasercal.solver.errors import ModelError
 from lasercal.solver.formats.session import Session
@@ -41,7 +42,6 @@ from lasercal.solver.kinematics.effects import Extension, candidates
 from lasercal.solver.kinematics.gravity import gravity_torques
 from lasercal.solver.kinematics.laser import spot_joint_jacobian
 
-ALPHA = 0.01  # family-wise false-alarm rate of the decision
 _RTOL = 1e-6
 _AMBIGUOUS = (
     0.97  # a runner-up explaining this share of the winner's residual drop is reported as indistinguishable
@@ -238,7 +238,7 @@ class Tester:
                 continue
             drop = float(np.sum((Q.T @ res) ** 2))
             F = (drop / k) / max((rss - drop) / (N - r - k), 1e-300)
-            p = float(stats.f.sf(F, k, N - r - k))
+            p = float(fdtrc(k, N - r - k, F))
             out.append(CandidateTest(e, F, k, p, min(1.0, p * len(self.exts)), drop))
         return sorted(out, key=lambda c: (c.p, -c.F))
 
@@ -253,7 +253,7 @@ class Tester:
                 continue
             drop = np.sum((Q.T @ R) ** 2, axis=0)
             F = (drop / k) / np.maximum((rss - drop) / (N - r - k), 1e-300)
-            best = np.maximum(best, -np.log10(np.maximum(stats.f.sf(F, k, N - r - k), 1e-300)))
+            best = np.maximum(best, -np.log10(np.maximum(fdtrc(k, N - r - k, F), 1e-300)))
         return best
 
 

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import yaml
-from scipy.spatial.transform import Rotation
 
 from lasercal.solver.kinematics.minimal import link_frame
 from lasercal.solver.kinematics.model import RobotModel
@@ -54,6 +53,8 @@ FORMATS = ("urdf", "dh", "yaml")
 def transform(xyz, rpy) -> np.ndarray:
     """Homogeneous transform (4, 4) from a translation and URDF roll-pitch-yaw angles (rad)."""
     T = np.eye(4)
+    from scipy.spatial.transform import Rotation  # loaded on use: slow to import for `lasercal --help`
+
     T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()  # extrinsic x, y, z: Rz(yaw) Ry(pitch) Rx(roll)
     T[:3, 3] = xyz
     return T
@@ -61,6 +62,8 @@ def transform(xyz, rpy) -> np.ndarray:
 
 def xyz_rpy(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Translation and URDF roll-pitch-yaw (rad) of a homogeneous transform."""
+    from scipy.spatial.transform import Rotation
+
     return T[:3, 3].copy(), Rotation.from_matrix(T[:3, :3]).as_euler("xyz")
 
 

@@ -18,7 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
+from scipy.special import chdtri  # inverse survival function of chi-square (scipy.stats.chi2.isf)
 
 RANK_RTOL = 1e-6
 OUTLIER_ALPHA = 0.01  # family-wise false-flag rate of the outlier test
@@ -96,8 +97,8 @@ def flag_outliers(res: np.ndarray, w: np.ndarray, dof_ratio: float = 1.0) -> tup
     """
     d = res.shape[1]
     r = np.linalg.norm(res, axis=1)
-    sigma = float(np.median(r[w > 0]) / np.sqrt(stats.chi2.ppf(0.5, d)) / np.sqrt(dof_ratio))
-    cut = sigma * np.sqrt(stats.chi2.ppf(1 - OUTLIER_ALPHA / len(r), d)) * np.sqrt(dof_ratio)
+    sigma = float(np.median(r[w > 0]) / np.sqrt(chdtri(d, 0.5)) / np.sqrt(dof_ratio))
+    cut = sigma * np.sqrt(chdtri(d, OUTLIER_ALPHA / len(r))) * np.sqrt(dof_ratio)
     return r > max(cut, 1e-4), sigma  # 0.1 um floor: exact data has round-off, not outliers
 
 

@@ -14,7 +14,6 @@ Equation numbers refer to the thesis (P. Detdee, SNU 2019).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 _SMALL = 1e-6  # below this angle the closed forms lose digits; use their Taylor series
 
@@ -86,6 +85,8 @@ def log6(T: np.ndarray) -> np.ndarray:
     -------
     (..., 6) array, (omega*theta, v*theta)
     """
+    from scipy.spatial.transform import Rotation  # loaded on use: slow to import at start-up
+
     T = np.asarray(T, dtype=float)
     lead = T.shape[:-2]
     R = T[..., :3, :3].reshape(-1, 3, 3)

@@ -1,0 +1,24 @@
+"""The README's demo figures are the ones ``lasercal demo`` prints (the full demo, seed 0, about a minute)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from lasercal.collector.cli.main import main
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def readme_block() -> list[str]:
+    m = re.search(r"<!-- demo-output -->\n```\n(.*?)```\n<!-- /demo-output -->", README.read_text(), re.S)
+    assert m, "README.md has no demo-output block"
+    return m.group(1).rstrip("\n").split("\n")
+
+
+def test_readme_shows_what_the_demo_prints(tmp_path, capsys):
+    assert main(["demo", "-o", str(tmp_path / "demo")]) == 0
+    printed = capsys.readouterr().out.split("\n")
+    block = readme_block()
+    start = printed.index(block[0])
+    assert printed[start : start + len(block)] == block
