@@ -92,7 +92,9 @@ def cmd_predict_position(model: RobotModel, args) -> int:
         if "tau" in ext.needs() and tau is None:
             tau = model_torques(model, q)[0]
         if "t" in ext.needs() and t is None:
-            raise FormatError(args.configs, f"the {ext.effect} extension needs a 't' column (s)", line=1, field="t")
+            raise FormatError(
+                args.configs, f"the {ext.effect} extension needs a 't' column (s)", line=1, field="t"
+            )
         q = ext.true_q(q, t, tau)
     w = csv.writer(sys.stdout, lineterminator="\n")
     w.writerow(header + ["x", "y", "z"])

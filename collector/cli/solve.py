@@ -133,9 +133,15 @@ def print_report(rep: dict, out=None) -> None:
             )
     elif rep.get("measurement") == "position":
         w(f"gauge: {rep['gauge']}\n")
-        w(f"\n{'target':12} {'n':>4} {'RMS nominal':>12} {'identified':>11}   (mm, sensor frame; target at q = 0)\n")
+        w(
+            f"\n{'target':12} {'n':>4} {'RMS nominal':>12} {'identified':>11}"
+            "   (mm, sensor frame; target at q = 0)\n"
+        )
         for nm, d in rep["targets"].items():
-            w(f"{nm:12} {d['n']:4d} {d['before_rms_mm']:12.4f} {d['after_rms_mm']:11.4f}   {d['target_mm']}\n")
+            w(
+                f"{nm:12} {d['n']:4d} {d['before_rms_mm']:12.4f} {d['after_rms_mm']:11.4f}"
+                f"   {d['target_mm']}\n"
+            )
     else:
         _print_points(rep, w)
     cv = rep.get("cross_validation")
@@ -293,7 +299,9 @@ def cmd_simulate(args) -> int:
         from lasercal.collector.cli.position import cmd_simulate_position
 
         n = load_model(path).n
-        return cmd_simulate_position(args, path, hidden_effect(args, None, n, np.random.default_rng(args.seed + 1)))
+        return cmd_simulate_position(
+            args, path, hidden_effect(args, None, n, np.random.default_rng(args.seed + 1))
+        )
     if not args.layout:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
     truth = load_model(path)

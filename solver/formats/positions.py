@@ -42,7 +42,7 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel) -> Sessio
     -------
     Session with ``measurement='position'``, ``target`` the measured positions (m, 3) mm
     """
-    ypath, cpath = folder / "session.yaml", folder / "captures.csv"
+    cpath = folder / "captures.csv"
     header, rows = _read_csv(cpath)
     n = robot.n
     qcols = _joint_columns("q", n)

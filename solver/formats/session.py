@@ -298,11 +298,15 @@ def load_session(folder) -> Session:
             raise FormatError(ypath, f"units.{k} must be {v!r}", field=f"units.{k}")
     if "robot" not in meta:
         raise FormatError(ypath, "missing 'robot' (a name under data/robots/ or a path)", field="robot")
-    robot = load_model(meta["robot"], base=folder, base_link=meta.get("base_link"), tip_link=meta.get("tip_link"))
+    robot = load_model(
+        meta["robot"], base=folder, base_link=meta.get("base_link"), tip_link=meta.get("tip_link")
+    )
     measurement = meta.get("measurement", "laser")
     if measurement not in ("laser", "point", "position"):
         raise FormatError(
-            ypath, f"measurement must be 'laser', 'point' or 'position', got {measurement!r}", field="measurement"
+            ypath,
+            f"measurement must be 'laser', 'point' or 'position', got {measurement!r}",
+            field="measurement",
         )
     if measurement == "position":
         from lasercal.solver.formats.positions import load_position_session

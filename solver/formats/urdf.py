@@ -61,7 +61,8 @@ def _parse(path: Path):
     try:
         robot = U.URDF.from_xml_string(text.encode())
     except Exception as e:  # the parser raises bare exceptions on malformed XML
-        raise FormatError(path, f"not a valid URDF ({str(e).splitlines()[0] if str(e) else type(e).__name__})")
+        reason = " ".join(str(e).split()) or type(e).__name__
+        raise FormatError(path, f"not a valid URDF ({reason})") from None
     finally:
         core.on_error = saved
     return robot, messages
@@ -99,7 +100,9 @@ def _chain(robot, path: Path, base_link: str | None, tip_link: str | None) -> tu
     while link != base:
         if link not in robot.parent_map:
             raise FormatError(
-                path, f"tip_link {tip_link!r} is not below base_link {base!r}: no chain joins them", field="tip_link"
+                path,
+                f"tip_link {tip_link!r} is not below base_link {base!r}: no chain joins them",
+                field="tip_link",
             )
         jn, link = robot.parent_map[link]
         joints.append(robot.joint_map[jn])
@@ -112,9 +115,14 @@ def _missing_meshes(robot, path: Path) -> list[str]:
         for kind in ("visuals", "collisions"):
             for g in getattr(lk, kind, []) or []:
                 fn = getattr(g.geometry, "filename", None)
-                if fn and not fn.startswith("package://") and not (path.parent / fn.replace("file://", "")).exists():
+                if (
+                    fn
+                    and not fn.startswith("package://")
+                    and not (path.parent / fn.replace("file://", "")).exists()
+                ):
                     notes.append(
-                        f"{path}: link {lk.name!r} {kind[:-1]} mesh {fn!r} not found: ignored (calibration reads "
+                        f"{path}: link {lk.name!r} {kind[:-1]} mesh {fn!r} not found: ignored (calibration "
+                        "reads "
                         "no meshes; an exported URDF keeps the reference)"
                     )
     return notes
@@ -142,13 +150,17 @@ def load_urdf(path, base_link: str | None = None, tip_link: str | None = None) -
         o = j.origin
         T = T @ origin_T(o.xyz if o else None, o.rpy if o else None)
         if j.type not in MOVABLE + ("fixed",):
-            raise FormatError(path, f"joint {j.name!r} of type {j.type!r} is not supported", field=f"joint {j.name}")
+            raise FormatError(
+                path, f"joint {j.name!r} of type {j.type!r} is not supported", field=f"joint {j.name}"
+            )
         if j.type in MOVABLE:
             a = np.asarray(j.axis if j.axis is not None else (1, 0, 0), float)
             if np.linalg.norm(a) < 1e-9:
                 raise FormatError(path, f"joint {j.name!r} has a zero axis", field=f"joint {j.name}.axis")
             w = T[:3, :3] @ (a / np.linalg.norm(a))
-            screws.append(np.r_[np.zeros(3), w] if j.type == "prismatic" else np.r_[w, -np.cross(w, T[:3, 3])])
+            screws.append(
+                np.r_[np.zeros(3), w] if j.type == "prismatic" else np.r_[w, -np.cross(w, T[:3, 3])]
+            )
             scale = M_TO_MM if j.type == "prismatic" else 1.0
             if j.type == "continuous" or j.limit is None:
                 if j.type != "continuous":
@@ -159,7 +171,9 @@ def load_urdf(path, base_link: str | None = None, tip_link: str | None = None) -
                 limits.append((scale * j.limit.lower, scale * j.limit.upper))
                 if not limits[-1][0] < limits[-1][1]:
                     raise FormatError(
-                        path, f"joint {j.name!r}: limit lower must be below upper", field=f"joint {j.name}.limit"
+                        path,
+                        f"joint {j.name!r}: limit lower must be below upper",
+                        field=f"joint {j.name}.limit",
                     )
             names.append(j.name)
             frames.append(T.copy())
@@ -291,7 +305,9 @@ def calibrated_urdf(model: RobotModel) -> str:
         ET.SubElement(jt, "parent", link=tip)
         ET.SubElement(jt, "child", link=nm)
         _set_origin(jt, inv_T(T_parent) @ F)
-    root.append(ET.Comment(" calibrated by lasercal: joint origins and axes of the chain; fixed lasercal_* links "))
+    root.append(
+        ET.Comment(" calibrated by lasercal: joint origins and axes of the chain; fixed lasercal_* links ")
+    )
     ET.indent(tree)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
 

@@ -44,7 +44,11 @@ SCALE_TOL = 0.05  # a best similarity scale further than this from 1: the units 
 
 # ----------------------------------------------------------------------------- the forward model
 def sensor_points(
-    model: RobotModel, q: np.ndarray, names: np.ndarray, targets: dict | None = None, X: np.ndarray | None = None
+    model: RobotModel,
+    q: np.ndarray,
+    names: np.ndarray,
+    targets: dict | None = None,
+    X: np.ndarray | None = None,
 ) -> np.ndarray:
     """Predicted sensor-frame positions y = X E(q) p_k (m, 3) mm.
 
@@ -65,7 +69,7 @@ def sensor_points(
 
 
 def point_joint_jacobian(model: RobotModel, q: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Base-frame points E(q) p (m, 3) of per-row targets P (m, 3) and d(point)/dq (m, 3, n): w_j x p + v_j."""
+    """Base-frame points E(q) p (m, 3) of per-row targets P (m, 3), and d(point)/dq (m, 3, n) = w_j x p + v_j."""
     chain = poe_chain(model.screws, q)
     E = chain[:, -1]
     p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
@@ -121,7 +125,9 @@ def start_frame(
         )
         rms = float(np.sqrt(np.mean(np.sum((p @ R.T + t - y) ** 2, axis=1))))
         raise FormatError(
-            path, f"best scale from the robot to the measured points is {s:.4g} (residual {rms:.3g}): {hint}", field="x"
+            path,
+            f"best scale from the robot to the measured points is {s:.4g} (residual {rms:.3g}): {hint}",
+            field="x",
         )
     X = np.eye(4)
     X[:3, :3], X[:3, 3] = R, t
@@ -129,7 +135,7 @@ def start_frame(
 
 
 def target_start(model: RobotModel) -> np.ndarray:
-    """A target's starting guess at q = 0: the end-effector frame origin, else the tool point, else the aperture."""
+    """A target's start at q = 0: the end-effector frame's origin, else the tool point, else the aperture."""
     if model.ee_pose is not None:
         return np.asarray(model.ee_pose)[:3, 3]
     return np.asarray(model.tool_point if model.tool_point is not None else model.aperture)
@@ -197,7 +203,12 @@ class PositionParams:
         eta[self.free] = x[: self.n_free]
         out = [screw_from_eta(T, eta[a:b]) for T, a, b in zip(self.frames, self.start[:-1], self.start[1:])]
         X = exp6(x[self.slice_xi]) @ X0
-        return np.array([o[0] for o in out]), [o[1] for o in out], X, {nm: x[c : c + 3] for nm, c in self.col.items()}
+        return (
+            np.array([o[0] for o in out]),
+            [o[1] for o in out],
+            X,
+            {nm: x[c : c + 3] for nm, c in self.col.items()},
+        )
 
     def to_model(self, x: np.ndarray, X0: np.ndarray, **changes) -> RobotModel:
         screws, _, X, tg = self.geometry(x, X0)
@@ -217,7 +228,9 @@ class PositionParams:
         y = p @ R.T + X[:3, 3]
         J = np.zeros((len(q), 3, self.size))
         J[:, :, : self.n_free] = R @ (np.cross(tw[:, :3], p[:, :, None], axis=1) + tw[:, 3:])[:, :, self.free]
-        J[:, :, self.slice_xi] = np.concatenate([-skew(y), np.broadcast_to(np.eye(3), (len(q), 3, 3))], axis=2)
+        J[:, :, self.slice_xi] = np.concatenate(
+            [-skew(y), np.broadcast_to(np.eye(3), (len(q), 3, 3))], axis=2
+        )
         RE = R @ E[:, :3, :3]
         for nm, c in self.col.items():
             sel = names == nm

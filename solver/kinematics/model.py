@@ -106,7 +106,16 @@ class RobotModel:
 
     def replace(self, **changes) -> RobotModel:
         """A copy with some fields changed (arrays are frozen again)."""
-        for k in ("screws", "limits", "laser_dir", "aperture", "home", "tool_point", "ee_pose", "sensor_pose"):
+        for k in (
+            "screws",
+            "limits",
+            "laser_dir",
+            "aperture",
+            "home",
+            "tool_point",
+            "ee_pose",
+            "sensor_pose",
+        ):
             if k in changes and changes[k] is not None:
                 changes[k] = _frozen(changes[k])
         if "targets" in changes:

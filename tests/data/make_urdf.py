@@ -84,7 +84,14 @@ def arm7():
         a, d, al = PANDA["a"][i], PANDA["d"][i], PANDA["alpha"][i]
         xyz = (a, -math.sin(al) * d, math.cos(al) * d)
         s += link(f"link{i + 1}", 2.0, (0, 0.01, 0)) + joint(
-            f"joint{i + 1}", "revolute", parent, f"link{i + 1}", xyz, (al, 0, 0), PANDA["lo"][i], PANDA["hi"][i]
+            f"joint{i + 1}",
+            "revolute",
+            parent,
+            f"link{i + 1}",
+            xyz,
+            (al, 0, 0),
+            PANDA["lo"][i],
+            PANDA["hi"][i],
         )
         parent = f"link{i + 1}"
     s += link("flange") + joint("flange_joint", "fixed", parent, "flange", (0, 0, PANDA["d"][7]), (0, 0, 0))
