@@ -69,7 +69,7 @@ def sensor_points(
 
 
 def point_joint_jacobian(model: RobotModel, q: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Base-frame points E(q) p (m, 3) of per-row targets P (m, 3), and d(point)/dq (m, 3, n) = w_j x p + v_j."""
+    """Base-frame points E(q) p (m, 3) of row targets P (m, 3), and d(point)/dq (m, 3, n): w_j x p + v_j."""
     chain = poe_chain(model.screws, q)
     E = chain[:, -1]
     p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
