@@ -28,7 +28,7 @@ def main() -> None:
 
     from lasercal.solver.formats.urdf import load_urdf
 
-    print(f"{'arm':9} {'noise mm':>8} {'fit RMS':>9} {'CV mean |e|':>12} {'1.596 sigma':>11} {'truth RMS':>10}")
+    print(f"{'arm':9} {'noise mm':>8} {'fit RMS':>9} {'CV mean |e|':>12} {'1.596 sigma':>11} {'truth':>10}")
     for name in ("ur5", "arm7", "rail_ur5"):
         for noise in (0.0, 0.01, 0.05):
             rng = np.random.default_rng(11)
@@ -38,7 +38,8 @@ def main() -> None:
             q = np.repeat(random_configs(nominal, 60, rng), 3, axis=0)
             y = simulate_positions(truth, q, names, noise, rng)
             with tempfile.TemporaryDirectory() as d:
-                write_position_session(d, position_meta(str(DATA / f"{name}.urdf"), truth.targets), q, y, names)
+                meta = position_meta(str(DATA / f"{name}.urdf"), truth.targets)
+                write_position_session(d, meta, q, y, names)
                 s = load_session(d)
                 ident = fit(s)
                 cv = cross_validate(s, k=5)
