@@ -41,6 +41,11 @@ def args_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", help="robot model YAML (e.g. written by lasercal solve) or a built-in name")
     p.add_argument("--format", choices=FORMATS, default="urdf", help="urdf (default), dh or yaml")
     p.add_argument("-o", "--output", metavar="FILE", help="write here (default: standard output)")
+    p.add_argument(
+        "--sensor-output",
+        metavar="FILE",
+        help="urdf of a model from a URDF: also write the sensor-to-base transform as a URDF of its own",
+    )
 
 
 def cmd_report(args) -> int:
@@ -82,7 +87,13 @@ def cmd_export(args) -> int:
     from lasercal.solver.formats.export import export
     from lasercal.solver.formats.robots import load_model
 
-    text = export(load_model(args.model), args.format)
+    model = load_model(args.model)
+    text = export(model, args.format)
+    if args.sensor_output:
+        from lasercal.solver.formats.urdf import sensor_urdf
+
+        Path(args.sensor_output).write_text(sensor_urdf(model))
+        print(f"wrote {args.sensor_output}", file=sys.stderr)
     if args.output:
         Path(args.output).write_text(text)
         print(f"wrote {args.output}", file=sys.stderr)

@@ -47,8 +47,17 @@ def args_predict(p: argparse.ArgumentParser) -> None:
 
 def args_simulate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate``."""
-    p.add_argument("truth", help="true robot model YAML (or built-in name)")
-    p.add_argument("--layout", required=True, help="layout YAML with the reference points")
+    p.add_argument("truth", help="true robot model YAML, URDF (position sessions) or built-in name")
+    p.add_argument("--layout", help="layout YAML with the reference points (laser and point sessions)")
+    p.add_argument(
+        "--measurement",
+        choices=["laser", "position"],
+        default="laser",
+        help="position: targets on the tool measured by a 3-D sensor (default laser)",
+    )
+    p.add_argument("--configs", type=int, default=60, help="position: robot poses (default 60)")
+    p.add_argument("--targets", type=int, default=3, help="position: targets on the tool (default 3)")
+    p.add_argument("--noise", type=float, default=0.02, help="position: sensor noise std per axis, mm")
     p.add_argument("--per-point", type=int, default=15, help="captures per calibration point")
     p.add_argument("--aim-noise", type=float, default=1.0, help="aiming noise std per axis, mm")
     p.add_argument("--seed", type=int, default=0)
@@ -108,6 +117,17 @@ def print_report(rep: dict, out=None) -> None:
             w(
                 f"|d - d0| {nm}: before {b:.3f} mm, after "
                 f"{rep['after']['distances'].get(nm, float('nan')):.3f} mm\n"
+            )
+    elif rep.get("measurement") == "position":
+        w(f"gauge: {rep['gauge']}\n")
+        w(
+            f"\n{'target':12} {'n':>4} {'RMS nominal':>12} {'identified':>11}"
+            "   (mm, sensor frame; target at q = 0)\n"
+        )
+        for nm, d in rep["targets"].items():
+            w(
+                f"{nm:12} {d['n']:4d} {d['before_rms_mm']:12.4f} {d['after_rms_mm']:11.4f}"
+                f"   {d['target_mm']}\n"
             )
     else:
         _print_points(rep, w)
@@ -209,6 +229,10 @@ def cmd_predict(args) -> int:
     from lasercal.solver.kinematics.gravity import gravity_torques
 
     model = load_model(args.model)
+    if model.identification.get("measurement") == "position":
+        from lasercal.collector.cli.position import cmd_predict_position
+
+        return cmd_predict_position(model, args)
     cfg = load_configs(args.configs, model)
     point = model.identification.get("measurement") == "point"
     z = args.plane_z if args.plane_z is not None else model.plane_z
@@ -254,7 +278,7 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
         raise FormatError("--effect-size", "give the size of the hidden effect")
     size = args.effect_size
     if args.effect == "reference_point_offset":
-        if args.effect_point not in layout.points:
+        if layout is None or args.effect_point not in layout.points:
             raise FormatError(
                 args.layout,
                 f"--effect-point {args.effect_point!r} is not a point of the layout",
@@ -280,10 +304,20 @@ def cmd_simulate(args) -> int:
     import numpy as np
 
     from lasercal.solver.analysis.simulate import simulate_captures
+    from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
-    path = resolve_robot_path(args.truth)
+    path = Path(args.truth) if str(args.truth).lower().endswith(".urdf") else resolve_robot_path(args.truth)
+    if args.measurement == "position":
+        from lasercal.collector.cli.position import cmd_simulate_position
+
+        n = load_model(path).n
+        return cmd_simulate_position(
+            args, path, hidden_effect(args, None, n, np.random.default_rng(args.seed + 1))
+        )
+    if not args.layout:
+        raise FormatError("--layout", "a laser session needs a layout (--layout)")
     truth = load_model(path)
     raw = load_yaml(path)
     nominal = args.robot or raw.get("nominal") or str(path.resolve())

@@ -36,10 +36,11 @@ from lasercal.solver.errors import ModelError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.measurement import fit, residuals
 from lasercal.solver.identify.point import polish_point, session_targets, tip_joint_jacobian
+from lasercal.solver.identify.position import point_joint_jacobian, sensor_points
 from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.aim import polish
 from lasercal.solver.kinematics.effects import Extension, candidates
-from lasercal.solver.kinematics.gravity import gravity_torques
+from lasercal.solver.kinematics.gravity import gravity_torques, model_torques
 from lasercal.solver.kinematics.laser import spot_joint_jacobian
 
 _RTOL = 1e-6
@@ -155,6 +156,8 @@ def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, 
     """Logged joint torques, or the robot's gravity model at the logged poses, or None."""
     if session.tau is not None:
         return session.tau, "logged"
+    if session.measurement == "position":  # URDFs of industrial arms often carry no inertias
+        return model_torques(session.robot, session.q)
     if session.robot.links:
         return gravity_torques(session.robot, session.q, payload), "gravity model"
     return None, "none"
@@ -162,6 +165,9 @@ def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, 
 
 def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
     """d(residual)/dq (m, d, n) of the fitted model: spot in the plane, or tool point."""
+    if session.measurement == "position":  # in the sensor frame
+        P = np.array([model.targets[nm] for nm in session.point])
+        return model.sensor_pose[:3, :3] @ point_joint_jacobian(model, q, P)[1]
     if session.measurement == "point":
         return tip_joint_jacobian(model, q)[1]
     return spot_joint_jacobian(model, q, session.target[:, 2])[1]
@@ -286,6 +292,10 @@ def bootstrap(
     target = session_targets(s, ident.extra.get("points", {})) if point else s.target
     rms = []
     for _ in range(n_refit):
+        if s.measurement == "position":  # the sensor's noise is on the positions, the poses are exact
+            yb = sensor_points(ident.model, s.q, s.point) + rng.normal(0, ident.sigma_mm, s.target.shape)
+            rms.append(fit(replace(s, target=yb), nominal=ident.model, robust=False).rms_mm)
+            continue
         if point:
             qb = polish_point(ident.model, s.q, target + rng.normal(0, ident.sigma_mm, target.shape))
         else:
@@ -307,7 +317,7 @@ def bootstrap(
 def holdout(session: Session, fit, k: int = 5, seed: int = 0) -> np.ndarray:
     """Cross-validated residuals (m, d): ``fit(train) -> predict(test) -> (k, d)``."""
     f = folds(session, k, seed)
-    out = np.empty((session.m, 3 if session.measurement == "point" else 2))
+    out = np.empty((session.m, 2 if session.measurement == "laser" else 3))
     for i in range(k):
         test = f == i
         out[test] = fit(session.subset(~test))(session.subset(test))
@@ -347,7 +357,7 @@ def diagnose(
     tau, tau_src = session_torques(session, payload)
     session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
     geo = fit(session)
-    pts = [] if session.measurement == "point" else list(dict.fromkeys(session.point))
+    pts = [] if session.measurement != "laser" else list(dict.fromkeys(session.point))
     exts = candidates(session.robot.n, pts, tau is not None, session.t is not None and np.ptp(session.t) > 0)
     if effect is not None:
         exts = [e for e in exts if e.effect == effect]

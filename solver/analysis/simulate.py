@@ -100,3 +100,26 @@ def validation_spots(
     point = np.asarray(point, dtype=float)
     q = aim(model, point, n, rng, **aim_kw)
     return predict_spots(truth, q, point[2])[0]
+
+
+def random_configs(model: RobotModel, m: int, rng: np.random.Generator, margin: float = 0.05) -> np.ndarray:
+    """m configurations (m, n) drawn uniformly inside the joint limits (less ``margin``, rad or mm)."""
+    lo, hi = model.limits[:, 0] + margin, model.limits[:, 1] - margin
+    return rng.uniform(lo, hi, (m, model.n))
+
+
+def simulate_positions(
+    truth: RobotModel,
+    q: np.ndarray,
+    names: np.ndarray,
+    noise_mm: float,
+    rng: np.random.Generator,
+    effect: Extension | None = None,
+    tau: np.ndarray | None = None,
+) -> np.ndarray:
+    """Sensor readings (m, 3) mm of the truth's targets (its ``targets`` and ``sensor_pose``) at the logged
+    configurations q, with N(0, noise_mm^2) per axis; a hidden joint ``effect`` acts on q (with ``tau``)."""
+    from lasercal.solver.identify.position import sensor_points
+
+    q_true = effect.true_q(q, np.zeros(len(q)), tau) if effect is not None else q
+    return sensor_points(truth, q_true, names) + rng.normal(0.0, noise_mm, (len(q), 3))

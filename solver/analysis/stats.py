@@ -162,6 +162,23 @@ def point_session_stats(model: RobotModel, session: Session, mask: np.ndarray | 
     return out
 
 
+def position_target_stats(ident: Identification, session: Session, used: np.ndarray) -> dict:
+    """Per target: captures, RMS distance (mm) of the measured positions from the nominal's (after its best
+    sensor frame and targets) and from the identified model's predictions, and the identified target."""
+    r0 = np.linalg.norm(residuals(ident.nominal, None, session), axis=1)
+    r1 = np.linalg.norm(residuals(ident.model, ident.extension, session), axis=1)
+    out = {}
+    for nm in dict.fromkeys(session.point):
+        sel = session.point == nm
+        out[nm] = {
+            "n": int(sel.sum()),
+            "before_rms_mm": round(float(np.sqrt(np.mean(r0[sel] ** 2))), 6),
+            "after_rms_mm": round(float(np.sqrt(np.mean(r1[sel & used] ** 2))), 6),
+            "target_mm": [round(float(x), 4) for x in ident.model.targets[nm]],
+        }
+    return out
+
+
 def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
     """The statistics ``lasercal solve`` prints, as a JSON-ready mapping."""
     used = ident.weights > 0
@@ -197,6 +214,10 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
         rep["identified_points"] = {
             k: [round(x, 4) for x in v] for k, v in ident.extra.get("points", {}).items()
         }
+    elif session.measurement == "position":
+        rep["measurement"] = "position"
+        rep["gauge"] = ident.extra.get("gauge", "")
+        rep["targets"] = position_target_stats(ident, session, used)
     else:
         before, after = per_point(ident.nominal, session), per_point(ident.model, session, used)
         rep["points"] = {

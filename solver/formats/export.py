@@ -336,5 +336,10 @@ def to_yaml(model: RobotModel) -> str:
 
 
 def export(model: RobotModel, fmt: str) -> str:
-    """The model as text in ``fmt``: 'urdf', 'dh' or 'yaml'."""
+    """The model as text in ``fmt``: 'urdf', 'dh' or 'yaml'. A model from a URDF exports as that URDF with
+    calibrated joints (:func:`solver.formats.urdf.calibrated_urdf`)."""
+    if fmt == "urdf" and model.urdf:
+        from lasercal.solver.formats.urdf import calibrated_urdf
+
+        return calibrated_urdf(model)
     return {"urdf": to_urdf, "dh": to_dh, "yaml": to_yaml}[fmt](model)

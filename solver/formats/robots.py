@@ -64,10 +64,13 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         if not isinstance(j, dict):
             raise FormatError(path, "each joint must be a mapping", field=where)
         w = _vec(j, "omega", 3, path, where)
-        if np.linalg.norm(w) < 0.5:
+        prismatic = j.get("type", "revolute") == "prismatic"
+        if prismatic and np.linalg.norm(w) > 0:
+            raise FormatError(path, "a prismatic joint's omega must be [0, 0, 0]", field=f"{where}.omega")
+        if not prismatic and np.linalg.norm(w) < 0.5:
             raise FormatError(
                 path,
-                "joint axis omega must be (close to) a unit vector; only revolute arm joints are supported",
+                "joint axis omega must be (close to) a unit vector (or give type: prismatic)",
                 field=f"{where}.omega",
             )
         screws.append(
@@ -116,6 +119,17 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             raise FormatError(
                 path, "ee.M must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field="ee.M"
             )
+    targets = {}
+    if d.get("targets") is not None:
+        if not isinstance(d["targets"], dict):
+            raise FormatError(path, "'targets' must be a mapping NAME: [x, y, z] (mm)", field="targets")
+        targets = {str(k): _frozen(_vec(d["targets"], k, 3, path, "targets")) for k in d["targets"]}
+    sensor_pose = None
+    if isinstance(d.get("sensor"), dict) and d["sensor"].get("T") is not None:
+        sensor_pose = _vec(d["sensor"], "T", 16, path, "sensor").reshape(4, 4)
+        R = sensor_pose[:3, :3]
+        if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+            raise FormatError(path, "sensor.T must be a rigid transform", field="sensor.T")
     links = tuple(
         Link(float(lk["mass"]), _frozen(_vec(lk, "com", 3, path, f"links[{i}]")))
         for i, lk in enumerate(d.get("links", []) or [])
@@ -133,6 +147,9 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         home=None if home is None else _frozen(home),
         tool_point=None if tool_point is None else _frozen(tool_point),
         ee_pose=None if ee_pose is None else _frozen(ee_pose),
+        targets=targets,
+        sensor_pose=None if sensor_pose is None else _frozen(sensor_pose),
+        urdf=dict(d.get("urdf", {}) or {}),
         links=links,
         extensions=dict(d.get("extensions", {}) or {}),
         identification=dict(d.get("identification", {}) or {}),
@@ -161,7 +178,17 @@ def load_yaml(path) -> Any:
         ) from None
 
 
-def load_model(name_or_path, base: Path | None = None) -> RobotModel:
-    """Load and validate a robot model by name ('panda', 'puma560', ...) or path."""
+def load_model(
+    name_or_path, base: Path | None = None, base_link: str | None = None, tip_link: str | None = None
+) -> RobotModel:
+    """Load and validate a robot model by name ('panda', 'puma560', ...) or path (YAML, or a ``.urdf``
+    with the chain from ``base_link`` to ``tip_link``: :func:`solver.formats.urdf.load_urdf`)."""
+    if str(name_or_path).lower().endswith(".urdf"):
+        from lasercal.solver.formats.urdf import load_urdf
+
+        p = Path(name_or_path)
+        if not p.is_absolute() and base is not None and (Path(base) / p).exists():
+            p = Path(base) / p
+        return load_urdf(p, base_link, tip_link)
     path = resolve_robot_path(name_or_path, base)
     return model_from_dict(load_yaml(path), path)

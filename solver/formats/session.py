@@ -146,6 +146,11 @@ class Session:
     measurement : str, 'laser' (spot on a plane) or 'point' (a tool point held at a point)
     tool_point : (3,) array or None, nominal tool point at q = 0 (point measurements), mm
     distances : tuple of (A, B, mm), known distances between points (point measurements)
+    sigma : (m,) array or None, per-capture sensor noise, mm (position measurements)
+
+    Position measurements (``measurement: position``, :mod:`solver.formats.positions`): ``point``
+    is each capture's target on the tool, ``target`` its measured position (mm, sensor frame),
+    ``points`` maps each target to None (identified).
     """
 
     path: Path
@@ -165,6 +170,7 @@ class Session:
     measurement: str = "laser"
     tool_point: np.ndarray | None = None
     distances: tuple = ()
+    sigma: np.ndarray | None = None
 
     @property
     def m(self) -> int:
@@ -196,6 +202,7 @@ class Session:
             self.measurement,
             self.tool_point,
             distances,
+            pick(self.sigma),
         )
 
 
@@ -291,12 +298,20 @@ def load_session(folder) -> Session:
             raise FormatError(ypath, f"units.{k} must be {v!r}", field=f"units.{k}")
     if "robot" not in meta:
         raise FormatError(ypath, "missing 'robot' (a name under data/robots/ or a path)", field="robot")
-    robot = load_model(meta["robot"], base=folder)
+    robot = load_model(
+        meta["robot"], base=folder, base_link=meta.get("base_link"), tip_link=meta.get("tip_link")
+    )
     measurement = meta.get("measurement", "laser")
-    if measurement not in ("laser", "point"):
+    if measurement not in ("laser", "point", "position"):
         raise FormatError(
-            ypath, f"measurement must be 'laser' or 'point', got {measurement!r}", field="measurement"
+            ypath,
+            f"measurement must be 'laser', 'point' or 'position', got {measurement!r}",
+            field="measurement",
         )
+    if measurement == "position":
+        from lasercal.solver.formats.positions import load_position_session
+
+        return load_position_session(folder, meta, robot)
     points = _points(meta, ypath, allow_unknown=measurement == "point")
     tool_point, distances = None, ()
     if measurement == "point":

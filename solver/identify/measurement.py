@@ -1,7 +1,8 @@
 """The two measurement types behind one interface: laser spots on a plane, tool points at points.
 
 ``session.measurement`` selects the model: 'laser' (the beam meets the plane; residuals in the
-plane, (m, 2) mm) or 'point' (a tool point held at fixed points; residuals (m, 3) mm).
+plane, (m, 2) mm), 'point' (a tool point held at fixed points; residuals (m, 3) mm) or
+'position' (targets measured by a 3-D sensor; residuals (m, 3) mm in the sensor frame).
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import numpy as np
 
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.point import identify_point, session_targets, tips
+from lasercal.solver.identify.position import identify_position, position_residuals
 from lasercal.solver.identify.spot import Identification, identify, spot_residuals
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.model import RobotModel
@@ -25,6 +27,8 @@ def fit(
     """Identify the session's model ('lm' for both measurement types; 'thesis' for laser sessions)."""
     if session.measurement == "point":
         return identify_point(session, nominal, robust, extension)
+    if session.measurement == "position":
+        return identify_position(session, nominal, robust, extension)
     if method == "thesis":
         return identify(session, "thesis", nominal)
     return identify(session, "lm", nominal, robust=robust, extension=extension)
@@ -38,6 +42,8 @@ def residuals(
     For point sessions, unknown points come from ``points`` (e.g. a training fit's), or else are
     taken as the mean of this model's own tips per point (a self-consistency residual).
     """
+    if session.measurement == "position":
+        return position_residuals(model, ext, session)
     q = ext.true_q(session.q, session.t, session.tau) if ext else session.q
     if session.measurement == "point":
         p = tips(model, q, model.tool_point if model.tool_point is not None else session.tool_point)

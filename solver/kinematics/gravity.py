@@ -55,3 +55,35 @@ def gravity_torques(
     )  # (m, b, n)
     below = owner[:, None] >= np.arange(model.n)[None, :]  # link i moves with joint j only if i >= j
     return G / 1000.0 * np.einsum("b,mbn->mn", mass, dz * below)
+
+
+def wrist_centre(model: RobotModel) -> np.ndarray:
+    """The point (3,) mm at q = 0 nearest (least squares) to the last three revolute axes: the wrist centre
+    of a spherical wrist, the wrist's nearest point otherwise."""
+    S = model.screws[~model.prismatic][-3:]
+    w, c = S[:, :3], np.cross(S[:, :3], S[:, 3:])  # directions, points on the axes
+    P = np.eye(3)[None] - w[:, :, None] * w[:, None, :]  # projectors normal to each axis
+    return np.linalg.lstsq(P.sum(axis=0), np.einsum("kij,kj->i", P, c), rcond=None)[0]
+
+
+def lumped_torques(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Joint torques (m, n) Nm of a 1 kg load at the wrist centre (:func:`wrist_centre`), base z up.
+
+    For robots without a gravity model: the torques' shape over the poses is the arm's own
+    weight's to first order; the unknown real load scales every joint's column, so a
+    compliance fitted on these torques is the true compliance times that load (in kg).
+    """
+    q = np.atleast_2d(q)
+    chain = poe_chain(model.screws, q)
+    c = chain[:, -1, :3, :3] @ wrist_centre(model) + chain[:, -1, :3, 3]  # (m, 3) mm
+    J = space_jacobian(model.screws, chain)
+    dz = J[:, 0, :] * c[:, 1, None] - J[:, 1, :] * c[:, 0, None] + J[:, 5, :]  # (omega_j x c + v_j)_z
+    return G / 1000.0 * dz
+
+
+def model_torques(model: RobotModel, q: np.ndarray) -> tuple[np.ndarray, str]:
+    """The robot's gravity torques (m, n) Nm when it has a gravity model, else :func:`lumped_torques`;
+    and which of the two ('gravity model' or 'lumped load at the wrist centre')."""
+    if model.links:
+        return gravity_torques(model, q), "gravity model"
+    return lumped_torques(model, q), "lumped load at the wrist centre"

@@ -14,6 +14,9 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
     home: [...]            # optional: a configuration the aiming IK starts from
     tool: {point: [...]}   # optional: a tool point at q = 0, for point measurements
     ee: {M: [[...], ...]}  # optional: full end-effector frame at q = 0 (4x4, mm), full-pose models
+    targets: {T1: [...]}   # optional: targets on the last link at q = 0 (mm, base), position models
+    sensor: {T: [[...]]}   # optional: ^S T_base, the base frame in the 3-D sensor's frame (4x4, mm)
+    urdf: {file, base_link, tip_link}  # optional: the URDF the model came from (export keeps it)
     links: [...]           # optional: masses (kg) and centres of mass at q = 0 (mm)
     extensions: {}         # optional: non-geometric parameters (see solver.effects)
     identification: {}     # written by `lasercal solve`: method, statistics, standard errors
@@ -64,6 +67,9 @@ class RobotModel:
     home : (n,) array or None, a configuration the aiming inverse kinematics starts from, rad
     tool_point : (3,) array or None, a tool point at q = 0 (point measurements), mm
     ee_pose : (4, 4) array or None, end-effector frame M at q = 0 (full-pose models), mm
+    targets : dict name -> (3,) array, targets on the last link at q = 0 (position models), mm, base frame
+    sensor_pose : (4, 4) array or None, ^S T_base: the base frame seen from the 3-D sensor, mm
+    urdf : dict, the URDF the model came from ({file, base_link, tip_link, joints}); empty otherwise
     links : tuple of Link, the gravity model (may be empty)
     extensions : dict, non-geometric parameters by effect name
     identification : dict, metadata written by an identification
@@ -80,6 +86,9 @@ class RobotModel:
     home: np.ndarray | None = None
     tool_point: np.ndarray | None = None
     ee_pose: np.ndarray | None = None
+    targets: dict = field(default_factory=dict)
+    sensor_pose: np.ndarray | None = None
+    urdf: dict = field(default_factory=dict)
     links: tuple = ()
     extensions: dict = field(default_factory=dict)
     identification: dict = field(default_factory=dict)
@@ -90,11 +99,27 @@ class RobotModel:
         """Number of joints."""
         return self.screws.shape[0]
 
+    @property
+    def prismatic(self) -> np.ndarray:
+        """(n,) bool: joints whose screw has omega = 0 (prismatic; their values in mm)."""
+        return np.linalg.norm(self.screws[:, :3], axis=1) < 0.5
+
     def replace(self, **changes) -> RobotModel:
         """A copy with some fields changed (arrays are frozen again)."""
-        for k in ("screws", "limits", "laser_dir", "aperture", "home", "tool_point", "ee_pose"):
+        for k in (
+            "screws",
+            "limits",
+            "laser_dir",
+            "aperture",
+            "home",
+            "tool_point",
+            "ee_pose",
+            "sensor_pose",
+        ):
             if k in changes and changes[k] is not None:
                 changes[k] = _frozen(changes[k])
+        if "targets" in changes:
+            changes["targets"] = {str(k): _frozen(v) for k, v in changes["targets"].items()}
         return dataclasses.replace(self, **changes)
 
     def within_limits(self, q: np.ndarray, margin: float = 0.0) -> np.ndarray:
@@ -113,7 +138,8 @@ class RobotModel:
         }
         d["joints"] = [
             {"name": nm, "omega": r(S[:3]), "v": r(S[3:]), "limits": r(lim)}
-            for nm, S, lim in zip(self.joint_names, self.screws, self.limits)
+            | ({"type": "prismatic"} if pr else {})
+            for nm, S, lim, pr in zip(self.joint_names, self.screws, self.limits, self.prismatic)
         ]
         d["laser"] = {"omega": [0.0, 0.0, 0.0], "v": r(self.laser_dir), "M": r(self.aperture)}
         if self.plane_z is not None:
@@ -124,6 +150,12 @@ class RobotModel:
             d["tool"] = {"point": r(self.tool_point)}
         if self.ee_pose is not None:
             d["ee"] = {"M": [r(row) for row in self.ee_pose]}
+        if self.targets:
+            d["targets"] = {k: r(v) for k, v in self.targets.items()}
+        if self.sensor_pose is not None:
+            d["sensor"] = {"T": [r(row) for row in self.sensor_pose]}
+        if self.urdf:
+            d["urdf"] = dict(self.urdf)
         if self.links:
             d["links"] = [{"mass": float(lk.mass), "com": r(lk.com)} for lk in self.links]
         if self.extensions:

@@ -1,0 +1,155 @@
+"""Position sessions: targets on the tool measured by a 3-D point sensor (laser tracker, mocap, CMM arm).
+
+``session.yaml`` needs ``format: lasercal-session/1``, ``units`` (mm, rad), ``measurement:
+position`` and ``robot`` (a name, a model YAML or a ``.urdf`` with optional ``base_link`` and
+``tip_link``). Optional: ``targets: [names]`` (the targets the CSV may name), ``sensor`` (a
+name, free text), ``noise_mm``, ``positions: FILE.csv`` (the sensor's rows in a file of their
+own, row i measured at captures.csv's row i).
+
+``captures.csv``: ``q1..qN,x,y,z`` (rad, or mm for prismatic joints; x, y, z in mm in the
+sensor's frame), optional ``target`` (default: one target ``T1``), ``sigma`` (mm, the row's
+noise std per axis), ``t`` (s) and ``tau1..tauN`` (Nm); other columns pass through.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.session import (
+    SESSION_FORMAT,
+    UNITS,
+    Session,
+    _joint_columns,
+    _numeric_block,
+    _read_csv,
+    check_limits,
+    format_row,
+)
+from lasercal.solver.kinematics.model import RobotModel
+
+DEFAULT_TARGET = "T1"
+
+
+def load_position_session(folder: Path, meta: dict, robot: RobotModel) -> Session:
+    """Read a position session's captures (module docstring) into a :class:`Session`.
+
+    Returns
+    -------
+    Session with ``measurement='position'``, ``target`` the measured positions (m, 3) mm
+    """
+    cpath = folder / "captures.csv"
+    header, rows = _read_csv(cpath)
+    n = robot.n
+    qcols = _joint_columns("q", n)
+    q = _numeric_block(cpath, rows, header, qcols)
+    spath, sheader, srows = cpath, header, rows
+    if meta.get("positions") is not None:
+        spath = folder / str(meta["positions"])
+        sheader, srows = _read_csv(spath)
+        if len(srows) != len(rows):
+            raise FormatError(
+                spath,
+                f"{len(srows)} sensor rows but {cpath.name} has {len(rows)} captures: the rows must pair up",
+                field="rows",
+            )
+    y = _numeric_block(spath, srows, sheader, ["x", "y", "z"])
+    sig = _numeric_block(spath, srows, sheader, ["sigma"], required=False)
+    if sig is not None and np.any(sig <= 0):
+        r = int(np.argmax(sig[:, 0] <= 0))
+        raise FormatError(spath, "sigma must be positive (mm)", line=srows[r][0], field="sigma")
+    if "target" in sheader:
+        j = sheader.index("target")
+        names = np.array([row[j].strip() or DEFAULT_TARGET for _, row in srows], dtype=object)
+    else:
+        names = np.full(len(srows), DEFAULT_TARGET, dtype=object)
+    allowed = meta.get("targets")
+    if allowed is not None:
+        allowed = [str(a) for a in allowed]
+        bad = [i for i, nm in enumerate(names) if nm not in allowed]
+        if bad:
+            raise FormatError(
+                spath,
+                f"unknown target {names[bad[0]]!r} (session.yaml names {', '.join(allowed)})",
+                line=srows[bad[0]][0],
+                field="target",
+            )
+    t = _numeric_block(cpath, rows, header, ["t"], required=False)
+    t = np.zeros(len(rows)) if t is None else t[:, 0]
+    tau = _numeric_block(cpath, rows, header, _joint_columns("tau", n), required=False)
+    lines = np.array([ln for ln, _ in rows], dtype=int)
+    check_limits(cpath, robot, q, lines)
+    known = set(qcols + _joint_columns("tau", n) + ["t", "x", "y", "z", "target", "sigma"])
+    extra = {
+        h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
+    }
+    if len(rows) < 1:
+        raise FormatError(cpath, "no captures", line=2)
+    return Session(
+        folder,
+        meta,
+        robot,
+        float("nan"),
+        None,
+        {nm: None for nm in dict.fromkeys(names)},
+        names,
+        y,
+        t,
+        q,
+        None,
+        tau,
+        extra,
+        lines,
+        "position",
+        None,
+        (),
+        None if sig is None else sig[:, 0],
+    )
+
+
+def position_meta(robot_ref: str, targets, **extra) -> dict:
+    """The session.yaml mapping of a position session."""
+    meta = {
+        "format": SESSION_FORMAT,
+        "robot": str(robot_ref),
+        "units": dict(UNITS),
+        "measurement": "position",
+        "targets": [str(t) for t in targets],
+    }
+    meta.update(extra)
+    return meta
+
+
+def write_position_session(
+    folder, meta: dict, q: np.ndarray, y: np.ndarray, names, sigma=None, tau=None, t=None
+) -> Path:
+    """Write a position session folder (captures.csv: q1..qN[,t][,tau1..tauN],target,x,y,z[,sigma])."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "session.yaml").write_text(yaml.safe_dump(meta, sort_keys=False, width=120))
+    n = q.shape[1]
+    header = (
+        _joint_columns("q", n)
+        + (["t"] if t is not None else [])
+        + (_joint_columns("tau", n) if tau is not None else [])
+        + ["target", "x", "y", "z"]
+        + (["sigma"] if sigma is not None else [])
+    )
+    with open(folder / "captures.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for i in range(len(q)):
+            vals = (
+                format_row(q[i])
+                + ([] if t is None else format_row([t[i]]))
+                + ([] if tau is None else format_row(tau[i]))
+                + [str(names[i])]
+                + format_row(y[i])
+                + ([] if sigma is None else format_row([np.ravel(sigma)[i] if np.ndim(sigma) else sigma]))
+            )
+            w.writerow(vals)
+    return folder

@@ -1,0 +1,225 @@
+"""Position sessions on arms loaded from URDF: recovery against simulated truth, URDF out checked by
+pinocchio (an independent URDF implementation), and bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from lasercal.collector.cli.main import main
+from lasercal.collector.cli.position import default_sensor, default_targets
+from lasercal.solver.analysis.simulate import random_configs, simulate_positions
+from lasercal.solver.analysis.stats import cross_validate
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.positions import position_meta, write_position_session
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_session
+from lasercal.solver.formats.urdf import calibrated_urdf, load_urdf
+from lasercal.solver.identify.measurement import fit
+from lasercal.solver.identify.position import eta_sizes, sensor_points
+from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+
+DATA = Path(__file__).parent / "data"
+
+
+def perturbed(nominal, rng, rot=1e-3, mm=1.0):
+    """The nominal with every joint screw moved by random eta (rad, mm), a sensor 2.5 m away, targets."""
+    screws = []
+    for S, k in zip(nominal.screws, eta_sizes(nominal)):
+        scale = np.array([rot, rot, mm, mm]) if k == 4 else np.array([rot, rot])
+        screws.append(screw_from_eta(link_frame(S), rng.normal(0, 1, k) * scale)[0])
+    return nominal.replace(
+        screws=np.array(screws), sensor_pose=default_sensor(), targets=default_targets(nominal, 3)
+    )
+
+
+def session(tmp, name, m, noise, seed, urdf_ref=None):
+    nominal = load_urdf(DATA / f"{name}.urdf")
+    rng = np.random.default_rng(seed)
+    truth = perturbed(nominal, rng)
+    names = np.tile(np.array(list(truth.targets), dtype=object), m)
+    q = np.repeat(random_configs(nominal, m, rng), 3, axis=0)
+    y = simulate_positions(truth, q, names, noise, rng)
+    write_position_session(
+        tmp, position_meta(urdf_ref or str(DATA / f"{name}.urdf"), truth.targets), q, y, names
+    )
+    return load_session(tmp), truth
+
+
+def heldout_error(model, truth, seed=9, m=200):
+    rng = np.random.default_rng(seed)
+    q = random_configs(truth, m, rng)
+    names = np.tile(np.array(list(truth.targets), dtype=object), m)
+    q = np.repeat(q, 3, axis=0)
+    return np.linalg.norm(sensor_points(model, q, names) - sensor_points(truth, q, names), axis=1)
+
+
+@pytest.mark.parametrize("name", ["ur5", "arm7", "rail_ur5"])
+def test_exact_recovery_without_noise(tmp_path, name):
+    s, truth = session(tmp_path, name, 40, 0.0, 1)
+    ident = fit(s)
+    assert ident.converged and not ident.identifiability.unidentifiable
+    assert heldout_error(ident.model, truth).max() < 1e-6
+
+
+@pytest.mark.parametrize("name", ["ur5", "arm7"])
+def test_noise_floor(tmp_path, name):
+    """Held-out prediction error (cross-validated, against the measured positions) is the sensor noise:
+    E|n| of 3-D Gaussian noise is 1.596 sigma, plus the small estimation error."""
+    sigma = 0.02
+    s, truth = session(tmp_path, name, 60, sigma, 2)
+    ident = fit(s)
+    cv = cross_validate(s, k=5)
+    assert 1.5 * sigma < cv.errors.mean() < 1.75 * sigma
+    assert cv.nominal_errors.mean() > 20 * sigma  # the perturbation is far above the noise
+    assert np.sqrt(np.mean(heldout_error(ident.model, truth) ** 2)) < 0.6 * sigma
+
+
+def _pin_fk(urdf: Path, q: np.ndarray, frame: str, prismatic: np.ndarray) -> np.ndarray:
+    """Frame position (mm) by pinocchio; continuous joints take (cos, sin)."""
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(str(urdf))
+    data = model.createData()
+    fid = model.getFrameId(frame)
+    out = []
+    for qi in q:
+        cfg = np.zeros(model.nq)
+        for j, jm in enumerate(model.joints[1:]):
+            if jm.nq == 2:
+                cfg[jm.idx_q : jm.idx_q + 2] = np.cos(qi[j]), np.sin(qi[j])
+            else:
+                cfg[jm.idx_q] = qi[j] / (1000.0 if prismatic[j] else 1.0)  # mm -> m
+        pin.framesForwardKinematics(model, data, cfg)
+        out.append(1000.0 * data.oMf[fid].translation)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("name", ["ur5", "rail_ur5"])
+def test_calibrated_urdf_round_trip(tmp_path, name):
+    """The exported URDF, read by pinocchio, puts every target where lasercal's calibrated model does."""
+    s, truth = session(tmp_path / "s", name, 30, 0.01, 3)
+    ident = fit(s)
+    out = tmp_path / "cal.urdf"
+    out.write_text(calibrated_urdf(ident.model))
+    q = random_configs(truth, 25, np.random.default_rng(4))
+    X = ident.model.sensor_pose
+    for nm in ident.model.targets:
+        ours = sensor_points(ident.model, q, np.full(len(q), nm, dtype=object))
+        theirs = _pin_fk(out, q, f"lasercal_{nm}", ident.model.prismatic) @ X[:3, :3].T + X[:3, 3]
+        assert np.abs(ours - theirs).max() < 1e-6
+    text = out.read_text()
+    nominal_text = (DATA / f"{name}.urdf").read_text()
+    for kept in ('mass value="8.393"', "meshes/missing_forearm.stl", 'lower="-6.283185307179586"'):
+        assert kept in nominal_text and kept in text  # inertias, meshes and limits kept
+
+
+def test_model_yaml_round_trip(tmp_path):
+    """An identified position model saved and reloaded predicts the same and still exports its URDF."""
+    s, _ = session(tmp_path / "s", "rail_ur5", 20, 0.0, 5)
+    m = fit(s).model
+    m.save(tmp_path / "m.yaml")
+    r = load_model(tmp_path / "m.yaml")
+    q = random_configs(r, 10, np.random.default_rng(0))
+    nm = np.full(10, "T2", dtype=object)
+    assert np.abs(sensor_points(r, q, nm) - sensor_points(m, q, nm)).max() < 1e-8
+    assert r.prismatic[0] and r.urdf == m.urdf and "lasercal_T2" in calibrated_urdf(r)
+
+
+def test_cli_simulate_solve_predict_export(tmp_path, capsys):
+    urdf = str(DATA / "arm7.urdf")
+    S, M = tmp_path / "S", tmp_path / "m.yaml"
+    assert (
+        main(["simulate", urdf, "--measurement", "position", "--configs", "30", "--noise", "0", "-o", str(S)])
+        == 0
+    )
+    assert main(["solve", str(S), "-o", str(M), "--folds", "3"]) == 0
+    cfg = tmp_path / "c.csv"
+    cfg.write_text("q1,q2,q3,q4,q5,q6,q7,target\n0,0,0,-1,0,1.5,0,T2\n0.1,0.2,0,-1.5,0,2,0,T1\n")
+    capsys.readouterr()
+    assert main(["predict", str(M), str(cfg)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].endswith("target,x,y,z") and len(lines) == 3 and lines[1].split(",")[7] == "T2"
+    model = load_model(M)
+    q = np.array([[0, 0, 0, -1, 0, 1.5, 0]])
+    assert np.allclose(
+        [float(v) for v in lines[1].split(",")[-3:]], sensor_points(model, q, ["T2"])[0], atol=1e-5
+    )
+    cfg.write_text("q1,q2,q3,q4,q5,q6,q7\n0,0,0,-1,0,1.5,0\n")
+    assert main(["predict", str(M), str(cfg)]) == 0
+    assert len(capsys.readouterr().out.strip().splitlines()) == 1 + len(model.targets)
+    assert (
+        main(
+            [
+                "export",
+                str(M),
+                "--format",
+                "urdf",
+                "-o",
+                str(tmp_path / "c.urdf"),
+                "--sensor-output",
+                str(tmp_path / "s.urdf"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        "lasercal_T1" in (tmp_path / "c.urdf").read_text()
+        and "sensor_to_base" in (tmp_path / "s.urdf").read_text()
+    )
+
+
+# ----------------------------------------------------------------------------- bad input
+BRANCHED = """<robot name="b"><link name="base"/><link name="a"/><link name="b"/>
+<joint name="ja" type="revolute"><parent link="base"/><child link="a"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<joint name="jb" type="revolute"><parent link="base"/><child link="b"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def test_urdf_not_a_chain(tmp_path):
+    p = tmp_path / "b.urdf"
+    p.write_text(BRANCHED)
+    with pytest.raises(FormatError, match=r"b\.urdf, field 'tip_link': the tree below 'base' branches"):
+        load_urdf(p)
+    with pytest.raises(FormatError, match=r"tip_link 'a' is not below base_link 'b'"):
+        load_urdf(p, "b", "a")
+    assert load_urdf(p, tip_link="a").n == 1
+
+
+def test_missing_mesh_and_continuous_joint_are_stated():
+    notes = " ".join(load_urdf(DATA / "ur5.urdf").notes)
+    assert "mesh 'meshes/missing_forearm.stl' not found: ignored" in notes
+    assert "continuous joint 'joint6' has no limits" in notes
+
+
+def test_positions_in_metres_refused(tmp_path, capsys):
+    s, _ = session(tmp_path / "s", "ur5", 15, 0.0, 6)
+    text = (tmp_path / "s" / "captures.csv").read_text().splitlines()
+    head, rows = text[0], [r.split(",") for r in text[1:]]
+    for r in rows:
+        r[-3:] = [repr(float(v) / 1000) for v in r[-3:]]
+    (tmp_path / "s" / "captures.csv").write_text("\n".join([head] + [",".join(r) for r in rows]) + "\n")
+    assert main(["solve", str(tmp_path / "s"), "-o", str(tmp_path / "m.yaml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "captures.csv" in err and "look like metres" in err
+
+
+def test_sensor_file_row_count(tmp_path, capsys):
+    s, _ = session(tmp_path / "s", "ur5", 10, 0.0, 7)
+    lines = (tmp_path / "s" / "captures.csv").read_text().splitlines()
+    (tmp_path / "s" / "tracker.csv").write_text(
+        "\n".join(["target,x,y,z"] + [",".join(r.split(",")[-4:]) for r in lines[1:-1]])
+    )
+    meta = yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())
+    meta["positions"] = "tracker.csv"
+    (tmp_path / "s" / "session.yaml").write_text(yaml.safe_dump(meta))
+    assert main(["solve", str(tmp_path / "s"), "-o", str(tmp_path / "m.yaml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert (
+        len(err.splitlines()) == 1
+        and "tracker.csv, field 'rows': 29 sensor rows but captures.csv has 30" in err
+    )
