@@ -171,6 +171,12 @@ class Session:
         """Number of captures."""
         return len(self.point)
 
+    @property
+    def positions(self) -> np.ndarray:
+        """Tool position of each capture (m,): a point session's point name up to its last '/'
+        ('front' for 'front/hole_0'; points of one tool placement share it), else the point."""
+        return np.array([nm.rsplit("/", 1)[0] for nm in self.point], dtype=object)
+
     def subset(self, idx) -> Session:
         """The same session restricted to captures idx (bool mask or indices)."""
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
