@@ -3,7 +3,8 @@
 * Layout ``lasercal-layout/1`` (YAML): ``plane: {z}``, ``points: {NAME: [x, y, z]}`` (mm, base
   frame), optional ``calibration``/``validation`` name lists, ``aiming`` hints and ``markers``
   (read by ``vision``).
-* Session: a folder with ``session.yaml`` (``format: lasercal-session/1``) and ``captures.csv``
+* Session: a folder with ``session.yaml`` (``format: lasercal-session/1``; ``clock: seconds``, the
+  default, or ``order`` when ``t`` is only the recording order) and ``captures.csv``
   (``point,t,q1..qN[,dq1..dqN][,tau1..tauN][,extra...]``; mm, rad, Nm, s).
 * Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through.
 
@@ -29,6 +30,7 @@ from lasercal.solver.kinematics.model import RobotModel
 SESSION_FORMAT = "lasercal-session/1"
 LAYOUT_FORMAT = "lasercal-layout/1"
 UNITS = {"length": "mm", "angle": "rad", "torque": "Nm", "time": "s"}
+CLOCKS = ("seconds", "order")  # what the t column is: a real clock (s), or the recording order (a count)
 _LIMIT_TOL = 1e-6  # rad: logged angles are allowed to sit on a limit up to rounding
 
 
@@ -146,6 +148,8 @@ class Session:
     measurement : str, 'laser' (spot on a plane) or 'point' (a tool point held at a point)
     tool_point : (3,) array or None, nominal tool point at q = 0 (point measurements), mm
     distances : tuple of (A, B, mm), known distances between points (point measurements)
+    clock : str, 'seconds' (t is a clock) or 'order' (t only orders the rows: no effect in time
+        can be tested)
     """
 
     path: Path
@@ -165,6 +169,7 @@ class Session:
     measurement: str = "laser"
     tool_point: np.ndarray | None = None
     distances: tuple = ()
+    clock: str = "seconds"
 
     @property
     def m(self) -> int:
@@ -202,6 +207,7 @@ class Session:
             self.measurement,
             self.tool_point,
             distances,
+            self.clock,
         )
 
 
@@ -303,6 +309,13 @@ def load_session(folder) -> Session:
         raise FormatError(
             ypath, f"measurement must be 'laser' or 'point', got {measurement!r}", field="measurement"
         )
+    clock = meta.get("clock", "seconds")
+    if clock not in CLOCKS:
+        raise FormatError(
+            ypath,
+            f"clock must be 'seconds' (t in s) or 'order' (t is the row order), got {clock!r}",
+            field="clock",
+        )
     points = _points(meta, ypath, allow_unknown=measurement == "point")
     tool_point, distances = None, ()
     if measurement == "point":
@@ -378,6 +391,7 @@ def load_session(folder) -> Session:
         measurement,
         tool_point,
         distances,
+        clock,
     )
 
 
@@ -406,6 +420,7 @@ def session_meta(robot_ref: str, layout: Layout, aperture_z: float | None, **ext
         "format": SESSION_FORMAT,
         "robot": str(robot_ref),
         "units": dict(UNITS),
+        "clock": "seconds",
         "plane": {"z": float(layout.plane_z)},
         "laser": {"aperture_z": None if aperture_z is None else float(aperture_z)},
         "points": {k: [float(x) for x in v] for k, v in layout.points.items()},

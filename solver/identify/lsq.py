@@ -140,11 +140,11 @@ def studentised_outliers(
     r = int(np.sum(s > RANK_RTOL * s[0])) if s.size else 0
     U, s, Vt = U[:, :r], s[:r], Vt[:r]
     fitted = w > 0
-    I = np.eye(d)
+    eye = np.eye(d)
     Ui = U[: d * m].reshape(m, d, r)
     H = Ui @ np.swapaxes(Ui, 1, 2)  # (m, d, d) leverage blocks
     A = J_left @ (Vt.T / s)  # (m, d, r): J_i V S^-1
-    C = np.where(fitted[:, None, None], I - H, I + A @ np.swapaxes(A, 1, 2))
+    C = np.where(fitted[:, None, None], eye - H, eye + A @ np.swapaxes(A, 1, 2))
     qi = np.einsum("md,md->m", res, np.linalg.solve(C, res[..., None])[..., 0])
     groups = np.zeros(m, int) if groups is None else np.asarray(groups)
     flags = np.zeros(m, bool)
