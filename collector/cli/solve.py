@@ -26,7 +26,12 @@ from lasercal.solver.formats.session import (
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.point import tips
 from lasercal.solver.identify.spot import predict_spots
-from lasercal.solver.kinematics.effects import JOINT_EFFECTS, Extension, extension_from_model
+from lasercal.solver.kinematics.effects import (
+    JOINT_EFFECTS,
+    Extension,
+    extension_from_model,
+    robot_extensions,
+)
 from lasercal.solver.kinematics.gravity import gravity_torques
 
 
@@ -46,7 +51,9 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "--extend",
         default="none",
         choices=["auto", "none"] + list(JOINT_EFFECTS) + ["reference_point_offset"],
-        help="auto: diagnose and fit the winning non-geometric effect; or name one (default none)",
+        help="auto: diagnose, fit the winning non-geometric effect and keep it if it predicts held-out data "
+        "better; or name one (default none). Only robot effects (compliance, eccentricity) are written to "
+        "the model",
     )
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
 
@@ -151,20 +158,32 @@ def _print_points(rep: dict, w) -> None:
 def cmd_solve(args) -> int:
     session = load_session(args.session)
     diagnosis = None
+    robust = not args.no_robust
     if args.extend != "none" and args.method != "lm":
         raise IdentificationError("--extend needs --method lm")
     if args.extend != "none":
         diagnosis = diagnose(
-            session, n_boot=0, effect=None if args.extend == "auto" else args.extend
-        )  # the decision needs no bootstrap
+            session,
+            n_boot=0,  # the decision needs no bootstrap
+            k=args.folds,
+            effect=None if args.extend == "auto" else args.extend,
+            robust=robust,
+        )
         ident = diagnosis.extended or diagnosis.geometric
         session = diagnosis.session
     else:
         if session.measurement == "point" and args.method != "lm":
             raise IdentificationError("point sessions are identified by --method lm")
-        ident = fit(session, method=args.method, robust=not args.no_robust)
+        ident = fit(session, method=args.method, robust=robust)
     cv = (
-        cross_validate(session, args.method, args.folds, inlier=ident.weights > 0)
+        cross_validate(
+            session,
+            args.method,
+            args.folds,
+            inlier=ident.weights > 0,
+            robust=robust,
+            extension=diagnosis.extension if diagnosis else None,
+        )
         if args.folds and args.folds > 1
         else None
     )
@@ -194,7 +213,11 @@ def cmd_solve(args) -> int:
     for k in ("cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
-    ident.model.replace(identification=meta).save(args.output)
+    # MODEL.yaml carries robot effects only: a session effect (drift, a misplaced point) was fitted so that
+    # it does not bend the geometry, and is reported in identification.diagnosis, not applied at run time
+    ident.model.replace(identification=meta, extensions=robot_extensions(ident.model.extensions)).save(
+        args.output
+    )
     if args.json:
         print(json.dumps(rep, indent=2))
     else:

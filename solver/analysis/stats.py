@@ -12,7 +12,7 @@ model as its "after" photos (to first order the same errors, seen from the other
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -178,6 +178,8 @@ class CrossValidation:
             self.errors
         )
         e, e0 = self.errors[keep], self.nominal_errors[keep]
+        if not e.size:  # every fold failed
+            e = np.full(1, np.nan)
         return {
             "folds": self.k,
             "failed_folds": {str(i): why for i, why in self.failed.items()},
@@ -249,8 +251,14 @@ def point_session_stats(model: RobotModel, session: Session, mask: np.ndarray | 
 
 
 def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
-    """The statistics ``lasercal solve`` prints, as a JSON-ready mapping."""
+    """The statistics ``lasercal solve`` prints, as a JSON-ready mapping.
+
+    'after' is the identified model with its extension (if any) applied to the logged angles.
+    """
     used = ident.weights > 0
+    before = session
+    if ident.extension is not None:
+        session = replace(session, q=ident.extension.true_q(session.q, session.t, session.tau))
     idf = ident.identifiability
     rep = {
         "method": ident.method,
@@ -278,13 +286,13 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
             else ident.nominal.replace(tool_point=session.tool_point)
         )
         rep["measurement"] = "point"
-        rep["before"] = point_session_stats(nominal, session)
+        rep["before"] = point_session_stats(nominal, before)
         rep["after"] = point_session_stats(ident.model, session, used)
         rep["identified_points"] = {
             k: [round(x, 4) for x in v] for k, v in ident.extra.get("points", {}).items()
         }
     else:
-        before, after = per_point(ident.nominal, session), per_point(ident.model, session, used)
+        before, after = per_point(ident.nominal, before), per_point(ident.model, session, used)
         rep["points"] = {
             nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None}
             for nm in before
