@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from lasercal.collector.cli import demo as demo_cli
+from lasercal.collector import demo as demo_module
 from lasercal.collector.cli.main import main
 from lasercal.collector.demo import (
     COMPLIANCE,
@@ -42,7 +42,7 @@ def demo(tmp_path_factory):
         contextlib.redirect_stdout(stdout),
         contextlib.redirect_stderr(stderr),
     ):
-        mp.setattr(demo_cli, "DemoOptions", lambda seed: DemoOptions(seed=seed, **LIGHT))
+        mp.setattr(demo_module, "DemoOptions", lambda seed: DemoOptions(seed=seed, **LIGHT))
         code = main(["demo", "-o", str(out)])
     return code, stdout.getvalue(), stderr.getvalue(), out
 

@@ -86,11 +86,37 @@ def format_diagnosis(d) -> str:
                 f"  residual RMS: measured {b['observed_rms_mm']:.3f} mm, simulated "
                 f"{np.mean(b['rms_mm']):.3f} +- {np.std(b['rms_mm']):.3f} mm ({b['refits']} full refits)"
             )
-    h = o["holdout_rms_mm"]
-    lines.append(
-        f"held-out RMS: geometric {h['geometric']:.3f} mm, extended {h['extended']:.3f} mm, gain "
-        f"{o['gain_percent']:.1f}%  (torques: {d.torque_source})"
-    )
+    acc, st = d.acceptance, d.statistics
+    if d.proposed is not None and d.extension is None:
+        lines.append(
+            f"proposed by the F test: {d.proposed.effect} {d.proposed.names} -- not kept: "
+            + acc.get("rejected", "")
+        )
+    if acc.get("decided_by") == "cross-validation":
+        ci = acc.get("gain_percent_ci95")
+        h = acc["holdout_rms_mm"]
+        cand = d.proposed.effect if d.proposed else "no extension"
+        lines.append(
+            f"held-out ({acc['folds']} folds by {acc['grouping']}): geometric {h['geometric']:.3f} mm, "
+            f"with {cand} {h['extended']:.3f} mm; gain per fold "
+            + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
+            + f"  (torques: {d.torque_source})"
+        )
+        for i, why in acc.get("failed_folds", {}).items():
+            lines.append(f"  fold {i} could not be fitted: {why}")
+    else:
+        lines.append(f"no cross-validation: the F test decided alone  (torques: {d.torque_source})")
+    if st:
+        lines.append(f"{'RMS (mm)':10} {'nominal':>9} {'geometric':>10} {'extended':>9}")
+        for part in ("train", "holdout"):
+            vals = [st[m][part] for m in ("nominal", "geometric", "extended")]
+            lines.append(
+                f"{part:10} " + " ".join(f"{v:9.3f}" if v is not None else f"{'-':>9}" for v in vals)
+            )
+    for eff, why in d.untested.items():
+        lines.append(f"not tested: {eff} -- {why}")
+    if d.extension is not None and d.robot_extension is None:
+        lines.append(f"{d.effect} is a session effect: fitted and reported, not written to the robot model")
     lines.append("candidates (F test against the geometric model, Bonferroni over all):")
     for t in d.tests[:6]:
         lines.append(f"  {t.label:38} F = {t.F:9.3f}  df {t.df}  p = {t.p:.3g}  corrected {t.p_adjusted:.3g}")

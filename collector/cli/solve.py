@@ -33,7 +33,9 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "--extend",
         default="none",
         choices=["auto", "none"] + list(JOINT_EFFECTS) + ["reference_point_offset"],
-        help="auto: diagnose and fit the winning non-geometric effect; or name one (default none)",
+        help="auto: diagnose, fit the winning non-geometric effect and keep it if it predicts held-out data "
+        "better; or name one (default none). Only robot effects (compliance, eccentricity) are written to "
+        "the model",
     )
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
 
@@ -162,23 +164,36 @@ def cmd_solve(args) -> int:
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
     from lasercal.solver.identify.measurement import fit
+    from lasercal.solver.kinematics.effects import robot_extensions
 
     session = load_session(args.session)
     diagnosis = None
+    robust = not args.no_robust
     if args.extend != "none" and args.method != "lm":
         raise IdentificationError("--extend needs --method lm")
     if args.extend != "none":
         diagnosis = diagnose(
-            session, n_boot=0, effect=None if args.extend == "auto" else args.extend
-        )  # the decision needs no bootstrap
+            session,
+            n_boot=0,  # the decision needs no bootstrap
+            k=args.folds,
+            effect=None if args.extend == "auto" else args.extend,
+            robust=robust,
+        )
         ident = diagnosis.extended or diagnosis.geometric
         session = diagnosis.session
     else:
         if session.measurement == "point" and args.method != "lm":
             raise IdentificationError("point sessions are identified by --method lm")
-        ident = fit(session, method=args.method, robust=not args.no_robust)
+        ident = fit(session, method=args.method, robust=robust)
     cv = (
-        cross_validate(session, args.method, args.folds, inlier=ident.weights > 0)
+        cross_validate(
+            session,
+            args.method,
+            args.folds,
+            inlier=ident.weights > 0,
+            robust=robust,
+            extension=diagnosis.extension if diagnosis else None,
+        )
         if args.folds and args.folds > 1
         else None
     )
@@ -208,7 +223,11 @@ def cmd_solve(args) -> int:
     for k in ("cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
-    ident.model.replace(identification=meta).save(args.output)
+    # MODEL.yaml carries robot effects only: a session effect (drift, a misplaced point) was fitted so that
+    # it does not bend the geometry, and is reported in identification.diagnosis, not applied at run time
+    ident.model.replace(identification=meta, extensions=robot_extensions(ident.model.extensions)).save(
+        args.output
+    )
     if args.json:
         print(json.dumps(rep, indent=2))
     else:

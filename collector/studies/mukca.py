@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.special import stdtrit  # quantile of Student's t (scipy.stats.t.ppf)
 
 from lasercal.collector.studies.mukca_import import import_mukca, positions
 from lasercal.solver.analysis.diagnose import ALPHA, Diagnosis, Tester, diagnose, session_torques
@@ -69,7 +70,8 @@ PUBLISHED = {
     "source": "platonics-delft/kinematics_calibration README; calibrate_fk/utils.py evaluate_model, "
     "compute_improved_performance",
 }
-MODELS = ("nominal", "geometric", "nested", "fixed", "compliance")  # see loto()
+MODELS = ("nominal", "plain", "geometric", "nested", "fixed", "compliance")  # see loto()
+PLAIN_TOLERANCE = 0.02  # the robust fit's held-out spread may exceed plain least squares' by this share
 
 
 @dataclass(frozen=True)
@@ -228,8 +230,10 @@ def homogeneity(values: np.ndarray, covs: np.ndarray) -> dict:
 def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOptions) -> dict:
     """Leave-one-tool-position-out cross-validation of every model.
 
-    Per fold, fitted on the other positions (robust loss on): the geometric model and the
-    effect :func:`diagnose` selects on them ('nested'), the whole-session finding refitted
+    Per fold, fitted on the other positions (robust loss on): plain least squares ('plain', no
+    outlier test: MUKCa's own optimiser), the geometric model and the effect :func:`diagnose`
+    selects and accepts on them by its own inner leave-one-position-out ('nested': no selection
+    leak; the geometric model when nothing is kept), the whole-session finding refitted
     ('fixed'), and joint compliance on ``common`` ('compliance'). Train metrics use the
     training captures the geometric fit kept; test metrics use every held-out capture.
 
@@ -251,10 +255,11 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     folds, test_parts, c_folds = [], {m: [] for m in MODELS}, []
     for held in dict.fromkeys(pos):
         train, test = s.subset(pos != held), s.subset(pos == held)
-        d = diagnose(replace(train, tau=None), alpha=opts.alpha, n_boot=0, k=0, payload=opts.payload)
+        d = diagnose(replace(train, tau=None), alpha=opts.alpha, n_boot=0, k=5, payload=opts.payload)
         comp = fit(train, compliance_ext(common))
         fits = {
             "nominal": (nominal, None),
+            "plain": (fit(train, robust=False).model, None),
             "geometric": (d.geometric.model, None),
             "nested": (d.extended.model, d.extended.extension) if d.extended else (d.geometric.model, None),
             "compliance": (comp.model, comp.extension),
@@ -272,6 +277,7 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
             "nested_effect": d.effect,
             "nested_joints": list(d.extension.joints) if d.extension else [],
             "nested_p": d.p_value,
+            "nested_proposed": d.proposed.effect if d.proposed else "none",
             "converged": bool(d.geometric.converged),
             "train": {},
             "test": {},
@@ -281,6 +287,9 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
             c = consistency(ball_centres(model, ext, test), test)
             rec["test"][name] = summarise(c)
             test_parts[name].append(c)
+        g, pl = rec["test"]["geometric"]["spread_rms_mm"], rec["test"]["plain"]["spread_rms_mm"]
+        rec["geometric_over_plain"] = g / pl
+        rec["nested_over_plain"] = rec["test"]["nested"]["spread_rms_mm"] / pl
         c_folds.append(comp.extension.params.tolist())
         folds.append(rec)
     detail = {m: _merge(test_parts[m]) for m in MODELS}
@@ -392,7 +401,7 @@ def simulation_check(d: Diagnosis, n_sim: int, rng: np.random.Generator) -> tupl
     """
     s, geo = d.session, d.geometric
     used = geo.weights > 0
-    exts = candidates(s.robot.n, [], s.tau is not None, np.ptp(s.t) > 0)
+    exts = candidates(s.robot.n, [], s.tau is not None, s.clock == "seconds" and np.ptp(s.t) > 0)
     T = Tester(s, geo, exts, s.tau)
     n3 = T.n_capture_rows
     E = np.zeros((T.res.size, n_sim))
@@ -645,7 +654,7 @@ def study_robot(
         alpha=opts.alpha,
         n_boot=opts.bootstrap,
         seed=opts.seed,
-        k=0,
+        k=5,  # point sessions: leave one tool position out decides whether the F test's finding is kept
         payload=opts.payload,
         n_refit=opts.refits,
     )
@@ -703,8 +712,48 @@ def study_robot(
         }
         rep["calibration"]["test_kept"] = {m: summarise(det) for m, det in kept.items()}
     rep["outliers"] = outlier_audit(session, d.geometric, list(removed), opts.alpha, size_p, clean, clean_geo)
+    rep["conclusion"] = conclusion(rep)
     rep["seconds"] = time.perf_counter() - t0
     return RobotStudy(rep, {"regressor": _regressor_plot(d), "simulation": sim_plot})
+
+
+def conclusion(rep: dict) -> dict:
+    """The robot's one-line conclusion: the effect kept (or none) and its held-out gain over the folds.
+
+    The effect is the whole-session diagnosis's, kept only if leave-one-tool-position-out improved
+    (:func:`solver.analysis.diagnose.diagnose`); the gain is that of the nested model (selected and
+    accepted inside each fold) over the geometric one in held-out spread RMS, per fold, with a
+    Student-t 95 % interval over the folds.
+    """
+    folds = rep["calibration"]["folds"]
+    g = np.array([f["test"]["geometric"]["spread_rms_mm"] for f in folds])
+    e = np.array([f["test"]["nested"]["spread_rms_mm"] for f in folds])
+    gains = 100.0 * (g - e) / g
+    h = stdtrit(len(gains) - 1, 0.975) * gains.std(ddof=1) / np.sqrt(len(gains)) if len(gains) > 1 else np.nan
+    dg = rep["diagnosis"]
+    kept = (
+        dg["effect"]
+        if dg["effect"] == "none"
+        else f"{dg['effect']} at joints {','.join(map(str, dg['joints']))}"
+    )
+    worst = max(f["geometric_over_plain"] for f in folds)
+    line = (
+        f"{kept}; held-out spread geometric {g.mean():.3f} -> extended {e.mean():.3f} mm, gain "
+        f"{gains.mean():+.1f}% (95% CI {gains.mean() - h:+.1f} to {gains.mean() + h:+.1f}% over "
+        f"{len(g)} folds); "
+        f"robust/plain worst fold {worst:.3f}"
+    )
+    if dg.get("proposed") and dg["effect"] == "none":
+        line += f" (F test proposed {dg['proposed']['effect']}, held-out rejected it)"
+    return {
+        "effect": dg["effect"],
+        "joints": dg["joints"],
+        "gain_percent_mean": float(gains.mean()),
+        "gain_percent_ci95": [float(gains.mean() - h), float(gains.mean() + h)],
+        "gain_percent_folds": gains.tolist(),
+        "worst_geometric_over_plain": float(worst),
+        "line": line,
+    }
 
 
 def _gain(test: dict, model: str) -> float:
@@ -847,6 +896,14 @@ def markdown(rep: dict) -> str:
     R = rep["robots"]
     o = rep["options"]
     md = ["# MUKCa real-data study: four Franka Pandas", ""]
+    md += ["## Conclusion per robot", ""]
+    md += [f"- **{r}**: {x['conclusion']['line']}" for r, x in R.items()]
+    md += [
+        "",
+        "Not tested on these data: "
+        + "; ".join(f"{e} ({why})" for e, why in next(iter(R.values()))["diagnosis"]["untested"].items()),
+        "",
+    ]
     md.append(
         f"Data `{rep['dataset']}` (joint angles only). Robust loss on. Gravity torques from the link masses "
         "plus a payload of "

@@ -4,9 +4,8 @@ A ball on the Franka hand sits in one of two conical sockets 50 mm apart while t
 hand-guided; each ``<robot>/<position>/hole_k.csv`` holds joint angles (rad, no header, in
 recording order) that all put the ball centre at one unknown point. One session per robot:
 points ``<position>/hole_0``, ``<position>/hole_1`` (unknown, identified), a 50 mm distance
-per position, ``t`` = recording order (a count, not seconds: the data have no times). The order
-is chronological within a socket file only: positions follow in alphabetical order, so a drift
-found on these data is weak evidence.
+per position, ``t`` = recording order with ``clock: order`` (a count, not seconds: the data have
+no times, so no effect in time is a candidate on them).
 """
 
 from __future__ import annotations
@@ -109,6 +108,7 @@ def import_mukca(robot_dir, out, only: list[str] | None = None) -> Path:
         "robot": "panda",
         "measurement": "point",
         "units": dict(UNITS),
+        "clock": "order",
         "tool": {"point": list(NOMINAL_TOOL)},
         "points": {f"{p}/{h}": None for p in pos for h in ("hole_0", "hole_1")},
         "constraints": {"distances": [[f"{p}/hole_0", f"{p}/hole_1", HOLE_DISTANCE] for p in pos]},

@@ -18,8 +18,16 @@ Procedure (documented in README "Diagnosis"):
    value's rank among them is a significance level that needs no F-distribution
    assumption), and a few full nonlinear re-simulations with refits give the residual
    size the experiment should show.
-4. Fit the winning extension jointly with the geometry and measure the gain by
-   cross-validation (the same stratified folds for both models).
+4. Accept by held-out data, not only by the F test: fit the winning extension jointly with
+   the geometry and cross-validate both models on the same grouped folds (a point session
+   leaves one tool position out, :func:`solver.analysis.stats.grouped_folds`). The extension
+   is kept only when its held-out RMS is smaller than the geometric model's; otherwise the
+   finding is ``none``, with the numbers (per-fold gains and their confidence interval).
+   Without cross-validation (``k`` < 2) the F test decides alone, and the result says so.
+
+Effects that need what the session lacks (drift without a real clock, ``clock: order``;
+compliance without torques or a gravity model) are not candidates; ``untested`` says which
+and why.
 """
 
 from __future__ import annotations
@@ -28,10 +36,13 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.special import fdtrc  # survival function of the F distribution (scipy.stats.f.sf)
+from scipy.special import (
+    fdtrc,  # survival function of the F distribution (scipy.stats.f.sf)
+    stdtrit,  # quantile of Student's t (scipy.stats.t.ppf)
+)
 
 from lasercal.solver.analysis import ALPHA
-from lasercal.solver.analysis.stats import folds
+from lasercal.solver.analysis.stats import HeldOut, fitter, grouped_folds, held_out
 from lasercal.solver.errors import ModelError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.measurement import fit, residuals
@@ -39,7 +50,7 @@ from lasercal.solver.identify.point import polish_point, session_targets, tip_jo
 from lasercal.solver.identify.position import point_joint_jacobian, sensor_points
 from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.aim import polish
-from lasercal.solver.kinematics.effects import Extension, candidates
+from lasercal.solver.kinematics.effects import ROBOT_EFFECTS, Extension, candidates, untested
 from lasercal.solver.kinematics.gravity import gravity_torques, model_torques
 from lasercal.solver.kinematics.laser import spot_joint_jacobian
 
@@ -87,6 +98,14 @@ class Diagnosis:
     ambiguous_with : tuple of str, candidates that explain the data (nearly) as well as the winner
         -- e.g. with three reference points an offset of any one of them looks alike, because the
         geometry absorbs a planar similarity of the whole layout
+    proposed : Extension or None, the F test's choice (fitted), kept or not
+    acceptance : dict, the held-out decision: 'decided_by' ('cross-validation' or 'F test only'),
+        'accepted', 'folds', 'grouping', 'failed_folds', 'fold_rms_mm' (model -> per fold),
+        'gain_percent_folds', 'gain_percent_ci95'
+    statistics : dict, model ('nominal', 'geometric', 'extended') -> 'train' and 'holdout' RMS, mm
+        (over the captures the robust geometric fit keeps; holdout None without cross-validation)
+    untested : dict effect -> why the data cannot test it
+    robust : bool, whether the robust loss was used (in every fit, folds included)
     """
 
     effect: str
@@ -102,6 +121,17 @@ class Diagnosis:
     residuals_holdout: dict = field(default_factory=dict)
     ambiguous_with: tuple = ()
     session: Session | None = None
+    proposed: Extension | None = None
+    acceptance: dict = field(default_factory=dict)
+    statistics: dict = field(default_factory=dict)
+    untested: dict = field(default_factory=dict)
+    robust: bool = True
+
+    @property
+    def robot_extension(self) -> Extension | None:
+        """The kept extension if it is a robot effect (what MODEL.yaml carries), else None."""
+        e = self.extension
+        return e if e is not None and e.effect in ROBOT_EFFECTS else None
 
     @property
     def gain_percent(self) -> float:
@@ -125,6 +155,18 @@ class Diagnosis:
             "p_value": float(self.p_value),
             "holdout_rms_mm": {k: round(float(v), 6) for k, v in self.holdout_rms.items()},
             "gain_percent": round(self.gain_percent, 3),
+            "proposed": None
+            if self.proposed is None
+            else {
+                "effect": self.proposed.effect,
+                "joints": [int(j) for j in self.proposed.joints],
+                "point": self.proposed.point,
+            },
+            "acceptance": self.acceptance,
+            "statistics": self.statistics,
+            "untested": dict(self.untested),
+            "exported": self.robot_extension is not None,
+            "robust": self.robust,
             "details": {
                 "alpha": ALPHA,
                 "bootstrap_p_value": self.bootstrap.get("p_value"),
@@ -314,14 +356,42 @@ def bootstrap(
     }
 
 
-def holdout(session: Session, fit, k: int = 5, seed: int = 0) -> np.ndarray:
-    """Cross-validated residuals (m, d): ``fit(train) -> predict(test) -> (k, d)``."""
-    f = folds(session, k, seed)
-    out = np.empty((session.m, 2 if session.measurement == "laser" else 3))
-    for i in range(k):
-        test = f == i
-        out[test] = fit(session.subset(~test))(session.subset(test))
-    return out
+def _ci95(x: np.ndarray) -> list | None:
+    """Student-t 95 % confidence interval of the mean of x (finite values; None with fewer than 2)."""
+    x = x[np.isfinite(x)]
+    if len(x) < 2:
+        return None
+    h = stdtrit(len(x) - 1, 0.975) * x.std(ddof=1) / np.sqrt(len(x))
+    return [float(x.mean() - h), float(x.mean() + h)]
+
+
+def acceptance(h_geo: HeldOut, h_ext: HeldOut, keep: np.ndarray, grouping: str) -> dict:
+    """The held-out decision on one extension: kept when its pooled held-out RMS beats the geometry's.
+
+    Parameters
+    ----------
+    h_geo, h_ext : HeldOut, the two models' cross-validations on the same folds
+    keep : (m,) bool array, the captures counted (the robust geometric fit's inliers)
+    grouping : str, how the folds were formed (for the report)
+    """
+    ok = keep & np.all(np.isfinite(h_geo.residuals), axis=1) & np.all(np.isfinite(h_ext.residuals), axis=1)
+    rms = {
+        k: float(np.sqrt(np.mean(np.sum(h.residuals[ok] ** 2, axis=1))))
+        for k, h in (("geometric", h_geo), ("extended", h_ext))
+    }
+    fg, fe = h_geo.fold_rms(ok), h_ext.fold_rms(ok)
+    gains = 100.0 * (fg - fe) / fg
+    return {
+        "decided_by": "cross-validation",
+        "accepted": bool(rms["extended"] < rms["geometric"]),
+        "holdout_rms_mm": rms,
+        "folds": len(fg),
+        "grouping": grouping,
+        "failed_folds": {str(i): why for i, why in {**h_geo.failed, **h_ext.failed}.items()},
+        "fold_rms_mm": {"geometric": fg.tolist(), "extended": fe.tolist()},
+        "gain_percent_folds": gains.tolist(),
+        "gain_percent_ci95": _ci95(gains),
+    }
 
 
 def diagnose(
@@ -333,6 +403,7 @@ def diagnose(
     payload=None,
     effect: str | None = None,
     n_refit: int = 10,
+    robust: bool = True,
 ) -> Diagnosis:
     """Find, name and fit the non-geometric effect the data carry (or 'none').
 
@@ -343,10 +414,13 @@ def diagnose(
     n_boot : int, first-order parametric-bootstrap replicates (0 skips the bootstrap)
     n_refit : int, full (nonlinear) simulations with refits, for the residual RMS distribution
     seed : int
-    k : int, cross-validation folds (0 or 1: skip, report fit residuals instead)
+    k : int, cross-validation folds of a laser session (point sessions leave one tool position
+        out); 0 or 1: no cross-validation, the F test decides alone and fit residuals stand in
     payload : (kg, (3,) mm), extra mass on the flange for the gravity model when torques are not logged
     effect : str, restrict the catalogue to one effect (``solve --extend EFFECT``): the best
-        candidate of that effect is fitted even when not significant
+        candidate of that effect is fitted even when not significant, and kept whatever the
+        cross-validation says (its numbers are reported)
+    robust : bool, the robust loss in every fit (folds included)
 
     Returns
     -------
@@ -356,15 +430,18 @@ def diagnose(
     rng = np.random.default_rng(seed)
     tau, tau_src = session_torques(session, payload)
     session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
-    geo = fit(session)
-    pts = [] if session.measurement != "laser" else list(dict.fromkeys(session.point))
-    exts = candidates(session.robot.n, pts, tau is not None, session.t is not None and np.ptp(session.t) > 0)
+    geo = fit(session, robust=robust)
+    pts = [] if session.measurement == "point" else list(dict.fromkeys(session.point))
+    clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
+    exts = candidates(session.robot.n, pts, tau is not None, clock_ok)
+    cannot = untested(
+        session.measurement, tau is not None, session.clock, session.t is not None and np.ptp(session.t) > 0
+    )
     if effect is not None:
         exts = [e for e in exts if e.effect == effect]
         if not exts:
             raise ModelError(
-                f"effect {effect!r} cannot be tested on this session (it needs "
-                f"{'torques' if effect == 'joint_compliance' else 'times'})"
+                f"effect {effect!r} cannot be tested on this session: {cannot.get(effect, 'no candidate')}"
             )
     tester = Tester(session, geo, exts, tau)
     tests = tester.tests()
@@ -372,7 +449,7 @@ def diagnose(
     chosen = None
     if best.p_adjusted < alpha or effect is not None:
         chosen = best.extension
-        ext_fit = fit(session, chosen)
+        ext_fit = fit(session, chosen, robust=robust)
         if chosen.effect != "reference_point_offset":  # more joints of the same effect, while significant
             while True:
                 rest = [e for e in exts if e.effect == chosen.effect and e.joints[0] not in chosen.joints]
@@ -387,7 +464,7 @@ def diagnose(
                     None,
                     np.zeros(chosen.size + nxt.extension.size),
                 )
-                ext_fit = fit(session, chosen)
+                ext_fit = fit(session, chosen, robust=robust)
     ambiguous = tuple(
         t.label
         for t in tests[1:]
@@ -395,34 +472,52 @@ def diagnose(
     )
     boot = bootstrap(session, geo, tester, n_boot, n_refit, rng) if n_boot else {}
 
-    def fit_geo(train):
-        g = fit(train)
-        return lambda test: residuals(g.model, None, test, g.extra.get("points"))
-
-    def fit_ext(train):
-        e = fit(train, chosen)
-        return lambda test: residuals(e.model, e.extension, test, e.extra.get("points"))
-
-    if k > 1:
-        r_geo = holdout(session, fit_geo, k, seed)
-        r_ext = holdout(session, fit_ext, k, seed) if chosen else r_geo
-    else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
-        r_geo = geo.residuals
-        r_ext = ext_fit.residuals if chosen else r_geo
     inlier = geo.weights > 0  # captures the robust fit flags (mis-aims) are reported, not averaged in
     rms = lambda r: float(np.sqrt(np.mean(np.sum(r[inlier] ** 2, axis=1))))  # noqa: E731
+    nominal_rms = rms(residuals(session.robot, None, session))
+    if k > 1:
+        f = grouped_folds(session, k, seed)
+        grouping = (
+            "tool position" if session.measurement == "point" and f.max() > 0 else "stratified by point"
+        )
+        h_geo = held_out(session, fitter(robust=robust), f)
+        h_ext = held_out(session, fitter(robust=robust, extension=chosen), f) if chosen else h_geo
+        acc = acceptance(h_geo, h_ext, inlier, grouping)
+        if chosen is not None and not acc["accepted"] and effect is None:
+            acc["rejected"] = "the extension does not predict held-out data better than the geometry"
+        r_geo, r_ext = h_geo.residuals, h_ext.residuals
+        held = acc["holdout_rms_mm"]
+    else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
+        acc = {"decided_by": "F test only", "accepted": chosen is not None}
+        r_geo = geo.residuals
+        r_ext = ext_fit.residuals if chosen else r_geo
+        held = {"geometric": rms(r_geo), "extended": rms(r_ext)}
+    keep = chosen is not None and (acc["accepted"] or effect is not None)
+    statistics = {
+        "nominal": {"train": nominal_rms, "holdout": nominal_rms if k > 1 else None},
+        "geometric": {"train": geo.rms_mm, "holdout": held["geometric"] if k > 1 else None},
+        "extended": {
+            "train": ext_fit.rms_mm if keep else geo.rms_mm,
+            "holdout": (held["extended"] if keep else held["geometric"]) if k > 1 else None,
+        },
+    }
     return Diagnosis(
-        chosen.effect if chosen else "none",
-        ext_fit.extension if chosen else None,
+        chosen.effect if keep else "none",
+        ext_fit.extension if keep else None,
         best.p_adjusted,
         tests,
         geo,
-        ext_fit if chosen else None,
-        {"geometric": rms(r_geo), "extended": rms(r_ext)},
+        ext_fit if keep else None,
+        {"geometric": held["geometric"], "extended": held["extended"] if keep else held["geometric"]},
         boot,
         tau_src,
         time.perf_counter() - t0,
-        {"geometric": r_geo, "extended": r_ext},
-        ambiguous,
+        {"geometric": r_geo, "extended": r_ext if keep else r_geo},
+        ambiguous if keep else (),
         session,
+        ext_fit.extension if chosen else None,
+        acc,
+        statistics,
+        cannot,
+        robust,
     )

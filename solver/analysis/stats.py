@@ -12,10 +12,11 @@ model as its "after" photos (to first order the same errors, seen from the other
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.measurement import fit, residuals
 from lasercal.solver.identify.point import tips
@@ -85,6 +86,77 @@ def folds(session: Session, k: int, seed: int = 0) -> np.ndarray:
     return out
 
 
+def grouped_folds(session: Session, k: int, seed: int = 0) -> np.ndarray:
+    """Fold index (m,) of the cross-validation the statistics and the model selection use.
+
+    Point sessions: leave one tool position out (:attr:`Session.positions`; k is ignored), so that a
+    model is judged on a placement of the tool it never saw. Laser sessions: :func:`folds`.
+    """
+    pos = session.positions
+    names = list(dict.fromkeys(pos))
+    if session.measurement == "point" and len(names) >= 2:
+        return np.array([names.index(p) for p in pos])
+    return folds(session, k, seed)
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Held-out residuals of a cross-validation.
+
+    Attributes
+    ----------
+    residuals : (m, d) array, mm; NaN rows for the captures of a fold that could not be fitted
+    fold : (m,) array of int
+    failed : dict fold -> reason, the folds that could not be fitted (reported, never fatal)
+    """
+
+    residuals: np.ndarray
+    fold: np.ndarray
+    failed: dict
+
+    def fold_rms(self, keep: np.ndarray | None = None) -> np.ndarray:
+        """RMS (mm) of each fold's held-out residuals over the captures ``keep`` (NaN: failed/empty)."""
+        keep = np.ones(len(self.fold), bool) if keep is None else keep
+        out = np.full(int(self.fold.max()) + 1, np.nan)
+        for i in range(len(out)):
+            sel = (self.fold == i) & keep & np.all(np.isfinite(self.residuals), axis=1)
+            if sel.any():
+                out[i] = np.sqrt(np.mean(np.sum(self.residuals[sel] ** 2, axis=1)))
+        return out
+
+
+def held_out(session: Session, fitter, fold: np.ndarray) -> HeldOut:
+    """Cross-validated residuals: ``fitter(train) -> (model, extension, points)`` predicts each fold.
+
+    A fold whose fit fails (too few captures for the parameters) is recorded in ``failed`` and its
+    captures get NaN: one fold that cannot be fitted is no reason to refuse a calibration.
+    """
+    d = 3 if session.measurement == "point" else 2
+    out = np.full((session.m, d), np.nan)
+    failed = {}
+    for i in range(int(fold.max()) + 1):
+        test = fold == i
+        if not test.any():
+            continue
+        try:
+            model, ext, points = fitter(session.subset(~test))
+        except IdentificationError as e:
+            failed[i] = str(e)
+            continue
+        out[test] = residuals(model, ext, session.subset(test), points)
+    return HeldOut(out, fold, failed)
+
+
+def fitter(method: str = "lm", robust: bool = True, extension=None):
+    """The ``fitter`` of :func:`held_out` for :func:`solver.identify.measurement.fit`."""
+
+    def f(train: Session):
+        r = fit(train, extension, robust=robust, method=method)
+        return r.model, r.extension, r.extra.get("points")
+
+    return f
+
+
 @dataclass(frozen=True)
 class CrossValidation:
     """K-fold held-out prediction errors (mm): per capture and summarised.
@@ -99,12 +171,18 @@ class CrossValidation:
     fold: np.ndarray
     nominal_errors: np.ndarray
     inlier: np.ndarray | None = None
+    failed: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        keep = np.ones(len(self.errors), bool) if self.inlier is None else self.inlier
+        keep = (np.ones(len(self.errors), bool) if self.inlier is None else self.inlier) & np.isfinite(
+            self.errors
+        )
         e, e0 = self.errors[keep], self.nominal_errors[keep]
+        if not e.size:  # every fold failed
+            e = np.full(1, np.nan)
         return {
             "folds": self.k,
+            "failed_folds": {str(i): why for i, why in self.failed.items()},
             "captures_counted": int(keep.sum()),
             "holdout_rms_mm": float(np.sqrt(np.mean(e**2))),
             "holdout_mean_mm": float(e.mean()),
@@ -114,7 +192,13 @@ class CrossValidation:
 
 
 def cross_validate(
-    session: Session, method: str = "lm", k: int = 5, seed: int = 0, inlier: np.ndarray | None = None
+    session: Session,
+    method: str = "lm",
+    k: int = 5,
+    seed: int = 0,
+    inlier: np.ndarray | None = None,
+    robust: bool = True,
+    extension=None,
 ) -> CrossValidation:
     """Held-out error of each capture, predicted by a model fitted on the other folds.
 
@@ -122,22 +206,26 @@ def cross_validate(
     ----------
     session : Session
     method : str, identification method
-    k : int, number of folds
+    k : int, number of folds (laser sessions; point sessions leave one tool position out)
     seed : int, fold assignment seed
     inlier : (m,) bool array, the captures the summary counts (default: all)
+    robust : bool, the robust loss in every fold's fit
+    extension : Extension, optional effect fitted with the geometry in every fold
 
     Returns
     -------
-    CrossValidation (in-plane spot errors, or tool-point errors against the training fit's points)
+    CrossValidation (in-plane spot errors, or tool-point errors against the training fit's points;
+    NaN for the captures of a fold that could not be fitted, listed in ``failed``)
     """
-    f = folds(session, k, seed)
-    err = np.empty(session.m)
-    for i in range(k):
-        test = f == i
-        train = fit(session.subset(~test), method=method)
-        r = residuals(train.model, train.extension, session.subset(test), train.extra.get("points"))
-        err[test] = np.linalg.norm(r, axis=1)
-    return CrossValidation(k, err, f, np.linalg.norm(residuals(session.robot, None, session), axis=1), inlier)
+    h = held_out(session, fitter(method, robust, extension), grouped_folds(session, k, seed))
+    return CrossValidation(
+        int(h.fold.max()) + 1,
+        np.linalg.norm(h.residuals, axis=1),
+        h.fold,
+        np.linalg.norm(residuals(session.robot, None, session), axis=1),
+        inlier,
+        h.failed,
+    )
 
 
 def point_session_stats(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:
@@ -180,8 +268,14 @@ def position_target_stats(ident: Identification, session: Session, used: np.ndar
 
 
 def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
-    """The statistics ``lasercal solve`` prints, as a JSON-ready mapping."""
+    """The statistics ``lasercal solve`` prints, as a JSON-ready mapping.
+
+    'after' is the identified model with its extension (if any) applied to the logged angles.
+    """
     used = ident.weights > 0
+    before = session
+    if ident.extension is not None:
+        session = replace(session, q=ident.extension.true_q(session.q, session.t, session.tau))
     idf = ident.identifiability
     rep = {
         "method": ident.method,
@@ -209,7 +303,7 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
             else ident.nominal.replace(tool_point=session.tool_point)
         )
         rep["measurement"] = "point"
-        rep["before"] = point_session_stats(nominal, session)
+        rep["before"] = point_session_stats(nominal, before)
         rep["after"] = point_session_stats(ident.model, session, used)
         rep["identified_points"] = {
             k: [round(x, 4) for x in v] for k, v in ident.extra.get("points", {}).items()
@@ -219,7 +313,7 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
         rep["gauge"] = ident.extra.get("gauge", "")
         rep["targets"] = position_target_stats(ident, session, used)
     else:
-        before, after = per_point(ident.nominal, session), per_point(ident.model, session, used)
+        before, after = per_point(ident.nominal, before), per_point(ident.model, session, used)
         rep["points"] = {
             nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None}
             for nm in before

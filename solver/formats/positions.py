@@ -35,8 +35,15 @@ from lasercal.solver.kinematics.model import RobotModel
 DEFAULT_TARGET = "T1"
 
 
-def load_position_session(folder: Path, meta: dict, robot: RobotModel) -> Session:
+def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: str = "seconds") -> Session:
     """Read a position session's captures (module docstring) into a :class:`Session`.
+
+    Parameters
+    ----------
+    folder : Path, the session folder
+    meta : dict, its parsed session.yaml
+    robot : RobotModel, the nominal robot
+    clock : str, what ``t`` is (see :func:`session_clock`); without a ``t`` column it is ``order``
 
     Returns
     -------
@@ -79,7 +86,10 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel) -> Sessio
                 field="target",
             )
     t = _numeric_block(cpath, rows, header, ["t"], required=False)
-    t = np.zeros(len(rows)) if t is None else t[:, 0]
+    if t is None:  # no clock: the rows' order is all there is
+        t, clock = np.arange(len(rows), dtype=float), "order"
+    else:
+        t = t[:, 0]
     tau = _numeric_block(cpath, rows, header, _joint_columns("tau", n), required=False)
     lines = np.array([ln for ln, _ in rows], dtype=int)
     check_limits(cpath, robot, q, lines)
@@ -108,6 +118,7 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel) -> Sessio
         None,
         (),
         None if sig is None else sig[:, 0],
+        clock,
     )
 
 

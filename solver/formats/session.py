@@ -3,7 +3,8 @@
 * Layout ``lasercal-layout/1`` (YAML): ``plane: {z}``, ``points: {NAME: [x, y, z]}`` (mm, base
   frame), optional ``calibration``/``validation`` name lists, ``aiming`` hints and ``markers``
   (read by ``vision``).
-* Session: a folder with ``session.yaml`` (``format: lasercal-session/1``) and ``captures.csv``
+* Session: a folder with ``session.yaml`` (``format: lasercal-session/1``; ``clock: seconds``, the
+  default, or ``order`` when ``t`` is only the recording order) and ``captures.csv``
   (``point,t,q1..qN[,dq1..dqN][,tau1..tauN][,extra...]``; mm, rad, Nm, s).
 * Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through.
 
@@ -29,6 +30,7 @@ from lasercal.solver.kinematics.model import RobotModel
 SESSION_FORMAT = "lasercal-session/1"
 LAYOUT_FORMAT = "lasercal-layout/1"
 UNITS = {"length": "mm", "angle": "rad", "torque": "Nm", "time": "s"}
+CLOCKS = ("seconds", "order")  # what the t column is: a real clock (s), or the recording order (a count)
 _LIMIT_TOL = 1e-6  # rad: logged angles are allowed to sit on a limit up to rounding
 
 
@@ -151,6 +153,8 @@ class Session:
     Position measurements (``measurement: position``, :mod:`solver.formats.positions`): ``point``
     is each capture's target on the tool, ``target`` its measured position (mm, sensor frame),
     ``points`` maps each target to None (identified).
+    clock : str, 'seconds' (t is a clock) or 'order' (t only orders the rows: no effect in time
+        can be tested)
     """
 
     path: Path
@@ -171,11 +175,18 @@ class Session:
     tool_point: np.ndarray | None = None
     distances: tuple = ()
     sigma: np.ndarray | None = None
+    clock: str = "seconds"
 
     @property
     def m(self) -> int:
         """Number of captures."""
         return len(self.point)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Tool position of each capture (m,): a point session's point name up to its last '/'
+        ('front' for 'front/hole_0'; points of one tool placement share it), else the point."""
+        return np.array([nm.rsplit("/", 1)[0] for nm in self.point], dtype=object)
 
     def subset(self, idx) -> Session:
         """The same session restricted to captures idx (bool mask or indices)."""
@@ -203,6 +214,7 @@ class Session:
             self.tool_point,
             distances,
             pick(self.sigma),
+            self.clock,
         )
 
 
@@ -277,6 +289,18 @@ def check_limits(path, robot: RobotModel, q: np.ndarray, lines) -> None:
         )
 
 
+def session_clock(meta: dict, path) -> str:
+    """What the session's ``t`` column is: ``seconds`` (a clock, the default) or ``order`` (row order)."""
+    clock = meta.get("clock", "seconds")
+    if clock not in CLOCKS:
+        raise FormatError(
+            path,
+            f"clock must be 'seconds' (t in s) or 'order' (t is the row order), got {clock!r}",
+            field="clock",
+        )
+    return clock
+
+
 def load_session(folder) -> Session:
     """Load and validate a session folder (session.yaml + captures.csv)."""
     folder = Path(folder)
@@ -308,10 +332,11 @@ def load_session(folder) -> Session:
             f"measurement must be 'laser', 'point' or 'position', got {measurement!r}",
             field="measurement",
         )
+    clock = session_clock(meta, ypath)
     if measurement == "position":
         from lasercal.solver.formats.positions import load_position_session
 
-        return load_position_session(folder, meta, robot)
+        return load_position_session(folder, meta, robot, clock)
     points = _points(meta, ypath, allow_unknown=measurement == "point")
     tool_point, distances = None, ()
     if measurement == "point":
@@ -387,6 +412,7 @@ def load_session(folder) -> Session:
         measurement,
         tool_point,
         distances,
+        clock=clock,
     )
 
 
@@ -415,6 +441,7 @@ def session_meta(robot_ref: str, layout: Layout, aperture_z: float | None, **ext
         "format": SESSION_FORMAT,
         "robot": str(robot_ref),
         "units": dict(UNITS),
+        "clock": "seconds",
         "plane": {"z": float(layout.plane_z)},
         "laser": {"aperture_z": None if aperture_z is None else float(aperture_z)},
         "points": {k: [float(x) for x in v] for k, v in layout.points.items()},

@@ -6,10 +6,12 @@
   rank-deficient normal matrix is ever inverted.
 * Levenberg-Marquardt: MINPACK through ``scipy.optimize.least_squares(method='lm')`` with
   the analytic Jacobian.
-* Robust loss: skipped least squares (a hard-redescending, truncated quadratic loss). Each
-  capture's residual is tested by a Bonferroni-corrected chi-square test against a robust
-  (median-based) noise scale; flagged captures get weight zero; test and refit repeat until
-  the flagged set is stable.
+* Robust loss: skipped least squares. A capture is left out only with evidence against the
+  noise model fitted on the rest: its externally studentised residual (leverage-corrected,
+  sigma from the other rows; a left-out capture by its prediction error) is tested by an F
+  test, Bonferroni-corrected over the captures (:func:`studentised_outliers`). Test and refit
+  repeat until the flagged set is stable; a left-out capture that the refit predicts well
+  comes back. With too few degrees of freedom for the test nothing is flagged.
 """
 
 from __future__ import annotations
@@ -19,7 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
-from scipy.special import chdtri  # inverse survival function of chi-square (scipy.stats.chi2.isf)
+from scipy.special import (
+    chdtri,  # inverse survival function of chi-square (scipy.stats.chi2.isf)
+    fdtrc,  # survival function of the F distribution (scipy.stats.f.sf)
+)
 
 RANK_RTOL = 1e-6
 OUTLIER_ALPHA = 0.01  # family-wise false-flag rate of the outlier test
@@ -102,6 +107,65 @@ def flag_outliers(res: np.ndarray, w: np.ndarray, dof_ratio: float = 1.0) -> tup
     return r > max(cut, 1e-4), sigma  # 0.1 um floor: exact data has round-off, not outliers
 
 
+def studentised_outliers(
+    res: np.ndarray,
+    Jw: np.ndarray,
+    w: np.ndarray,
+    J_left: np.ndarray,
+    groups: np.ndarray | None = None,
+    alpha: float = OUTLIER_ALPHA,
+) -> np.ndarray:
+    """Captures whose residual is an outlier against the noise model fitted on the rest.
+
+    Fitted capture i (d rows): q_i = e_i^T (I - H_ii)^-1 e_i with H = Jw (Jw^T Jw)^-1 Jw^T the hat
+    matrix; externally studentised T_i = q_i / (d s_(i)^2) ~ F(d, dof_g - d) with
+    s_(i)^2 = (RSS_g - q_i) / (dof_g - d). Left-out capture: q_i = e_i^T (I + J_i (Jw^T Jw)^-1
+    J_i^T)^-1 e_i (its prediction error), s^2 = RSS_g / dof_g, T_i ~ F(d, dof_g). RSS_g and
+    dof_g = d n_g - trace(H_gg) belong to the capture's group: each tool position keeps its own
+    noise level (real positions differ several-fold), so a noisy but consistent position is not
+    mistaken for outliers. Flagged when m p_i < alpha (Bonferroni over the captures).
+
+    Parameters
+    ----------
+    res : (m, d) array, residuals of every capture, mm
+    Jw : (rows, r) array, the weighted Jacobian of the fitted rows in the identifiable subspace
+        (capture rows first, d per capture, zero rows for left-out captures; then constraint rows)
+    w : (m,) array, 1 fitted, 0 left out
+    J_left : (m, d, r) array, unweighted Jacobian of every capture (used for the left-out ones)
+    groups : (m,) array of labels, the noise groups (default: one)
+    alpha : float, family-wise false-flag rate
+
+    Returns
+    -------
+    (m,) bool array of flagged captures (none in a group with dof_g - d < 1: no test is possible)
+    """
+    m, d = res.shape
+    U, s, Vt = np.linalg.svd(Jw, full_matrices=False)
+    r = int(np.sum(s > RANK_RTOL * s[0])) if s.size else 0
+    U, s, Vt = U[:, :r], s[:r], Vt[:r]
+    fitted = w > 0
+    eye = np.eye(d)
+    Ui = U[: d * m].reshape(m, d, r)
+    H = Ui @ np.swapaxes(Ui, 1, 2)  # (m, d, d) leverage blocks
+    A = J_left @ (Vt.T / s)  # (m, d, r): J_i V S^-1
+    C = np.where(fitted[:, None, None], eye - H, eye + A @ np.swapaxes(A, 1, 2))
+    qi = np.einsum("md,md->m", res, np.linalg.solve(C, res[..., None])[..., 0])
+    groups = np.zeros(m, int) if groups is None else np.asarray(groups)
+    flags = np.zeros(m, bool)
+    for g in dict.fromkeys(groups):
+        sel = groups == g
+        fit_g = sel & fitted
+        rss = float(np.sum(res[fit_g] ** 2))
+        dof = d * int(fit_g.sum()) - float(np.trace(H[fit_g], axis1=1, axis2=2).sum())
+        if dof - d < 1 or rss <= 0:
+            continue
+        s2 = np.where(fitted[sel], (rss - qi[sel]) / (dof - d), rss / dof)
+        T = qi[sel] / (d * np.maximum(s2, 1e-300))
+        p = np.where(fitted[sel], fdtrc(d, dof - d, T), fdtrc(d, dof, T))
+        flags[sel] = (p * m < alpha) & (np.sqrt(qi[sel]) > 1e-4)  # 0.1 um floor: round-off is no outlier
+    return flags
+
+
 @dataclass(frozen=True)
 class SubspaceFit:
     """Result of :func:`fit_subspace`.
@@ -145,6 +209,7 @@ def fit_subspace(
     robust: bool = True,
     w0: np.ndarray | None = None,
     constraints: Callable | None = None,
+    groups: np.ndarray | None = None,
 ) -> SubspaceFit:
     """Levenberg-Marquardt in the identifiable subspace at v0, with the robust loss.
 
@@ -154,10 +219,12 @@ def fit_subspace(
     jacobian : v -> (m, d, p) array
     v0 : (p,) array, the start (unidentifiable combinations stay at its values)
     names : list of p str
-    robust : bool, flag outliers and refit without them
-    w0 : (m,) array, starting weights (e.g. captures already known to be gross outliers: 0)
+    robust : bool, flag outliers (:func:`studentised_outliers`) and refit without them
+    w0 : (m,) array, starting weights (e.g. captures suspected as gross outliers: 0; they are
+        re-tested and come back when the fit predicts them)
     constraints : v -> ((c,) residual rows, (c, p) Jacobian), extra rows never weighted out
         (e.g. known distances, already divided by their standard deviation over sigma)
+    groups : (m,) array of labels, noise groups of the outlier test (e.g. tool positions)
 
     Returns
     -------
@@ -206,10 +273,11 @@ def fit_subspace(
     ident, basis = identifiability(jrows(v0, np.ones(m)), names)
     sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
     r = basis.shape[1]
-    dof_ratio = max(1 - r / (d * m), 0.05)
     if robust:
-        for _ in range(5):
-            flags, _ = flag_outliers(res, w, dof_ratio)
+        for _ in range(8):
+            v = v0 + basis @ sol.x
+            sw = np.sqrt(w)
+            flags = studentised_outliers(res, jrows(v, sw) @ basis, w, jacobian(v) @ basis, groups)
             if np.array_equal(flags, w == 0):
                 break
             w = np.where(flags, 0.0, 1.0)

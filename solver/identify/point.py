@@ -212,6 +212,7 @@ def identify_point(
         names,
         robust,
         constraints=constraints if session.distances else None,
+        groups=session.positions,
     )
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     meta = {

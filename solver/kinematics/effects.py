@@ -26,6 +26,12 @@ from lasercal.solver.errors import FormatError, ModelError
 
 JOINT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "drift")
 EFFECTS = JOINT_EFFECTS + ("reference_point_offset", "none")
+# Robot effects a controller can apply at run time from q (tau from the gravity model when not logged):
+# they belong to the robot and go into MODEL.yaml. Session effects explain one session's data (the
+# clock of this session, where this table's point really is) but are not part of the robot: they are
+# fitted, so that they do not bend the geometry, and reported, never exported.
+ROBOT_EFFECTS = ("joint_compliance", "encoder_eccentricity")
+SESSION_EFFECTS = ("drift", "reference_point_offset")
 UNITS = {
     "joint_compliance": "rad/Nm",
     "encoder_eccentricity": "rad",
@@ -151,6 +157,11 @@ class Extension:
         return d
 
 
+def robot_extensions(extensions: dict) -> dict:
+    """The model file's ``extensions`` mapping restricted to robot effects (what MODEL.yaml exports)."""
+    return {k: v for k, v in (extensions or {}).items() if k in ROBOT_EFFECTS}
+
+
 def extension_from_model(extensions: dict, path="<model>", n: int | None = None) -> Extension | None:
     """The (single) joint effect a model file carries in ``extensions``, validated; None if none."""
     joint = [e for e in (extensions or {}) if e in JOINT_EFFECTS]
@@ -184,13 +195,38 @@ def extension_from_model(extensions: dict, path="<model>", n: int | None = None)
 
 
 def candidates(n: int, points, has_tau: bool, has_t: bool) -> list[Extension]:
-    """Every single-joint (or single-point) extension the data can test."""
+    """Every single-joint (or single-point) extension the data can test.
+
+    Parameters
+    ----------
+    n : int, joints
+    points : reference points an offset may move (none for point sessions)
+    has_tau : bool, torques logged or from a gravity model
+    has_t : bool, a real clock that changes (``clock: seconds``): drift needs time, not row order
+    """
     out = []
     for effect in JOINT_EFFECTS:
         if (effect == "joint_compliance" and not has_tau) or (effect == "drift" and not has_t):
             continue
         out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect]))) for j in range(1, n + 1)]
     out += [Extension("reference_point_offset", (), p, np.zeros(2)) for p in points]
+    return out
+
+
+def untested(measurement: str, has_tau: bool, clock: str, t_changes: bool) -> dict:
+    """Effects of the catalogue the data cannot test, with the reason (for the report)."""
+    out = {}
+    if not has_tau:
+        out["joint_compliance"] = "no logged torques and no gravity model of the robot"
+    if clock != "seconds":
+        out["drift"] = (
+            f"the session has no clock (clock: {clock}): t is the recording order, and a drift fitted to "
+            "it would be a fit to a made-up regressor"
+        )
+    elif not t_changes:
+        out["drift"] = "t does not change over the session"
+    if measurement == "point":
+        out["reference_point_offset"] = "point sessions identify their points (an offset is absorbed)"
     return out
 
 

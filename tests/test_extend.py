@@ -1,0 +1,141 @@
+"""Issue 14: extensions that hold on real robots -- clock, robot vs session effects, acceptance by
+held-out data, outlier handling that keeps valid rows, failed folds reported, predict from q alone."""
+
+import csv
+import io
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+
+from lasercal.collector.cli.main import main
+from lasercal.solver.analysis.diagnose import acceptance, diagnose
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.analysis.stats import HeldOut, fitter, held_out
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
+from lasercal.solver.identify.measurement import fit
+from lasercal.solver.kinematics.effects import Extension
+
+TRUTH = load_model("panda_thesis_identified")
+LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
+DRIFT = Extension("drift", (4,), None, np.array([1.0e-6]))
+
+
+def sim(path, effect=None, seed=0, per_point=50, noise=0.5, clock="seconds"):
+    c = simulate_captures(TRUTH, LAYOUT, per_point, noise, np.random.default_rng(seed), effect=effect)
+    meta = session_meta("panda", LAYOUT, TRUTH.aperture[2])
+    meta["clock"] = clock
+    write_session(path, meta, c.point, c.t, c.q, tau=c.tau)
+    return load_session(path)
+
+
+def q_only_csv(session_dir, out):
+    """The session's configurations with nothing but q1..q7 (no t, no torques)."""
+    rows = list(csv.DictReader(open(session_dir / "captures.csv")))
+    cols = [f"q{i}" for i in range(1, 8)]
+    with open(out, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["point"] + cols)
+        for r in rows:
+            w.writerow([r["point"]] + [r[c] for c in cols])
+    return out
+
+
+def predict_rms(capsys, model, cfg) -> float:
+    capsys.readouterr()
+    assert main(["predict", str(model), str(cfg)]) == 0
+    out = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    pts = LAYOUT.points
+    e = [
+        np.hypot(float(o["spot_x"]) - pts[o["point"]][0], float(o["spot_y"]) - pts[o["point"]][1])
+        for o in out
+    ]
+    return float(np.sqrt(np.mean(np.square(e))))
+
+
+# ------------------------------------------------------------------ clock
+def test_drift_with_a_real_clock_is_named_and_never_with_clock_order(tmp_path):
+    timed = diagnose(sim(tmp_path / "a", DRIFT, 35), n_boot=0, k=0)
+    assert timed.effect == "drift" and timed.extension.joints == (4,)
+    order = diagnose(sim(tmp_path / "b", DRIFT, 35, clock="order"), n_boot=0, k=0)
+    assert order.effect != "drift"
+    assert all(t.extension.effect != "drift" for t in order.tests)  # not even a candidate
+    assert "clock: order" in order.untested["drift"]
+
+
+def test_a_bad_clock_value_is_a_format_error(tmp_path, capsys):
+    s = sim(tmp_path / "s", per_point=5)
+    meta = yaml.safe_load((s.path / "session.yaml").read_text())
+    meta["clock"] = "minutes"
+    (s.path / "session.yaml").write_text(yaml.safe_dump(meta))
+    assert main(["solve", str(s.path), "-o", str(tmp_path / "m.yaml")]) == 2
+    assert "clock" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ robot vs session effects
+def test_session_effect_is_fitted_reported_not_exported_and_predict_needs_q_only(tmp_path, capsys):
+    s = sim(tmp_path / "s", DRIFT, 35)
+    assert main(["solve", str(s.path), "-o", str(tmp_path / "m.yaml"), "--extend", "auto"]) == 0
+    out = capsys.readouterr().out
+    assert "finding: drift" in out and "session effect" in out
+    assert "nominal  geometric  extended" in out  # the side-by-side table
+    model = load_model(tmp_path / "m.yaml")
+    assert model.extensions == {}  # drift explains this session, it is not part of the robot
+    assert model.identification["diagnosis"]["effect"] == "drift"
+    assert not model.identification["diagnosis"]["exported"]
+    assert predict_rms(capsys, tmp_path / "m.yaml", q_only_csv(s.path, tmp_path / "q.csv")) < 3.0
+
+
+def test_thesis_operator_session_is_calibrated_and_predicted_from_q(tmp_path, capsys):
+    """30 captures at P1-P3 with 1 mm aim: every fold is fitted, nothing valid is dropped, the model works."""
+    s = sim(tmp_path / "s", None, 3, per_point=10, noise=1.0)
+    assert main(["solve", str(s.path), "-o", str(tmp_path / "m.yaml"), "--extend", "auto"]) == 0
+    model = load_model(tmp_path / "m.yaml")
+    ident = model.identification
+    assert ident["diagnosis"]["acceptance"]["failed_folds"] == {}
+    assert ident["cross_validation"]["captures_counted"] == s.m  # no valid capture flagged
+    assert predict_rms(capsys, tmp_path / "m.yaml", q_only_csv(s.path, tmp_path / "q.csv")) < 3.0
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_few_degrees_of_freedom_flag_no_valid_rows_but_a_gross_outlier(tmp_path, seed):
+    s = sim(tmp_path / "s", None, seed, per_point=8, noise=1.0)  # 24 captures, 48 rows, 32 parameters
+    assert fit(s).outliers == ()
+    bad = replace(s, target=s.target.copy())
+    bad.target[5, :2] += 25.0  # aimed at the wrong spot
+    assert fit(bad).outliers == (5,)
+    assert fit(bad, robust=False).outliers == ()
+
+
+# ------------------------------------------------------------------ acceptance, folds
+def test_hidden_compliance_is_kept_by_cross_validation(tmp_path):
+    eff = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))
+    d = diagnose(sim(tmp_path / "s", eff, 61), n_boot=0, k=5)
+    acc = d.acceptance
+    assert d.effect == "joint_compliance" and acc["accepted"] and acc["decided_by"] == "cross-validation"
+    assert acc["gain_percent_ci95"][0] > 0  # every fold gains
+    st = d.statistics
+    assert st["nominal"]["holdout"] > st["geometric"]["holdout"] > st["extended"]["holdout"]
+
+
+def test_acceptance_rejects_an_extension_that_predicts_worse():
+    rng = np.random.default_rng(0)
+    fold = np.repeat(np.arange(4), 10)
+    geo = rng.normal(0, 1.0, (40, 2))
+    worse = HeldOut(geo * 1.1, fold, {}), HeldOut(geo * 0.9, fold, {})
+    keep = np.ones(40, bool)
+    rej = acceptance(HeldOut(geo, fold, {}), worse[0], keep, "tool position")
+    assert not rej["accepted"] and rej["gain_percent_ci95"][1] < 0
+    np.testing.assert_allclose(rej["gain_percent_folds"], -10.0)
+    assert acceptance(HeldOut(geo, fold, {}), worse[1], keep, "tool position")["accepted"]
+
+
+def test_a_fold_that_cannot_be_fitted_is_reported_not_fatal(tmp_path):
+    s = sim(tmp_path / "s", None, 5, per_point=10)
+    f = np.where(np.arange(s.m) < s.m - 3, 1, 0)
+    h = held_out(s, fitter(), f)
+    assert list(h.failed) == [1] and "too few" in h.failed[1]
+    assert np.all(np.isnan(h.residuals[f == 1])) and np.all(np.isfinite(h.residuals[f == 0]))
