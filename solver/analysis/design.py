@@ -100,8 +100,8 @@ class Constraints:
     length : (min, max), laser length, mm
     """
 
-    margin: float = 0.15
-    clearance: float = 100.0
+    margin: float = 0.1
+    clearance: float = 50.0
     min_singular: float = 0.05
     tilt: tuple = (0.0, np.radians(35))
     length: tuple = (150.0, 600.0)
@@ -145,13 +145,15 @@ class UseRegion:
     label: str
 
 
-def _aim_many(model, points, per_point, rng, con: Constraints, pool: int) -> tuple[np.ndarray, np.ndarray]:
+def _aim_many(
+    model, points, per_point, rng, con: Constraints, pool: int, spread: float = 0.6
+) -> tuple[np.ndarray, np.ndarray]:
     """Aiming-IK configurations (k, n) meeting ``con`` at each point, and their targets (k, 3)."""
     qs, ts = [], []
     for p in points:
         p = np.asarray(p, dtype=float)
         try:
-            q = aim(model, p, per_point, rng, tilt=con.tilt, length=con.length, margin=con.margin, pool=pool)
+            q = aim(model, p, per_point, rng, con.tilt, con.length, spread, con.margin, pool)
         except AimingError:
             continue
         q = q[con.satisfied(model, q, np.full(len(q), p[2]))]
@@ -198,6 +200,12 @@ def use_region(
         names = list(layout.validation or layout.calibration)
         points = [layout.points[k] for k in names]
         label = ", ".join(names)
+        for nm, p in zip(names, points):
+            if not len(_aim_many(model, [p], 4, rng, con, pool=64)[0]):
+                raise DesignError(
+                    f"point {nm} {np.round(p, 1).tolist()} mm is out of reach: no configuration within the "
+                    "joint limits, the aiming range and the table clearance aims at it"
+                )
     q, target = _aim_many(
         model, points, max(n // len(points), 2), rng, con, pool=4 * max(n // len(points), 16)
     )
@@ -229,6 +237,7 @@ def candidates(
     per_point: int = 100,
     constraints: Constraints | None = None,
     points=None,
+    spread: float = 1.0,
 ) -> Candidates:
     """Candidate configurations aiming exactly at each calibration point under ``model``.
 
@@ -240,6 +249,8 @@ def candidates(
     per_point : int, configurations sampled per point (fewer survive the constraints)
     constraints : Constraints (default: the layout's)
     points : list of point names (default: the layout's calibration points)
+    spread : float, std of the aiming IK's random seeds about the home configuration, rad (wider
+        than an operator's habits: the design needs the extremes)
 
     Raises
     ------
@@ -250,7 +261,9 @@ def candidates(
     names = list(points or layout.calibration)
     qs, ns, ts = [], [], []
     for nm in names:
-        q, t = _aim_many(model, [layout.points[nm]], per_point, rng, con, pool=2 * per_point + 40)
+        q, t = _aim_many(
+            model, [layout.points[nm]], per_point, rng, con, pool=2 * per_point + 40, spread=spread
+        )
         if not len(q):
             raise DesignError(
                 f"point {nm} {np.round(layout.points[nm], 1).tolist()} mm is out of reach: no configuration "
@@ -576,7 +589,7 @@ class Coach:
         model: RobotModel | None = None,
         lookahead: int = 10,
         stop_gain: float = 0.05,
-        per_point: int = 100,
+        per_point: int = 200,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
