@@ -251,7 +251,8 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float) -> list
     if st.stop:
         lines.append(
             f"  expected error at {st.region} {st.predicted:.2f} ± {st.uncertainty:.2f} mm; "
-            f"{len(st.plan.expected)} more captures would improve it by < {stop_gain * 100:.0f} %: you can stop"
+            f"{len(st.plan.expected)} more captures would improve it by < {stop_gain * 100:.0f} %: "
+            "you can stop"
         )
     return lines
 
