@@ -134,6 +134,17 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         metavar="MM",
         help="fake backend: aiming noise per in-plane axis, mm (default 1.0)",
     )
+    p.add_argument(
+        "--until",
+        type=float,
+        metavar="MM",
+        help="stop once the coach predicts at most this error at the validation points, mm",
+    )
+    p.add_argument(
+        "--no-coach",
+        action="store_true",
+        help="no status block, suggested poses or stopping rule after each capture",
+    )
     _backend_options(p)
 
 
@@ -324,10 +335,22 @@ def cmd_capture(args) -> int:
         store = CaptureStore.create(
             args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
         )
-    opts = CaptureOptions(cfg["per_point"], cfg["speed_threshold"], cfg["hold"], auto_discard=args.auto)
+    if args.until is not None and not args.until > 0:
+        raise LasercalError(f"--until must be a positive error in mm, got {args.until:g}")
+    opts = CaptureOptions(
+        cfg["per_point"], cfg["speed_threshold"], cfg["hold"], auto_discard=args.auto, until_mm=args.until
+    )
     hint = f"lasercal capture --resume {store.folder}" + (" --auto" if args.auto else "")
+    coach = None
+    if not args.no_coach:
+        from lasercal.solver.analysis.design import Coach, Prior
+
+        model = nominal
+        if store.meta.get("laser", {}).get("aperture_z") is not None:
+            model = nominal.replace(aperture=np.r_[nominal.aperture[:2], store.meta["laser"]["aperture_z"]])
+        coach = Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]), per_point=100)
     try:
-        run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint)
+        run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint, coach)
     finally:
         store.close()
         trigger.close()

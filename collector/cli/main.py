@@ -39,6 +39,12 @@ COMMANDS = (
     ),
     Command("solve", "solve", "cmd_solve", "identify the robot's geometry from a capture session"),
     Command(
+        "plan",
+        "plan",
+        "cmd_plan",
+        "the next captures that most lower the predicted error where the robot is used, and that error",
+    ),
+    Command(
         "validate",
         "capture",
         "cmd_validate",

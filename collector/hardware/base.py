@@ -124,6 +124,13 @@ class RobotAdapter:
     def prompt_configuration(self, q: np.ndarray) -> None:
         """The operator is asked to guide the arm to configuration q (validation without motion)."""
 
+    def suggest_pose(self, q: np.ndarray) -> None:
+        """The capture coach suggests configuration q (rad) for the next capture.
+
+        Real robots ignore it (the operator reads the joint changes on screen; the arm is not moved);
+        the simulated operator starts hand-guiding from it.
+        """
+
 
 def import_extra(module: str, what: str, package: str, extra: str | None = None):
     """Import an optional dependency, or raise MissingExtraError with the pip command."""

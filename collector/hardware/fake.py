@@ -106,11 +106,21 @@ class FakeOperator:
             self._poses[name] = aim(self.truth, self.points[name], self.per_point, rng, **self.aim_kw)
         return self._poses[name]
 
-    def configuration(self, name: str, index: int, attempt: int) -> np.ndarray:
-        """Where the operator brings the arm for capture ``index`` at ``name`` (try ``attempt``), (n,) rad."""
+    def configuration(
+        self, name: str, index: int, attempt: int, start: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Where the operator brings the arm for capture ``index`` at ``name`` (try ``attempt``), (n,) rad.
+
+        With ``start`` (the coach's suggested pose, rad) the operator hand-guides from it until the
+        true beam hits the point up to the aiming noise; otherwise from their own set of diverse poses.
+        """
         rng = np.random.default_rng([self.seed, self.key(name), index, attempt])
         aimed = self.wrong.get((name, index), name) if attempt == 0 else name
         hit = self.points[aimed] + np.r_[rng.normal(0.0, self.aim_noise, 2), 0.0]
+        if start is not None and aimed == name:
+            q = polish(self.truth, np.asarray(start, dtype=float)[None], hit)
+            if spot_error(self.truth, q, hit)[0] < 1e-6 and self.truth.within_limits(q)[0]:
+                return q[0]
         poses = self.poses(aimed)
         for k in range(
             self.per_point
@@ -157,6 +167,7 @@ class FakeRobot(RobotAdapter):
         self._t0, self._T, self._v0, self._mode = clock.now(), 0.0, np.zeros_like(home), "Idle"
         self._noise = np.random.default_rng([seed])
         self._grid = None
+        self._suggested = None
 
     # ------------------------------------------------------------ motion model
 
@@ -227,8 +238,13 @@ class FakeRobot(RobotAdapter):
             return
         attempt = self._attempts.get((name, index), 0)
         self._attempts[(name, index)] = attempt + 1
-        q = self.operator.configuration(name, index, attempt)
+        q = self.operator.configuration(name, index, attempt, self._suggested)
+        self._suggested = None
         self._start(q, "Guiding", (self.operator.key(name), index, attempt))
+
+    def suggest_pose(self, q: np.ndarray) -> None:
+        """The simulated operator starts the next hand-guiding from q (rad)."""
+        self._suggested = np.asarray(q, dtype=float)
 
     def prompt_configuration(self, q: np.ndarray) -> None:
         self._attempts["guide"] = self._attempts.get("guide", 0) + 1

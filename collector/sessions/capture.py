@@ -41,6 +41,8 @@ class CaptureOptions:
     similar_rad : float, a pose closer than this (joint-space distance) to an earlier capture
         at the same point is reported as similar, rad
     auto_discard : bool, discard flagged captures without asking (the simulated operator)
+    until_mm : float or None, end the session once the coach predicts at most this error at the
+        validation points, mm
     """
 
     per_point: int
@@ -53,6 +55,7 @@ class CaptureOptions:
     check_mm: float = 40.0
     similar_rad: float = 0.5
     auto_discard: bool = False
+    until_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -203,6 +206,57 @@ def _report(check: Check, number: int, t: float, peak: float, length: float | No
     return lines
 
 
+JOINT_WORDS = {  # what moving each joint of a Panda-like 7-joint arm looks like to the operator
+    1: "turn the base",
+    2: "lean the shoulder",
+    3: "twist the upper arm",
+    4: "bend the elbow",
+    5: "twist the forearm",
+    6: "bend the wrist",
+    7: "turn the flange",
+}
+
+
+def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float) -> list[str]:
+    """The coach's status block after a capture.
+
+    Parameters
+    ----------
+    st : lasercal.solver.analysis.design.Status
+    counts : dict point -> captures
+    current : (n,) array, the last captured configuration, rad
+    stop_gain : float, the stopping rule's threshold (fraction)
+    """
+    per = ", ".join(f"{k} {v}" for k, v in counts.items())
+    lines = [
+        f"  coach: captures {per}; identifiable {st.rank} of {st.n_identifiable} parameter combinations "
+        f"({st.n_params} parameters)",
+        f"  predicted error at {st.region}: {st.predicted:.2f} ± {st.uncertainty:.2f} mm",
+    ]
+    wk = st.weakest
+    weak = f"  weakest: {', '.join(wk.params)} ({wk.share * 100:.0f} % of the predicted error)"
+    if wk.joint is not None:
+        lo, hi = np.degrees(wk.captured)
+        words = JOINT_WORDS.get(wk.joint, f"move joint {wk.joint}") if len(current) == 7 else "vary it"
+        span = "barely varied" if hi - lo < 20 else "varied"
+        weak += (
+            f"; joint {wk.joint} {span} ({lo:.0f}..{hi:.0f} deg), the informative poses have it near "
+            f"{np.degrees(wk.wanted):.0f} deg: {words} that way"
+        )
+    lines.append(weak)
+    dq = np.degrees(st.suggestion - current)
+    order = np.argsort(-np.abs(dq))
+    moves = ", ".join(f"joint {j + 1} {dq[j]:+.0f}" for j in order if abs(dq[j]) >= 1.0) or "none"
+    lines.append(f"  next: {st.plan.point[0]}, from this pose change (deg): {moves}")
+    if st.stop:
+        lines.append(
+            f"  expected error at {st.region} {st.predicted:.2f} ± {st.uncertainty:.2f} mm; "
+            f"{len(st.plan.expected)} more captures would improve it by < {stop_gain * 100:.0f} %: "
+            "you can stop"
+        )
+    return lines
+
+
 def run_capture(
     store: CaptureStore,
     robot: RobotAdapter,
@@ -212,6 +266,7 @@ def run_capture(
     out=sys.stdout,
     rangefinder=None,
     resume_hint: str = "",
+    coach=None,
 ) -> CaptureResult:
     """Run (or continue) a capture session until every requested point has its captures.
 
@@ -225,6 +280,9 @@ def run_capture(
     out : text stream, the operator's screen
     rangefinder : object with ``measure() -> mm`` or None
     resume_hint : str, the command that resumes this session (said when it stops early)
+    coach : lasercal.solver.analysis.design.Coach or None: after every capture a status block, the
+        next point and pose it suggests (the robot adapter is told; real arms are not moved), and
+        the stopping rule
 
     Returns
     -------
@@ -253,11 +311,15 @@ def run_capture(
             w(f"{robot.name}: {robot.guidance}\n")
         t_run = robot.clock.now()
         t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
+        status = None
         while True:
             todo = [nm for nm in requested if counts[nm] < opts.per_point]
             if not todo:
                 break
             name = todo[0]
+            if status is not None and status.plan.point[0] in todo:
+                name = str(status.plan.point[0])
+                robot.suggest_pose(status.suggestion)
             robot.prompt_point(name, points[name], counts[name])
             x, y, z = points[name]
             w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
@@ -304,6 +366,20 @@ def run_capture(
                 counts[name] -= 1
                 discarded += 1
                 w("discarded it (the simulated operator heeds the warning)\n")
+                continue
+            if coach is not None and store.point:
+                todo = [nm for nm in requested if counts[nm] < opts.per_point]
+                q_all = np.asarray(store.q, dtype=float).reshape(-1, len(state.q))
+                coach.update(q_all, np.array([points[p] for p in store.point]))
+                status = coach.status(q_all, allowed=todo or None)
+                w("\n".join(coach_lines(status, counts, state.q, coach.stop_gain)) + "\n")
+                if opts.until_mm is not None and status.predicted <= opts.until_mm:
+                    w(
+                        f"predicted error at {status.region} {status.predicted:.2f} mm <= --until "
+                        f"{opts.until_mm:g} mm: session complete\n"
+                    )
+                    w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
+                    return CaptureResult(True, counts, captured, discarded)
     except RobotConnectionError as e:
         raise RobotConnectionError(f"{e}; {saved()}") from None
     except DeviceError as e:

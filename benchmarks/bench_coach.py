@@ -1,0 +1,151 @@
+"""Capture-coach benchmarks (issue 16): honest prediction, fewer captures, speed.
+
+Run: python benchmarks/bench_coach.py [SEEDS]   (prints numbers; no assertions)
+
+Truth = the thesis's identified Panda, nominal = panda, thesis layout (P1-P3 calibration, P4
+validation), aiming noise 1 mm per axis. Held-out error = RMS distance between where the true
+beam and the fitted model's beam meet the plane, over 200 fresh configurations aiming at P4
+(sampled like the coach's use region, from another seed). Every fit is the coach's MAP fit
+(solver.analysis.design.posterior); the thesis protocol is also fitted by ``lasercal solve``'s
+unregularised LM for comparison.
+
+1. Honest prediction: predicted sqrt(tr(W C)) vs measured held-out RMS after the thesis protocol
+   (3 points x 15 random poses, simulate_captures) and after 45 guided captures.
+2. Fewer captures: the guided protocol -- each next pose the coach's greedy I-optimal choice
+   (restricted to points), the simulated operator hand-guides from it until the true beam hits
+   the point up to the aiming noise (polish on the true robot) -- until its held-out error stays
+   at or below the thesis protocol's, and its error at 45 captures.
+3. Speed: posterior + K = 10 plan on 150 captures; the per-capture status block.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.solver.analysis import design as D
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import Session, load_layout
+from lasercal.solver.identify.spot import identify_lm, predict_spots
+from lasercal.solver.kinematics.aim import polish
+
+TRUTH = load_model("panda_thesis_identified")
+NOMINAL = load_model("panda")
+LAYOUT = load_layout("thesis")
+NOISE = 1.0
+MAX_GUIDED = 60
+
+
+def heldout(model, region) -> float:
+    """Held-out RMS spot error (mm) of ``model`` against the truth at the region's configurations."""
+    a = predict_spots(TRUTH, region.q, region.target[:, 2])[0]
+    b = predict_spots(model, region.q, region.target[:, 2])[0]
+    return float(np.sqrt(np.mean(np.sum((a - b)[:, :2] ** 2, axis=1))))
+
+
+def lm_heldout(c, tgt, region) -> float:
+    m = len(c.q)
+    s = Session(
+        Path("."), {}, NOMINAL, LAYOUT.plane_z, TRUTH.aperture[2], LAYOUT.points, c.point, tgt, c.t, c.q,
+        None, None, {}, np.arange(m),
+    )  # fmt: skip
+    return heldout(identify_lm(s).model, region)
+
+
+def guided(coach: D.Coach, region, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Held-out and predicted errors after 1..MAX_GUIDED guided captures, and the last posterior's q."""
+    qs, ts, meas, pred = [], [], [], []
+    for _ in range(MAX_GUIDED):
+        post = coach.post
+        W = D.use_weight(post, coach.region)
+        plan = D.select(post, W, coach.cand, 1)
+        q0 = polish(post.model, plan.q, plan.target[0])  # the suggestion under the current model
+        hit = plan.target[0] + np.r_[rng.normal(0.0, NOISE, 2), 0.0]
+        q = polish(TRUTH, q0, hit)[0]  # the operator refines the aim on the real robot
+        qs.append(q)
+        ts.append(plan.target[0])
+        post = coach.update(np.array(qs), np.array(ts))
+        meas.append(heldout(post.model, region))
+        pred.append(D.predicted_error(post, D.use_weight(post, coach.region))[0])
+    return np.array(meas), np.array(pred), np.array(qs)
+
+
+def main(seeds: int = 20) -> None:
+    rows = []
+    t0 = time.perf_counter()
+    for seed in range(seeds):
+        coach = D.Coach(NOMINAL, LAYOUT, seed=seed)
+        region = D.use_region(NOMINAL, LAYOUT, np.random.default_rng([seed, 99]), n=200)
+        c = simulate_captures(TRUTH, LAYOUT, 15, NOISE, np.random.default_rng(seed))
+        tgt = np.array([LAYOUT.points[p] for p in c.point])
+        post = D.posterior(NOMINAL, c.q, tgt)
+        W = D.use_weight(post, coach.region)
+        t_pred = D.predicted_error(post, W)[0]
+        t_meas = heldout(post.model, region)
+        g_meas, g_pred, _ = guided(coach, region, np.random.default_rng([seed, 7]))
+        below = g_meas <= t_meas
+        stays = [k for k in range(MAX_GUIDED) if below[k:].all()]
+        need = stays[0] + 1 if stays else np.inf
+        rows.append((t_pred, t_meas, lm_heldout(c, tgt, region), g_pred[44], g_meas[44], need))
+        print(
+            f"seed {seed:2d}: thesis 45 pred {t_pred:.3f} meas {t_meas:.3f} (lm {rows[-1][2]:.3f}) | "
+            f"guided 45 pred {g_pred[44]:.3f} meas {g_meas[44]:.3f} | reaches thesis at {need}",
+            flush=True,
+        )
+    r = np.array(rows)
+    tp, tm, tl, gp, gm, need = r.T
+    print(f"\n{seeds} seeds, {time.perf_counter() - t0:.0f} s")
+    for lab, p, m in (("thesis protocol", tp, tm), ("guided, 45", gp, gm)):
+        ratio, pooled = p / m, np.sqrt(np.mean(p**2) / np.mean(m**2))
+        within = np.mean(np.abs(ratio - 1) <= 0.2) * 100
+        print(
+            f"honest prediction, {lab}: pooled RMS predicted/measured {pooled:.3f}; "
+            f"per seed median {np.median(ratio):.3f}, within 20 % in {within:.0f} % of seeds"
+        )
+    print(
+        f"thesis protocol held-out RMS: median {np.median(tm):.3f} mm (MAP fit), "
+        f"{np.median(tl):.3f} mm (lm fit)"
+    )
+    print(
+        f"guided captures to reach (and stay at) the thesis protocol's error: median {np.median(need):.1f} "
+        f"= {np.median(need) / 45 * 100:.0f} % of 45 (range {need.min():.0f}-{need.max():.0f})"
+    )
+    print(
+        f"same 45 captures: guided/thesis held-out error ratio median {np.median(gm / tm):.3f} "
+        f"(medians {np.median(gm):.3f} vs {np.median(tm):.3f} mm)"
+    )
+    speed()
+
+
+def speed() -> None:
+    c = simulate_captures(TRUTH, LAYOUT, 50, NOISE, np.random.default_rng(1))
+    tgt = np.array([LAYOUT.points[p] for p in c.point])
+    t = time.perf_counter()
+    coach = D.Coach(NOMINAL, LAYOUT, seed=1)
+    t_setup = time.perf_counter() - t
+    t = time.perf_counter()
+    post = D.posterior(NOMINAL, c.q, tgt)
+    t_fit = time.perf_counter() - t
+    coach.post = post
+    t = time.perf_counter()
+    coach.status(c.q, k=10)
+    t_plan = time.perf_counter() - t
+    coach.update(c.q[:-1], tgt[:-1])
+    t = time.perf_counter()
+    coach.update(c.q, tgt)
+    coach.status(c.q)
+    t_block = time.perf_counter() - t
+    print(
+        f"\nspeed, 150 captures, {len(coach.cand.q)} candidates: "
+        f"setup (candidates, use region) {t_setup:.2f} s; "
+        f"cold fit {t_fit:.3f} s + K = 10 plan and status {t_plan:.3f} s = {t_fit + t_plan:.3f} s; "
+        f"per-capture status block (warm refit + status) {t_block * 1000:.0f} ms"
+    )
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20)

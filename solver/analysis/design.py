@@ -1,0 +1,639 @@
+"""Optimal experiment design for laser calibration: where to aim next, how good the fit is, when to stop.
+
+The state of knowledge after m captures is a Gaussian posterior on the minimal-POE parameters
+x (:class:`~lasercal.solver.kinematics.laser.LaserParams` about the nominal model):
+
+* prior (eq. D1): x ~ N(x_nom, diag(s^2)), s from :class:`Prior` -- what a hand-assembled arm
+  and a hand-mounted laser can be off by. With no or too few captures the prior alone speaks.
+* estimate (eq. D2): the MAP fit min sum |spot_i(x) - target_i|^2 / sigma0^2 + |(x - x_nom) / s|^2,
+  solved by :func:`~lasercal.solver.identify.lsq.fit_subspace` with the prior as constraint rows
+  (Levenberg-Marquardt in the identifiable subspace, robust loss once there are enough captures).
+* aiming noise (eq. D3): sigma^2 = (nu0 sigma0^2 + RSS) / (nu0 + dof), a scaled-inverse-chi^2
+  posterior with nu0 pseudo-observations at the operator's nominal aiming noise sigma0, and
+  dof = 2 m - tr(H), tr(H) = p - tr(Lambda0 C) the effective number of fitted parameters.
+* covariance (eq. D4): C = (J^T J / sigma^2 + Lambda0)^-1, computed by
+  :func:`~lasercal.solver.identify.lsq.covariance` from the SVD of the stacked rows
+  [J / sigma; diag(1 / s)], which have full column rank because of the prior; directions the
+  data cannot see keep their prior variance.
+
+Predicted held-out error where the robot is used (eq. D5): for configurations q_k aiming at the
+use points (the layout's validation points, or a workspace box), the in-plane spot error of the
+fit is J_k e with e ~ N(0, C), so E|error|^2 averaged over k is tr(W C) with
+W = mean_k J_k^T J_k; the prediction is the RMS sqrt(tr(W C)) (mm). Its uncertainty is that of
+sigma (eq. D3: relative std 1 / sqrt(2 (nu0 + dof))) propagated through C.
+
+Design criterion: I-optimality (integrated / average prediction variance over the region of use,
+Atkinson, Donev & Tobias, *Optimum Experimental Designs*, 2007, Sec. 10.6; "V-optimality"):
+choose captures minimising tr(W C). It is exactly the promised number -- the held-out error
+at the validation points -- and it is invariant to parameter units and to directions that do
+not affect the use region. A-optimality (tr C) would mix rad and mm and spend captures on
+parameters that never show at the validation points; D-optimality (FIGAROH) likewise maximises
+information volume irrespective of where the robot will be used.
+
+Greedy sequential selection (eq. D6): a candidate capture adds two rows J_c (2, p) with noise
+sigma^2 I; by the Woodbury identity (two rank-one updates)
+C+ = C - G^T S^-1 G with G = J_c C, S = G J_c^T + sigma^2 I (2x2), and the criterion drops by
+tr(S^-1 G W G^T), evaluated for all candidates at once. The best candidate is taken, C updated,
+and the step repeated K times.
+
+Candidates: configurations sampled by the aiming IK (:func:`~lasercal.solver.kinematics.aim.aim`)
+under the current model at the calibration points, kept when they satisfy :class:`Constraints`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lasercal.solver.errors import AimingError, LasercalError
+from lasercal.solver.formats.session import Layout
+from lasercal.solver.identify.lsq import covariance, fit_subspace, identifiability
+from lasercal.solver.kinematics.aim import aim, polish, spot_error
+from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
+from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.poe import space_jacobian
+
+
+class DesignError(LasercalError):
+    """An experiment design cannot be made (no reachable use point, bad workspace box, K <= 0, ...)."""
+
+
+@dataclass(frozen=True)
+class Prior:
+    """How far the real robot may be from its nominal model, and how well the operator aims.
+
+    Attributes
+    ----------
+    aim_mm : float, sigma0: nominal aiming noise per in-plane axis, mm
+    aim_dof : float, nu0: pseudo-observations behind aim_mm (eq. D3)
+    axis_rad : float, std of each joint axis's tilt (eta wx, wy), rad
+    offset_mm : float, std of each joint axis's offset (eta qx, qy), mm
+    laser_rad : float, std of the laser direction's tilt, rad
+    aperture_mm : float, std of the aperture position per axis, mm
+    """
+
+    aim_mm: float = 1.0
+    aim_dof: float = 4.0
+    axis_rad: float = 0.01
+    offset_mm: float = 3.0
+    laser_rad: float = 0.03
+    aperture_mm: float = 3.0
+
+    def std(self, P: LaserParams) -> np.ndarray:
+        """Prior standard deviations s (p,) of the parameters of ``P`` (eq. D1)."""
+        joint = np.tile([self.axis_rad, self.axis_rad, self.offset_mm, self.offset_mm], P.model.n)
+        return np.r_[joint, self.laser_rad, self.laser_rad, np.full(3, self.aperture_mm)]
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """Where candidate configurations may be (the layout's ``aiming`` hints override tilt and length).
+
+    Attributes
+    ----------
+    margin : float, distance from every joint limit, rad
+    clearance : float, height of the laser aperture (the flange's lowest point) above the table, mm
+    min_singular : float, smallest singular value of the aperture Jacobian [omega; da / 500 mm]
+        (dimensionless; 0 at a singular configuration)
+    tilt : (min, max), the beam's angle from straight down, rad
+    length : (min, max), laser length, mm
+    """
+
+    margin: float = 0.1
+    clearance: float = 50.0
+    min_singular: float = 0.05
+    tilt: tuple = (0.0, np.radians(35))
+    length: tuple = (150.0, 600.0)
+
+    @classmethod
+    def for_layout(cls, layout: Layout, **kw) -> Constraints:
+        """Constraints with the layout's aiming hints (tilt, length)."""
+        return cls(**{**layout.aim_kwargs(), **kw})
+
+    def satisfied(self, model: RobotModel, q: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Boolean (m,) mask of configurations meeting every constraint, aiming at the plane(s) z."""
+        b, da, _ = beam_joint_jacobian(model, q)
+        _, t = plane_hit(b.aperture, b.direction, z)
+        tilt = np.arccos(np.clip(-b.direction[:, 2], -1.0, 1.0))
+        w = space_jacobian(model.screws, b.chain)[:, :3]
+        smin = np.linalg.svd(np.concatenate([w, da / 500.0], axis=1), compute_uv=False)[:, -1]
+        return (
+            model.within_limits(q, self.margin)
+            & (tilt >= self.tilt[0] - 1e-9)
+            & (tilt <= self.tilt[1] + 1e-9)
+            & (t >= self.length[0])
+            & (t <= self.length[1])
+            & (b.aperture[:, 2] - z >= self.clearance)
+            & (smin >= self.min_singular)
+        )
+
+
+@dataclass(frozen=True)
+class UseRegion:
+    """Configurations aiming at the points where the robot will be used.
+
+    Attributes
+    ----------
+    q : (k, n) array, rad
+    target : (k, 3) array, the point each aims at, mm
+    label : str, e.g. 'P4' or 'workspace box'
+    """
+
+    q: np.ndarray
+    target: np.ndarray
+    label: str
+
+
+def _aim_many(
+    model, points, per_point, rng, con: Constraints, pool: int, spread: float = 0.6
+) -> tuple[np.ndarray, np.ndarray]:
+    """Aiming-IK configurations (k, n) meeting ``con`` at each point, and their targets (k, 3)."""
+    qs, ts = [], []
+    for p in points:
+        p = np.asarray(p, dtype=float)
+        try:
+            q = aim(model, p, per_point, rng, con.tilt, con.length, spread, con.margin, pool)
+        except AimingError:
+            continue
+        q = q[con.satisfied(model, q, np.full(len(q), p[2]))]
+        qs.append(q)
+        ts.append(np.repeat(p[None], len(q), axis=0))
+    if not qs or not sum(len(q) for q in qs):
+        return np.empty((0, model.n)), np.empty((0, 3))
+    return np.concatenate(qs), np.concatenate(ts)
+
+
+def use_region(
+    model: RobotModel,
+    layout: Layout,
+    rng: np.random.Generator,
+    workspace: tuple | None = None,
+    n: int = 120,
+    constraints: Constraints | None = None,
+) -> UseRegion:
+    """Where the robot will be used: configurations aiming at the layout's validation points
+    (its calibration points when it has none), or at points drawn uniformly in a workspace box.
+
+    Parameters
+    ----------
+    model : RobotModel, the current model (it aims)
+    layout : Layout
+    rng : numpy Generator
+    workspace : ((3,), (3,)) min and max corners of a box, mm, or None
+    n : int, configurations in all
+    constraints : Constraints (default: the layout's)
+
+    Raises
+    ------
+    DesignError
+        A box with min > max, or use points no configuration can aim at.
+    """
+    con = constraints or Constraints.for_layout(layout)
+    if workspace is not None:
+        lo, hi = (np.asarray(a, dtype=float) for a in workspace)
+        if lo.shape != (3,) or hi.shape != (3,) or np.any(lo > hi):
+            raise DesignError(f"workspace box min {lo.tolist()} must be <= max {hi.tolist()} (mm, per axis)")
+        points = rng.uniform(lo, hi, (max(n // 8, 4), 3))
+        label = f"workspace box {lo.tolist()}..{hi.tolist()} mm"
+    else:
+        names = list(layout.validation or layout.calibration)
+        points = [layout.points[k] for k in names]
+        label = ", ".join(names)
+        for nm, p in zip(names, points):
+            if not len(_aim_many(model, [p], 4, rng, con, pool=64)[0]):
+                raise DesignError(
+                    f"point {nm} {np.round(p, 1).tolist()} mm is out of reach: no configuration within the "
+                    "joint limits, the aiming range and the table clearance aims at it"
+                )
+    q, target = _aim_many(
+        model, points, max(n // len(points), 2), rng, con, pool=4 * max(n // len(points), 16)
+    )
+    if not len(q):
+        raise DesignError(f"no configuration within the limits and the aiming range reaches {label}")
+    return UseRegion(q, target, label)
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Candidate next captures: aiming-IK configurations at the calibration points.
+
+    Attributes
+    ----------
+    q : (N, n) array, rad
+    point : (N,) array of str, the point each aims at
+    target : (N, 3) array, mm
+    """
+
+    q: np.ndarray
+    point: np.ndarray
+    target: np.ndarray
+
+
+def candidates(
+    model: RobotModel,
+    layout: Layout,
+    rng: np.random.Generator,
+    per_point: int = 100,
+    constraints: Constraints | None = None,
+    points=None,
+    spread: float = 1.0,
+) -> Candidates:
+    """Candidate configurations aiming exactly at each calibration point under ``model``.
+
+    Parameters
+    ----------
+    model : RobotModel, the current model
+    layout : Layout
+    rng : numpy Generator
+    per_point : int, configurations sampled per point (fewer survive the constraints)
+    constraints : Constraints (default: the layout's)
+    points : list of point names (default: the layout's calibration points)
+    spread : float, std of the aiming IK's random seeds about the home configuration, rad (wider
+        than an operator's habits: the design needs the extremes)
+
+    Raises
+    ------
+    DesignError
+        When a calibration point cannot be aimed at within the constraints (out of reach).
+    """
+    con = constraints or Constraints.for_layout(layout)
+    names = list(points or layout.calibration)
+    qs, ns, ts = [], [], []
+    for nm in names:
+        q, t = _aim_many(
+            model, [layout.points[nm]], per_point, rng, con, pool=2 * per_point + 40, spread=spread
+        )
+        if not len(q):
+            raise DesignError(
+                f"point {nm} {np.round(layout.points[nm], 1).tolist()} mm is out of reach: no configuration "
+                "within the joint limits, the aiming range and the table clearance aims at it"
+            )
+        qs.append(q)
+        ts.append(t)
+        ns += [nm] * len(q)
+    return Candidates(np.concatenate(qs), np.array(ns, dtype=object), np.concatenate(ts))
+
+
+@dataclass(frozen=True, eq=False)
+class Posterior:
+    """What the captures so far say about the robot (eqs. D1-D4).
+
+    Attributes
+    ----------
+    params : LaserParams, about the nominal model (x = x_nom there)
+    estimate : (p,) array, the MAP estimate (eq. D2)
+    model : RobotModel, the robot at the estimate
+    cov : (p, p) array, the posterior covariance (eq. D4)
+    sigma : float, aiming noise per axis (eq. D3), mm
+    sigma_rel : float, relative standard deviation of sigma
+    dof : float, residual degrees of freedom of the captures
+    rank : int, parameter combinations the captures alone identify (SVD rank, no prior)
+    weights : (m,) array, 1 used, 0 flagged as an outlier
+    rows : (2 m_used, p) array, the spot Jacobian of the used captures at the estimate
+    prior_std : (p,) array, s (eq. D1)
+    """
+
+    params: LaserParams
+    estimate: np.ndarray
+    model: RobotModel
+    cov: np.ndarray
+    sigma: float
+    sigma_rel: float
+    dof: float
+    rank: int
+    weights: np.ndarray
+    rows: np.ndarray
+    prior_std: np.ndarray
+
+
+def _posterior_cov(J: np.ndarray, s: np.ndarray, sigma: float) -> np.ndarray:
+    """C = (J^T J / sigma^2 + diag(1 / s^2))^-1 from the SVD of the stacked rows (eq. D4), J (rows, p)."""
+    return covariance(np.vstack([J / sigma, np.diag(1.0 / s)]), 1.0)
+
+
+def posterior(
+    nominal: RobotModel,
+    q: np.ndarray,
+    target: np.ndarray,
+    prior: Prior = Prior(),
+    start: np.ndarray | None = None,
+) -> Posterior:
+    """The posterior after captures q aimed at target (eqs. D1-D4); none at all is fine.
+
+    Parameters
+    ----------
+    nominal : RobotModel, the prior mean
+    q : (m, n) array, captured configurations, rad (m may be 0)
+    target : (m, 3) array, the reference point of each capture, mm
+    prior : Prior
+    start : (p,) array, where the fit starts (e.g. the previous estimate: a warm start)
+
+    Returns
+    -------
+    Posterior
+    """
+    P = LaserParams(nominal)
+    x0, s = P.x0(), prior.std(P)
+    q = np.asarray(q, dtype=float).reshape(-1, nominal.n)
+    target = np.asarray(target, dtype=float).reshape(-1, 3)
+    m = len(q)
+    s0 = prior.aim_mm
+    if m:
+
+        def residual(v):
+            return P.spots(v, q, target[:, 2])[0][:, :2] - target[:, :2]
+
+        def jacobian(v):
+            return P.spot_jacobian(v, q, target[:, 2])[2]
+
+        def prior_rows(v):  # eq. D2: prior residuals in units of the aiming noise
+            return s0 * (v - x0) / s, np.diag(s0 / s)
+
+        fit = fit_subspace(
+            residual, jacobian, x0 if start is None else start, P.names, m >= 10, constraints=prior_rows
+        )
+        v, w = fit.v, fit.weights
+        J = jacobian(v)[w > 0].reshape(-1, P.size)
+        rss = float(np.sum(fit.residuals[w > 0] ** 2))
+        rank = identifiability(J, P.names)[0].rank
+    else:
+        v, w, J, rss, rank = x0, np.ones(0), np.zeros((0, P.size)), 0.0, 0
+    sigma, dof = s0, 0.0
+    for _ in range(3):  # eq. D3 with tr(H) from the current C (a fixed point reached in a few steps)
+        C = _posterior_cov(J, s, sigma)
+        dof = max(len(J) - (P.size - float(np.sum(np.diag(C) / s**2))), 0.0)
+        sigma = float(np.sqrt((prior.aim_dof * s0**2 + rss) / (prior.aim_dof + dof)))
+    C = _posterior_cov(J, s, sigma)
+    return Posterior(
+        P,
+        v,
+        P.to_model(v),
+        C,
+        sigma,
+        1.0 / np.sqrt(2.0 * (prior.aim_dof + dof)),
+        dof,
+        rank,
+        w,
+        J,
+        s,
+    )
+
+
+def use_weight(post: Posterior, region: UseRegion) -> np.ndarray:
+    """W = mean_k J_k^T J_k (p, p) over the use region at the posterior's estimate (eq. D5)."""
+    J = post.params.spot_jacobian(post.estimate, region.q, region.target[:, 2])[2]
+    return np.einsum("kap,kaq->pq", J, J) / len(J)
+
+
+def predicted_error(post: Posterior, W: np.ndarray) -> tuple[float, float]:
+    """Predicted held-out RMS spot error sqrt(tr(W C)) (eq. D5) and its uncertainty, mm.
+
+    The uncertainty is half the change of the prediction when sigma moves by one standard
+    deviation either way (eq. D3).
+    """
+    e = float(np.sqrt(max(np.sum(W * post.cov), 0.0)))
+    lo, hi = (
+        float(np.sqrt(max(np.sum(W * _posterior_cov(post.rows, post.prior_std, post.sigma * f)), 0.0)))
+        for f in (1 - post.sigma_rel, 1 + post.sigma_rel)
+    )
+    return e, (hi - lo) / 2
+
+
+@dataclass(frozen=True)
+class Plan:
+    """K next captures chosen greedily (eq. D6), with the predicted error after each.
+
+    Attributes
+    ----------
+    q : (K, n) array, rad
+    point : (K,) array of str
+    target : (K, 3) array, mm
+    expected : (K,) array, predicted held-out RMS error after adding captures 1..k, mm
+    now : float, predicted held-out RMS error before them, mm
+    history : tuple of dict, per step: candidate index, criterion drop (mm^2), expected_mm
+    """
+
+    q: np.ndarray
+    point: np.ndarray
+    target: np.ndarray
+    expected: np.ndarray
+    now: float
+    history: tuple = field(default_factory=tuple)
+
+
+def select(post: Posterior, W: np.ndarray, cand: Candidates, k: int, allowed=None) -> Plan:
+    """Greedy sequential I-optimal selection of k candidates (eq. D6), vectorised over candidates.
+
+    Parameters
+    ----------
+    post : Posterior
+    W : (p, p) array, the use region's weight (eq. D5)
+    cand : Candidates
+    k : int, captures to choose (each at most once)
+    allowed : iterable of point names, or None: only candidates at these points
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    DesignError
+        k <= 0, or fewer than k allowed candidates.
+    """
+    if k <= 0:
+        raise DesignError(f"the number of next captures must be positive, got {k}")
+    avail = np.ones(len(cand.q), bool) if allowed is None else np.isin(cand.point, list(allowed))
+    if avail.sum() < k:
+        raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
+    Jc = post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]  # (N, 2, p)
+    C = post.cov.copy()
+    s2 = post.sigma**2 * np.eye(2)
+    now = float(np.sqrt(max(np.sum(W * C), 0.0)))
+    picks, expected, history = [], [], []
+    for step in range(k):
+        G = Jc @ C  # (N, 2, p)
+        S = G @ np.swapaxes(Jc, 1, 2) + s2
+        H = G @ W @ np.swapaxes(G, 1, 2)
+        drop = np.trace(np.linalg.solve(S, H), axis1=1, axis2=2)
+        drop[~avail] = -np.inf
+        j = int(np.argmax(drop))
+        C = C - G[j].T @ np.linalg.solve(S[j], G[j])
+        avail[j] = False
+        picks.append(j)
+        expected.append(float(np.sqrt(max(np.sum(W * C), 0.0))))
+        history.append(
+            {"step": step + 1, "candidate": j, "drop_mm2": float(drop[j]), "expected_mm": expected[-1]}
+        )
+    idx = np.array(picks)
+    return Plan(cand.q[idx], cand.point[idx], cand.target[idx], np.array(expected), now, tuple(history))
+
+
+@dataclass(frozen=True)
+class Weakest:
+    """The direction of parameter space that contributes most to the predicted error.
+
+    Attributes
+    ----------
+    params : tuple of str, its largest components (relative to their prior spread)
+    share : float, its fraction of the predicted squared error
+    joint : int or None, 1-based joint whose angle the informative candidates need most changed
+    captured : (2,) array or None, range of that joint over the captures, rad
+    wanted : float or None, that joint's mean angle over the most informative candidates, rad
+    """
+
+    params: tuple
+    share: float
+    joint: int | None
+    captured: np.ndarray | None
+    wanted: float | None
+
+
+def weakest(post: Posterior, W: np.ndarray, cand: Candidates, q: np.ndarray) -> Weakest:
+    """The dominant eigen-direction of tr(W C) and the joint change that would see it best.
+
+    With C = L L^T (Cholesky), tr(W C) = sum of the eigenvalues of L^T W L; the top eigenvector y
+    gives the parameter direction u = L y. The candidates' information along u is |J_c u|^2;
+    the joint whose mean angle over the best tenth of the candidates is farthest (relative to
+    its range over all candidates) from the captures' mean is the one to change.
+
+    Parameters
+    ----------
+    post : Posterior
+    W : (p, p) array
+    cand : Candidates
+    q : (m, n) array, the captures so far, rad
+    """
+    L = np.linalg.cholesky(post.cov + 1e-18 * np.eye(len(post.cov)))
+    lam, Y = np.linalg.eigh(L.T @ W @ L)
+    u = L @ Y[:, -1]
+    share = float(lam[-1] / max(lam.sum(), 1e-300))
+    rel = np.abs(u) / post.prior_std
+    top = np.argsort(-rel)[:3]
+    names = tuple(post.params.names[i] for i in top if rel[i] >= 0.3 * rel[top[0]])
+    if not len(q):
+        return Weakest(names, share, None, None, None)
+    Jc = post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]
+    info = np.sum((Jc @ u) ** 2, axis=1)
+    best = cand.q[info >= np.quantile(info, 0.9)]
+    spread = np.maximum(np.ptp(cand.q, axis=0), 1e-9)
+    j = int(np.argmax(np.abs(best.mean(axis=0) - q.mean(axis=0)) / spread))
+    return Weakest(names, share, j + 1, np.array([q[:, j].min(), q[:, j].max()]), float(best[:, j].mean()))
+
+
+def identifiable(post: Posterior, cand: Candidates) -> int:
+    """Parameter combinations spot data can identify at all: the SVD rank with every candidate added."""
+    Jc = post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2].reshape(-1, post.params.size)
+    return identifiability(np.vstack([post.rows, Jc]), post.params.names)[0].rank
+
+
+@dataclass(frozen=True)
+class Status:
+    """The coach's verdict after some captures.
+
+    Attributes
+    ----------
+    captures : int
+    rank : int, combinations the captures identify; n_identifiable of n_params can be
+    n_identifiable, n_params : int
+    predicted, uncertainty : float, predicted held-out RMS error at the use region and its std, mm
+    region : str, where (e.g. 'P4')
+    weakest : Weakest
+    plan : Plan, the best ``lookahead`` next captures
+    suggestion : (n,) array, the first of them polished to aim exactly under the current model, rad
+    improvement : float, fraction by which the plan would lower the predicted error
+    stop : bool, improvement below the stopping threshold
+    """
+
+    captures: int
+    rank: int
+    n_identifiable: int
+    n_params: int
+    predicted: float
+    uncertainty: float
+    region: str
+    weakest: Weakest
+    plan: Plan
+    suggestion: np.ndarray
+    improvement: float
+    stop: bool
+
+
+class Coach:
+    """Incremental design for a capture session: a fixed candidate pool and use region, a posterior
+    refitted (warm-started) after every capture.
+
+    Parameters
+    ----------
+    nominal : RobotModel, the prior mean
+    layout : Layout
+    seed : int, seed of the candidate and use-region sampling
+    prior : Prior
+    constraints : Constraints (default: the layout's)
+    workspace : ((3,), (3,)) box corners, mm, or None (the layout's validation points)
+    model : RobotModel that aims the candidates and the use region (default: nominal)
+    lookahead : int, captures the stopping rule looks ahead
+    stop_gain : float, stop when ``lookahead`` more captures would lower the error by less than this fraction
+    per_point : int, candidates sampled per calibration point
+    """
+
+    def __init__(
+        self,
+        nominal: RobotModel,
+        layout: Layout,
+        seed: int = 0,
+        prior: Prior = Prior(),
+        constraints: Constraints | None = None,
+        workspace: tuple | None = None,
+        model: RobotModel | None = None,
+        lookahead: int = 10,
+        stop_gain: float = 0.05,
+        per_point: int = 200,
+    ):
+        rng = np.random.default_rng([seed, 0xC0AC4])
+        con = constraints or Constraints.for_layout(layout)
+        aimer = model or nominal
+        self.nominal, self.layout, self.prior = nominal, layout, prior
+        self.lookahead, self.stop_gain = lookahead, stop_gain
+        self.region = use_region(aimer, layout, rng, workspace, constraints=con)
+        self.cand = candidates(aimer, layout, rng, per_point, con)
+        self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), prior)
+
+    def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
+        """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
+        self.post = posterior(self.nominal, q, target, self.prior, start=self.post.estimate)
+        return self.post
+
+    def status(self, q: np.ndarray, allowed=None, k: int | None = None) -> Status:
+        """The verdict on the current posterior; q (m, n) are the captures it was fitted to.
+
+        Parameters
+        ----------
+        q : (m, n) array, rad
+        allowed : point names the next captures may aim at (default: every calibration point)
+        k : int, captures to plan (default ``lookahead``)
+        """
+        post = self.post
+        W = use_weight(post, self.region)
+        e, de = predicted_error(post, W)
+        plan = select(post, W, self.cand, k or self.lookahead, allowed)
+        ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
+        gain = 1.0 - ahead / e if e > 0 else 0.0
+        suggestion = polish(post.model, plan.q[:1], plan.target[0])[0]
+        if not (spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6):
+            suggestion = plan.q[0]
+        return Status(
+            len(q),
+            post.rank,
+            identifiable(post, self.cand),
+            post.params.size,
+            e,
+            de,
+            self.region.label,
+            weakest(post, W, self.cand, np.asarray(q).reshape(-1, self.nominal.n)),
+            plan,
+            suggestion,
+            float(gain),
+            bool(len(q) > 0 and gain < self.stop_gain),
+        )

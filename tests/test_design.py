@@ -1,0 +1,71 @@
+"""The capture coach's design library against a simulated Panda whose truth is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lasercal.solver.analysis import design as D
+from lasercal.solver.analysis.simulate import simulate_captures
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.aim import spot_error
+
+TRUTH = load_model("panda_thesis_identified")
+NOMINAL = load_model("panda")
+LAYOUT = load_layout("thesis")
+
+
+@pytest.fixture(scope="module")
+def coach():
+    return D.Coach(NOMINAL, LAYOUT, seed=3, per_point=30)
+
+
+@pytest.fixture(scope="module")
+def thesis_captures():
+    c = simulate_captures(TRUTH, LAYOUT, 10, 1.0, np.random.default_rng(4))
+    return c.q, np.array([LAYOUT.points[p] for p in c.point])
+
+
+def test_no_captures_gives_a_prior_plan_that_aims_within_limits(coach):
+    st = coach.status(np.empty((0, 7)), k=6)
+    assert st.rank == 0 and st.n_identifiable == 32 and st.n_params == 33
+    assert 5 < st.predicted < 100  # the prior: about the nominal model's error (13.6 mm here), not 0 or inf
+    assert np.all(np.diff(np.r_[st.predicted, st.plan.expected]) < 0)
+    assert set(st.plan.point) <= set(LAYOUT.calibration)
+    err = np.array([spot_error(NOMINAL, q[None], t)[0] for q, t in zip(st.plan.q, st.plan.target)])
+    assert np.all(err < 0.5) and NOMINAL.within_limits(st.plan.q, 0.05).all()
+
+
+def test_greedy_prediction_equals_the_refitted_covariance(coach, thesis_captures):
+    q, tgt = thesis_captures
+    post = D.posterior(NOMINAL, q, tgt)
+    W = D.use_weight(post, coach.region)
+    plan = D.select(post, W, coach.cand, 4)
+    J = post.params.spot_jacobian(post.estimate, plan.q, plan.target[:, 2])[2].reshape(-1, post.params.size)
+    C = D._posterior_cov(np.vstack([post.rows, J]), post.prior_std, post.sigma)
+    assert np.sqrt(np.sum(W * C)) == pytest.approx(plan.expected[-1], rel=1e-6)
+    assert plan.expected[-1] < plan.now
+
+
+def test_predicted_error_is_close_to_the_measured_one_over_seeds(coach):
+    fresh = D.use_region(NOMINAL, LAYOUT, np.random.default_rng(11), n=100)
+    a = predict_spots(TRUTH, fresh.q, fresh.target[:, 2])[0]
+    pred, meas = [], []
+    for seed in range(6):
+        c = simulate_captures(TRUTH, LAYOUT, 10, 1.0, np.random.default_rng(seed))
+        post = D.posterior(NOMINAL, c.q, np.array([LAYOUT.points[p] for p in c.point]))
+        e, de = D.predicted_error(post, D.use_weight(post, coach.region))
+        assert 0 < de < e and 0.6 < post.sigma < 1.4  # the simulated aiming noise is 1 mm
+        b = predict_spots(post.model, fresh.q, fresh.target[:, 2])[0]
+        pred.append(e)
+        meas.append(np.sqrt(np.mean(np.sum((a - b)[:, :2] ** 2, axis=1))))
+    assert 0.75 < np.sqrt(np.mean(np.square(pred)) / np.mean(np.square(meas))) < 1.33
+
+
+def test_bad_requests_are_design_errors(coach):
+    with pytest.raises(D.DesignError, match="positive"):
+        D.select(coach.post, np.eye(33), coach.cand, 0)
+    with pytest.raises(D.DesignError, match="must be <= max"):
+        D.use_region(NOMINAL, LAYOUT, np.random.default_rng(0), workspace=([500, 0, -8], [400, 100, -8]))
