@@ -343,6 +343,8 @@ def cmd_capture(args) -> int:
     hint = f"lasercal capture --resume {store.folder}" + (" --auto" if args.auto else "")
     coach = None
     if not args.no_coach:
+        import numpy as np
+
         from lasercal.solver.analysis.design import Coach, Prior
 
         model = nominal
