@@ -305,6 +305,15 @@ def run_capture(
         safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {store.path}"
         return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
 
+    def coach_status():
+        """Refit the coach on every capture so far and print its status block."""
+        todo = [nm for nm in requested if counts[nm] < opts.per_point]
+        q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), -1)
+        coach.update(q_all, np.array([points[p] for p in store.point]))
+        st = coach.status(q_all, allowed=todo or None)
+        w("\n".join(coach_lines(st, counts, q_all[-1], coach.stop_gain)) + "\n")
+        return st
+
     try:
         robot.connect()
         if robot.guidance:
@@ -312,6 +321,14 @@ def run_capture(
         t_run = robot.clock.now()
         t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
         status = None
+        if coach is not None and store.point:
+            # a resumed session: the coach goes through the fits (each warm-started from the one before)
+            # that the uninterrupted session made, so its suggestions are the same to the last bit
+            q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), -1)
+            aimed = np.array([points[p] for p in store.point])
+            for k in range(1, len(q_all)):
+                coach.update(q_all[:k], aimed[:k])
+            status = coach_status()
         while True:
             todo = [nm for nm in requested if counts[nm] < opts.per_point]
             if not todo:
@@ -368,11 +385,7 @@ def run_capture(
                 w("discarded it (the simulated operator heeds the warning)\n")
                 continue
             if coach is not None and store.point:
-                todo = [nm for nm in requested if counts[nm] < opts.per_point]
-                q_all = np.asarray(store.q, dtype=float).reshape(-1, len(state.q))
-                coach.update(q_all, np.array([points[p] for p in store.point]))
-                status = coach.status(q_all, allowed=todo or None)
-                w("\n".join(coach_lines(status, counts, state.q, coach.stop_gain)) + "\n")
+                status = coach_status()
                 if opts.until_mm is not None and status.predicted <= opts.until_mm:
                     w(
                         f"predicted error at {status.region} {status.predicted:.2f} mm <= --until "

@@ -131,7 +131,7 @@ def held_out(session: Session, fitter, fold: np.ndarray) -> HeldOut:
     A fold whose fit fails (too few captures for the parameters) is recorded in ``failed`` and its
     captures get NaN: one fold that cannot be fitted is no reason to refuse a calibration.
     """
-    d = 3 if session.measurement == "point" else 2
+    d = 2 if session.measurement == "laser" else 3  # in-plane spot error, or a 3-D point
     out = np.full((session.m, d), np.nan)
     failed = {}
     for i in range(int(fold.max()) + 1):
