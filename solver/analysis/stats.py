@@ -131,7 +131,7 @@ def held_out(session: Session, fitter, fold: np.ndarray) -> HeldOut:
     A fold whose fit fails (too few captures for the parameters) is recorded in ``failed`` and its
     captures get NaN: one fold that cannot be fitted is no reason to refuse a calibration.
     """
-    d = 3 if session.measurement == "point" else 2
+    d = 3 if session.measurement in ("point", "position") else 2
     out = np.full((session.m, d), np.nan)
     failed = {}
     for i in range(int(fold.max()) + 1):
