@@ -431,7 +431,7 @@ def diagnose(
     tau, tau_src = session_torques(session, payload)
     session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
     geo = fit(session, robust=robust)
-    pts = [] if session.measurement == "point" else list(dict.fromkeys(session.point))
+    pts = [] if session.measurement != "laser" else list(dict.fromkeys(session.point))
     clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
     exts = candidates(session.robot.n, pts, tau is not None, clock_ok)
     cannot = untested(
