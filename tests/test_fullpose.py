@@ -238,12 +238,17 @@ def test_cli_simulate_then_calibrate(tmp_path, capsys):
         )
         == 0
     )
-    assert run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--folds", "3"]) == 0
+    assert (
+        run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--folds", "3", "--method", "circle"])
+        == 0
+    )
     text = capsys.readouterr().out
     assert "absolute position [mm]" in text and "3-fold cross-validation" in text
     model = load_model(out)
     assert model.ee_pose is not None and model.identification["identifiability"]["rank"] == 30
-    assert run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--json"]) == 0
+    assert (
+        run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--json", "--method", "circle"]) == 0
+    )
     rep = json.loads(capsys.readouterr().out)
     assert rep["accuracy"]["after"]["position_mm"]["mean"] < 0.05 and "frames" in rep
     m.write_text(m.read_text().replace("config,", "cfg,"))

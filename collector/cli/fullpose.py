@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.solver.identify.fullpose import FullPoseCalibration
+    from lasercal.solver.identify.fullpose_ml import PointCalibration
 
 
 def args_fullpose(p: argparse.ArgumentParser) -> None:
@@ -20,6 +21,13 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--robot", required=True, help="nominal robot YAML (or built-in name)")
     p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    p.add_argument(
+        "--method",
+        choices=["ml", "circle"],
+        default="ml",
+        help="circle points: ml (default) fits every measured point (maximum likelihood; the circle-point "
+        "poses are its start), circle the paper's method (one frame per configuration, then a pose fit)",
+    )
     p.add_argument("--folds", type=int, default=0, help="K of a K-fold cross-validation (default 0: none)")
     p.add_argument(
         "--estimate-frames",
@@ -49,6 +57,14 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
         default=50.0,
         help="target offset along the last axis from the aperture, mm (default 50)",
     )
+    p.add_argument(
+        "--sensor",
+        type=float,
+        nargs=6,
+        metavar=("X", "Y", "Z", "RX", "RY", "RZ"),
+        help="the truth's base in the sensor frame: origin (mm) and x-y-z Euler angles (deg, extrinsic); "
+        "default: the sensor frame is the base frame",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", required=True, help="MEASUREMENTS.csv to write")
 
@@ -67,19 +83,37 @@ def _header(path: Path) -> list:
     raise FormatError(path, "the file is empty")
 
 
-def report(cal: FullPoseCalibration, cv, source: str) -> dict:
-    """The JSON-ready statistics of a full-pose calibration."""
+def report(cal: FullPoseCalibration | PointCalibration, cv, source: str) -> dict:
+    """The JSON-ready statistics of a full-pose calibration (from poses, or from every circle point)."""
     f = cal.fit
     idf = f.identifiability
+    if hasattr(cal, "circle"):  # maximum likelihood from the points
+        head = {
+            "method": "fullpose-ml (every circle point, position model, LM; circle-point start)",
+            "measurements": source,
+            "poses": int(cal.after.n),
+            "points": int(len(f.residuals)),
+            "outliers": list(f.outliers),
+            "converged": f.converged,
+            "iterations": f.iterations,
+            "seconds": f.seconds + cal.circle.fit.seconds,
+            "sigma_mm": float(f.sigma_mm),
+            "gauge": f.extra["gauge"],
+            "circle_start": {"accuracy_after": cal.circle.after.to_dict()},
+        }
+    else:
+        head = {
+            "method": "fullpose-poe (thesis eq. 2.3.29, Levenberg-Marquardt)",
+            "measurements": source,
+            "poses": int(len(f.residuals)),
+            "converged": f.converged,
+            "iterations": f.iterations,
+            "seconds": f.seconds,
+            "sigma_rad": float(f.sigma[0]),
+            "sigma_mm": float(f.sigma[1]),
+        }
     rep = {
-        "method": "fullpose-poe (thesis eq. 2.3.29, Levenberg-Marquardt)",
-        "measurements": source,
-        "poses": int(len(f.residuals)),
-        "converged": f.converged,
-        "iterations": f.iterations,
-        "seconds": f.seconds,
-        "sigma_rad": float(f.sigma[0]),
-        "sigma_mm": float(f.sigma[1]),
+        **head,
         "identifiability": {
             "parameters": idf.n_params,
             "rank": idf.rank,
@@ -117,17 +151,24 @@ def cmd_fullpose(args) -> int:
     from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
+    from lasercal.solver.identify.fullpose_ml import calibrate_points, cross_validate_points
 
     model = load_model(args.robot)
     path = Path(args.measurements)
+    estimate = True if args.estimate_frames else None
+    points = None
     if "r11" in _header(path):
         d = read_pose_csv(path, model.n)
         q, T = d.q, d.T
     else:
-        q, T = read_circlepoint_csv(path, model.n).poses()
-    estimate = True if args.estimate_frames else None
-    cal = calibrate_fullpose(model, q, T, estimate)
-    cv = cross_validate(model, q, T, args.folds, args.seed, estimate) if args.folds else None
+        points = read_circlepoint_csv(path, model.n)
+        q, T = points.poses()
+    if points is not None and args.method == "ml":
+        cal = calibrate_points(model, points, estimate)
+        cv = cross_validate_points(model, points, args.folds, args.seed, estimate) if args.folds else None
+    else:
+        cal = calibrate_fullpose(model, q, T, estimate)
+        cv = cross_validate(model, q, T, args.folds, args.seed, estimate) if args.folds else None
     rep = report(cal, cv, str(path.resolve()))
     meta = {
         k: rep[k]
@@ -137,32 +178,45 @@ def cmd_fullpose(args) -> int:
             "poses",
             "converged",
             "iterations",
-            "sigma_rad",
             "sigma_mm",
             "identifiability",
             "accuracy",
             "std_errors",
         )
     }
-    meta["units"] = "mm, rad"
-    meta["robot"] = str(resolve_robot_path(args.robot).resolve())
-    for k in ("frames", "cross_validation"):
+    for k in ("sigma_rad", "points", "outliers", "gauge", "frames", "cross_validation"):
         if k in rep:
             meta[k] = rep[k]
+    meta["units"] = "mm, rad"
+    meta["robot"] = str(resolve_robot_path(args.robot).resolve())
     cal.model.replace(identification=json.loads(json.dumps(meta))).save(args.output)
     if args.json:
         print(json.dumps(rep, indent=2))
         return 0
     f = cal.fit
     idf = f.identifiability
+    what = (
+        f"{len(q)} poses"
+        if points is None or args.method == "circle"
+        else f"{len(q)} poses, {rep['points']} points"
+    )
     print(
-        f"{len(q)} poses; {'converged' if f.converged else 'NOT converged'} after {f.iterations} iterations, "
-        f"{f.seconds:.2f} s"
+        f"{what}; {'converged' if f.converged else 'NOT converged'} after {f.iterations} iterations, "
+        f"{rep['seconds']:.2f} s"
     )
     print(f"identifiable: rank {idf.rank} of {idf.n_params} parameters, condition number {idf.condition:.3g}")
     for u in idf.unidentifiable:
         print(f"  not seen by the data (held at the start value): {u}")
-    print(f"residual RMS per component: rotation {f.sigma[0] * 1e3:.4g} mrad, position {f.sigma[1]:.4g} mm")
+    if "points" in rep:
+        print(f"maximum likelihood from every point; gauge: {rep['gauge']}")
+        print(
+            f"residual RMS per axis: {rep['sigma_mm']:.4g} mm; {len(rep['outliers'])} point(s) flagged as "
+            "outliers"
+        )
+    else:
+        print(
+            f"residual RMS per component: rotation {f.sigma[0] * 1e3:.4g} mrad, position {f.sigma[1]:.4g} mm"
+        )
     if cal.alignment is not None:
         t = cal.alignment.tool[:3, 3]
         print(
@@ -196,6 +250,12 @@ def cmd_simulate_fullpose(args) -> int:
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import default_target, simulate_circlepoint
 
+    X = np.eye(4)
+    if args.sensor is not None:
+        from scipy.spatial.transform import Rotation
+
+        X[:3, :3] = Rotation.from_euler("xyz", args.sensor[3:], degrees=True).as_matrix()
+        X[:3, 3] = args.sensor[:3]
     path = resolve_robot_path(args.robot)
     truth = load_model(path)
     target = default_target(truth, args.radius, args.offset)
@@ -207,13 +267,14 @@ def cmd_simulate_fullpose(args) -> int:
         args.noise,
         np.random.default_rng(args.seed),
         target,
+        X,
     )
     notes = (
         f"simulated circle-point measurements (lasercal simulate-fullpose); truth {path.resolve()}",
         f"configs {args.configs}, angles {args.angles}, step {args.step} deg, noise {args.noise} mm, seed "
         f"{args.seed}",
-        f"target at q = 0 (truth base frame = sensor frame): {target[0]:.6f} {target[1]:.6f} {target[2]:.6f} "
-        "mm",
+        f"target at q = 0 (truth base frame): {target[0]:.6f} {target[1]:.6f} {target[2]:.6f} mm",
+        "sensor frame ^S T_base: " + " ".join(f"{v:.9g}" for v in X[:3].ravel()) + " (rows 1-3, mm)",
     )
     write_circlepoint_csv(args.output, d, notes)
     print(

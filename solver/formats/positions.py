@@ -99,25 +99,66 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
     }
     if len(rows) < 1:
         raise FormatError(cpath, "no captures", line=2)
+    return position_session(
+        robot, q, y, names, None if sig is None else sig[:, 0], folder, meta, t, tau, extra, lines, clock
+    )
+
+
+def position_session(
+    robot: RobotModel,
+    q: np.ndarray,
+    y: np.ndarray,
+    names: np.ndarray,
+    sigma: np.ndarray | None = None,
+    folder: Path | str = "<memory>",
+    meta: dict | None = None,
+    t: np.ndarray | None = None,
+    tau: np.ndarray | None = None,
+    extra: dict | None = None,
+    lines: np.ndarray | None = None,
+    clock: str = "order",
+) -> Session:
+    """A position :class:`Session` from arrays (e.g. circle points expanded into positions).
+
+    Parameters
+    ----------
+    robot : RobotModel, the nominal
+    q : (m, n) array, rad
+    y : (m, 3) array, measured positions, mm, sensor frame
+    names : (m,) array of str, the target of each row
+    sigma : (m,) array, optional, per-row noise, mm
+    folder, meta : the session's folder (names files in errors) and session.yaml mapping
+    t : (m,) array, optional, s (default: the row order, ``clock='order'``)
+    tau : (m, n) array, optional, Nm
+    extra : dict column -> (m,) array, passed through
+    lines : (m,) int array, optional, file line of each row (default 2, 3, ...)
+    clock : str, what ``t`` is
+
+    Returns
+    -------
+    Session with ``measurement='position'``
+    """
+    names = np.asarray(names, dtype=object)
+    m = len(names)
     return Session(
-        folder,
-        meta,
+        Path(folder),
+        meta if meta is not None else position_meta(robot.name, dict.fromkeys(names)),
         robot,
         float("nan"),
         None,
         {nm: None for nm in dict.fromkeys(names)},
         names,
-        y,
-        t,
-        q,
+        np.asarray(y, dtype=float),
+        np.arange(m, dtype=float) if t is None else t,
+        np.asarray(q, dtype=float),
         None,
         tau,
-        extra,
-        lines,
+        extra or {},
+        np.arange(2, m + 2) if lines is None else lines,
         "position",
         None,
         (),
-        None if sig is None else sig[:, 0],
+        None if sigma is None else np.asarray(sigma, dtype=float),
         clock,
     )
 

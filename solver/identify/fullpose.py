@@ -509,19 +509,15 @@ def estimate_frames(model: RobotModel, q: np.ndarray, T_meas: np.ndarray) -> Fra
     return FrameAlignment(X, Y, M0, int(sol.njev), bool(sol.status > 0), float(rms[0]), float(rms[1]))
 
 
-def aligned_model(model: RobotModel, al: FrameAlignment) -> RobotModel:
-    """The nominal re-expressed in {S}: screws Ad_X S, M = X M_0 Y; the laser, tool point and
-    centres of mass moved rigidly with the base; the table plane (a base-frame z) dropped."""
-    X = al.base
+def rebased(model: RobotModel, X: np.ndarray, ee_pose: np.ndarray, note: str) -> RobotModel:
+    """The model re-expressed in the frame {S} with X = ^S T_base: screws Ad_X S (eq. 2.2.8's adjoint),
+    ``ee_pose`` as given (in {S}); the laser, tool point and centres of mass moved rigidly with the
+    base; the table plane (a base-frame z) dropped; ``note`` appended to the notes."""
     R, t = X[:3, :3], X[:3, 3]
     screws = np.array([normalise_screw(S)[0] for S in (adjoint(X) @ model.screws[:, :, None])[:, :, 0]])
-    note = (
-        "re-expressed in the measurement frame {S}: base and tool transforms estimated from full poses "
-        "(solver.fullpose)"
-    )
     return model.replace(
         screws=screws,
-        ee_pose=X @ al.ee_nominal @ al.tool,
+        ee_pose=ee_pose,
         laser_dir=R @ model.laser_dir,
         aperture=R @ model.aperture + t,
         tool_point=None if model.tool_point is None else R @ model.tool_point + t,
@@ -529,6 +525,15 @@ def aligned_model(model: RobotModel, al: FrameAlignment) -> RobotModel:
         links=tuple(Link(lk.mass, R @ lk.com + t) for lk in model.links),
         notes=model.notes + (note,),
     )
+
+
+def aligned_model(model: RobotModel, al: FrameAlignment) -> RobotModel:
+    """The nominal re-expressed in {S} (:func:`rebased`) with M = X M_0 Y."""
+    note = (
+        "re-expressed in the measurement frame {S}: base and tool transforms estimated from full poses "
+        "(solver.fullpose)"
+    )
+    return rebased(model, al.base, al.base @ al.ee_nominal @ al.tool, note)
 
 
 # ----------------------------------------------------------------------- calibration and validation
@@ -637,7 +642,35 @@ def cross_validate(
     IdentificationError
         if k < 2 or a training fold is too small
     """
+
+    def calibrate(train):
+        cal = calibrate_fullpose(nominal, q[train], T_meas[train], estimate, sigma)
+        return cal.fit.reference, cal.model, cal.fit.identifiability.rank
+
     q, T_meas = _checked(q, T_meas, nominal.n)
+    return fold_accuracy(q, T_meas, k, seed, calibrate)
+
+
+def fold_accuracy(q: np.ndarray, T_meas: np.ndarray, k: int, seed: int, calibrate) -> CrossValidation:
+    """K-fold cross-validated accuracy (Table 4 form) of any calibration of full poses.
+
+    Parameters
+    ----------
+    q : (m, n) array, rad
+    T_meas : (m, 4, 4) array, the measured frames, mm
+    k : int, folds; seed : int, of the shuffle of the poses
+    calibrate : callable, training indices (t,) -> (start model, calibrated model, identifiable rank);
+        both models give the frames by ``fk(screws, ee_pose, q)``
+
+    Returns
+    -------
+    CrossValidation
+
+    Raises
+    ------
+    IdentificationError
+        if not 2 <= k <= m
+    """
     m = len(q)
     if not 2 <= k <= m:
         raise IdentificationError(f"K-fold cross-validation needs 2 <= K <= {m} poses, got K = {k}")
@@ -646,15 +679,15 @@ def cross_validate(
     per_fold = []
     for f, test in enumerate(folds):
         train = np.setdiff1d(np.arange(m), test)
-        cal = calibrate_fullpose(nominal, q[train], T_meas[train], estimate, sigma)
-        for key, model, idx in (
-            ("nt", cal.fit.reference, train),
-            ("nv", cal.fit.reference, test),
-            ("ct", cal.model, train),
-            ("cv", cal.model, test),
+        start, model, rank = calibrate(train)
+        for key, mod, idx in (
+            ("nt", start, train),
+            ("nv", start, test),
+            ("ct", model, train),
+            ("cv", model, test),
         ):
             acc[key][0].append(T_meas[idx])
-            acc[key][1].append(fk(model.screws, model.ee_pose, q[idx]))
+            acc[key][1].append(fk(mod.screws, mod.ee_pose, q[idx]))
         tv = accuracy(T_meas[test], acc["cv"][1][-1])
         nv = accuracy(T_meas[test], acc["nv"][1][-1])
         per_fold.append(
@@ -662,7 +695,7 @@ def cross_validate(
                 "fold": f + 1,
                 "train": len(train),
                 "test": len(test),
-                "rank": cal.fit.identifiability.rank,
+                "rank": rank,
                 "test_position_mean_mm": {
                     "nominal": float(nv.position[0]),
                     "calibrated": float(tv.position[0]),
@@ -703,13 +736,16 @@ def simulate_circlepoint(
     noise_mm: float,
     rng: np.random.Generator,
     target: np.ndarray | None = None,
+    sensor: np.ndarray | None = None,
 ) -> CirclePointData:
     """Synthetic circle-point measurements (Section 3): g random configurations, the last joint turned through
     m angles.
 
-    The sensor frame {S} is the truth's base frame. Every joint is drawn uniformly within
-    its limits, the last one so that all m angles q_N + k step (k = 0..m-1) stay within
-    them; each target position gets independent N(0, noise_mm^2) noise per axis.
+    The target is measured as y = X E(q) p (the position model of :mod:`solver.identify.position`),
+    X = ^S T_base (default: the identity, the sensor frame {S} is the truth's base frame).
+    Every joint is drawn uniformly within its limits, the last one so that all m angles
+    q_N + k step (k = 0..m-1) stay within them; each target position gets independent
+    N(0, noise_mm^2) noise per axis.
 
     Parameters
     ----------
@@ -720,6 +756,7 @@ def simulate_circlepoint(
     noise_mm : float, sensor noise standard deviation per axis, mm
     rng : numpy Generator
     target : (3,) array, the target at q = 0 in the base frame, mm (default :func:`default_target`)
+    sensor : (4, 4) array, X = ^S T_base, mm (default identity)
 
     Returns
     -------
@@ -746,5 +783,7 @@ def simulate_circlepoint(
     q[:, :, -1] += step_rad * np.arange(m)
     p = default_target(truth) if target is None else np.asarray(target, dtype=float)
     E = poe_chain(truth.screws, q.reshape(g * m, truth.n))[:, -1]
-    pts = (E[:, :3, :3] @ p + E[:, :3, 3]).reshape(g, m, 3) + rng.normal(0.0, noise_mm, (g, m, 3))
+    X = np.eye(4) if sensor is None else np.asarray(sensor, dtype=float)
+    pts = (E[:, :3, :3] @ p + E[:, :3, 3]) @ X[:3, :3].T + X[:3, 3]
+    pts = pts.reshape(g, m, 3) + rng.normal(0.0, noise_mm, (g, m, 3))
     return CirclePointData(q, pts, tuple(f"c{i + 1:03d}" for i in range(g)), np.zeros(g, dtype=int))

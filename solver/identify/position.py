@@ -38,7 +38,8 @@ from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, exp6, poe_chain, skew, space_jacobian
 
-_START_ITERS = 30  # alternations of the closed-form start
+_START_ITERS = 1000  # most alternations of the closed-form start (they stop once the scale settles)
+_START_TOL = 1e-7  # change of the similarity scale per alternation below which the start has settled
 SCALE_TOL = 0.05  # a best similarity scale further than this from 1: the units do not match the robot's
 
 
@@ -103,15 +104,20 @@ def start_frame(
 ) -> tuple[np.ndarray, dict]:
     """Closed-form start: X (4, 4) and the targets (dict of (3,) mm), alternating (1) the Umeyama
     similarity of nominal points E(q) p_k to the measured y and (2) the targets by linear least
-    squares s R_X R_E p_k = y - s R_X t_E - t_X. Scale s far from 1 is a unit error and raises
+    squares s R_X R_E p_k = y - s R_X t_E - t_X, until s settles (a target far from its start, e.g. a
+    camera 100 mm off the flange, takes a few hundred). Scale s far from 1 is a unit error and raises
     FormatError (metres are named as such).
     """
     E = poe_chain(model.screws, q)[:, -1]
     targets = {k: np.asarray(v, float) for k, v in targets0.items()}
+    s_prev = np.inf
     for _ in range(_START_ITERS):
         P = np.array([targets[nm] for nm in names])
         p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
         s, R, t = umeyama(p, y)
+        if abs(s - s_prev) < _START_TOL:
+            break
+        s_prev = s
         for nm in targets:
             sel = names == nm
             A = (s * R @ E[sel, :3, :3]).reshape(-1, 3)
