@@ -7,6 +7,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from lasercal.collector.cli.options import SEED
 from lasercal.collector.demo import DemoOptions, format_summary, run_demo
 
 
@@ -18,7 +19,7 @@ def args_demo(p: argparse.ArgumentParser) -> None:
         default="lasercal-demo",
         help="folder for the session, models, validations and report (default: ./lasercal-demo)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
 
 
 def cmd_demo(args) -> int:

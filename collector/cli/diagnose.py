@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 
+from lasercal.collector.cli.options import SEED, count, number
 from lasercal.solver.analysis.diagnose import ALPHA, diagnose
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import load_session
@@ -19,18 +20,24 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--report", metavar="DIR", help="write the plots that make the case")
     p.add_argument(
-        "--alpha", type=float, default=ALPHA, help=f"family-wise significance level (default {ALPHA})"
+        "--alpha",
+        type=number(0, 1, lo_open=True, hi_open=True),
+        default=ALPHA,
+        help=f"family-wise significance level (default {ALPHA})",
     )
     p.add_argument(
         "--bootstrap",
-        type=int,
+        type=count(0, 10**6),
         default=2000,
         help="first-order parametric-bootstrap replicates (default 2000; 0 skips)",
     )
     p.add_argument(
-        "--refits", type=int, default=10, help="full simulations of the experiment with refits (default 10)"
+        "--refits",
+        type=count(0, 10**4),
+        default=10,
+        help="full simulations of the experiment with refits (default 10)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument(
         "--payload",
         metavar="KG,X,Y,Z",

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lasercal.collector.cli.options import FOLDS, SEED, count, number
+from lasercal.collector.sessions.store import atomic_output, check_output
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv, write_circlepoint_csv
 from lasercal.solver.formats.robots import load_model, resolve_robot_path
@@ -30,37 +32,55 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--robot", required=True, help="nominal robot YAML (or built-in name)")
     p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
-    p.add_argument("--folds", type=int, default=0, help="K of a K-fold cross-validation (default 0: none)")
+    p.add_argument("--folds", type=FOLDS, default=0, help="K of a K-fold cross-validation (default 0: none)")
     p.add_argument(
         "--estimate-frames",
         action="store_true",
         help="estimate the sensor-to-base and tool transforms first (always done when the robot file has no "
         "ee.M)",
     )
-    p.add_argument("--seed", type=int, default=0, help="shuffle of the cross-validation folds")
+    p.add_argument("--seed", type=SEED, default=0, help="shuffle of the cross-validation folds")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate-fullpose``."""
     p.add_argument("--robot", required=True, help="true robot YAML (or built-in name)")
-    p.add_argument("--configs", type=int, default=30, help="robot configurations g (default 30)")
+    p.add_argument("--configs", type=count(1, 10**5), default=30, help="robot configurations g (default 30)")
     p.add_argument(
-        "--angles", type=int, default=6, help="angles m of the last joint per configuration (default 6)"
+        "--angles",
+        type=count(3, 360),
+        default=6,
+        help="angles m of the last joint per configuration (default 6)",
     )
-    p.add_argument("--step", type=float, default=20.0, help="the last joint's step, deg (default 20)")
-    p.add_argument("--noise", type=float, default=0.01, help="sensor noise std per axis, mm (default 0.01)")
     p.add_argument(
-        "--radius", type=float, default=50.0, help="target distance from the last axis, mm (default 50)"
+        "--step",
+        type=number(0, 120, "deg", lo_open=True),
+        default=20.0,
+        help="the last joint's step, deg (default 20)",
+    )
+    p.add_argument(
+        "--noise",
+        type=number(0, 100, "mm"),
+        default=0.01,
+        help="sensor noise std per axis, mm (default 0.01)",
+    )
+    p.add_argument(
+        "--radius",
+        type=number(0, 5000, "mm", lo_open=True),
+        default=50.0,
+        help="target distance from the last axis, mm (default 50)",
     )
     p.add_argument(
         "--offset",
-        type=float,
+        type=number(-5000, 5000, "mm"),
         default=50.0,
         help="target offset along the last axis from the aperture, mm (default 50)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("-o", "--output", required=True, help="MEASUREMENTS.csv to write")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def _header(path: Path) -> list:
@@ -122,6 +142,7 @@ def report(cal: FullPoseCalibration, cv, source: str) -> dict:
 
 
 def cmd_fullpose(args) -> int:
+    check_output(args.output, force=args.force)
     model = load_model(args.robot)
     path = Path(args.measurements)
     if "r11" in _header(path):
@@ -153,7 +174,8 @@ def cmd_fullpose(args) -> int:
     for k in ("frames", "cross_validation"):
         if k in rep:
             meta[k] = rep[k]
-    cal.model.replace(identification=json.loads(json.dumps(meta))).save(args.output)
+    with atomic_output(args.output) as tmp:
+        cal.model.replace(identification=json.loads(json.dumps(meta))).save(tmp)
     if args.json:
         print(json.dumps(rep, indent=2))
         return 0
@@ -194,6 +216,7 @@ def cmd_fullpose(args) -> int:
 
 
 def cmd_simulate_fullpose(args) -> int:
+    check_output(args.output, force=args.force)
     path = resolve_robot_path(args.robot)
     truth = load_model(path)
     target = default_target(truth, args.radius, args.offset)
@@ -213,7 +236,8 @@ def cmd_simulate_fullpose(args) -> int:
         f"target at q = 0 (truth base frame = sensor frame): {target[0]:.6f} {target[1]:.6f} {target[2]:.6f} "
         "mm",
     )
-    write_circlepoint_csv(args.output, d, notes)
+    with atomic_output(args.output) as tmp:
+        write_circlepoint_csv(tmp, d, notes)
     print(
         f"wrote {args.output}: {args.configs} configurations x {args.angles} angles (truth {truth.name}, "
         f"noise {args.noise} mm)"

@@ -40,3 +40,14 @@ def count(lo: int = 0, hi: int | None = None):
 
 SEED = count(0, 2**32 - 1)
 """A random seed: numpy accepts 0 .. 2**32 - 1."""
+
+
+def _folds(text: str) -> int:
+    """K of a K-fold cross-validation: 0 (none) or 2 .. 1000."""
+    k = count(0, 1000)(text)
+    if k == 1:
+        raise argparse.ArgumentTypeError("1 fold holds nothing out (expected 0 for none, or at least 2)")
+    return k
+
+
+FOLDS = _folds

@@ -6,8 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from lasercal.collector.cli.options import SEED, count
 from lasercal.collector.errors import SessionError
 from lasercal.collector.report.html import load_validation, write_report
+from lasercal.collector.sessions.store import atomic_output, check_output
 from lasercal.solver.analysis.diagnose import diagnose
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.export import FORMATS, export
@@ -33,14 +35,18 @@ def args_report(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--bootstrap",
-        type=int,
+        type=count(0, 10**6),
         default=2000,
         help="diagnosis: first-order bootstrap replicates (default 2000)",
     )
     p.add_argument(
-        "--refits", type=int, default=10, help="diagnosis: full simulations with refits (default 10)"
+        "--refits",
+        type=count(0, 10**4),
+        default=10,
+        help="diagnosis: full simulations with refits (default 10)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_export(p: argparse.ArgumentParser) -> None:
@@ -48,9 +54,11 @@ def args_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", help="robot model YAML (e.g. written by lasercal solve) or a built-in name")
     p.add_argument("--format", choices=FORMATS, default="urdf", help="urdf (default), dh or yaml")
     p.add_argument("-o", "--output", metavar="FILE", help="write here (default: standard output)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def cmd_report(args) -> int:
+    check_output(args.output, folder=True, force=args.force)
     sessions, validations = [], []
     for f in map(Path, args.folders):
         if (f / "session.yaml").is_file():
@@ -73,15 +81,19 @@ def cmd_report(args) -> int:
         )
     ident = fit(session, method=args.method)
     d = diagnose(session, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
-    index = write_report(args.output, session, ident, d, validations)
-    print(f"wrote {index}")
+    with atomic_output(args.output, folder=True) as tmp:
+        write_report(tmp, session, ident, d, validations)
+    print(f"wrote {Path(args.output) / 'index.html'}")
     return 0
 
 
 def cmd_export(args) -> int:
+    if args.output:
+        check_output(args.output, force=args.force)
     text = export(load_model(args.model), args.format)
     if args.output:
-        Path(args.output).write_text(text)
+        with atomic_output(args.output) as tmp:
+            tmp.write_text(text)
         print(f"wrote {args.output}", file=sys.stderr)
     else:
         sys.stdout.write(text)

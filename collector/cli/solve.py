@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.collector.cli.diagnose import format_diagnosis
+from lasercal.collector.cli.options import FOLDS, SEED, count, number
+from lasercal.collector.sessions.store import atomic_output, check_output
 from lasercal.solver.analysis.diagnose import diagnose
 from lasercal.solver.analysis.simulate import simulate_captures
 from lasercal.solver.analysis.stats import cross_validate, solve_report
@@ -40,7 +42,7 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         default="lm",
         help="lm (default, ours) or thesis (Section 3.2 as written)",
     )
-    p.add_argument("--folds", type=int, default=5, help="K of the K-fold cross-validation (0: skip)")
+    p.add_argument("--folds", type=FOLDS, default=5, help="K of the K-fold cross-validation (0: skip)")
     p.add_argument("--no-robust", action="store_true", help="lm: do not flag or drop outlier captures")
     p.add_argument(
         "--extend",
@@ -49,22 +51,27 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         help="auto: diagnose and fit the winning non-geometric effect; or name one (default none)",
     )
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_predict(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal predict``."""
     p.add_argument("model", help="robot model YAML")
     p.add_argument("configs", help="configurations CSV (q1..qN; t, tau1..tauN optional)")
-    p.add_argument("--plane-z", type=float, help="plane height, mm (default: the model's plane)")
+    p.add_argument(
+        "--plane-z", type=number(-5000, 5000, "mm"), help="plane height, mm (default: the model's plane)"
+    )
 
 
 def args_simulate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate``."""
     p.add_argument("truth", help="true robot model YAML (or built-in name)")
     p.add_argument("--layout", required=True, help="layout YAML with the reference points")
-    p.add_argument("--per-point", type=int, default=15, help="captures per calibration point")
-    p.add_argument("--aim-noise", type=float, default=1.0, help="aiming noise std per axis, mm")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--per-point", type=count(1, 10**4), default=15, help="captures per calibration point")
+    p.add_argument(
+        "--aim-noise", type=number(0, 100, "mm"), default=1.0, help="aiming noise std per axis, mm"
+    )
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument(
         "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
     )
@@ -79,10 +86,11 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
     p.add_argument(
         "--effect-size",
-        type=float,
+        type=number(),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
     p.add_argument("-o", "--output", required=True, help="session folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def print_report(rep: dict, out=None) -> None:
@@ -149,6 +157,7 @@ def _print_points(rep: dict, w) -> None:
 
 
 def cmd_solve(args) -> int:
+    check_output(args.output, force=args.force)
     session = load_session(args.session)
     diagnosis = None
     if args.extend != "none" and args.method != "lm":
@@ -194,7 +203,8 @@ def cmd_solve(args) -> int:
     for k in ("cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
-    ident.model.replace(identification=meta).save(args.output)
+    with atomic_output(args.output) as tmp:
+        ident.model.replace(identification=meta).save(tmp)
     if args.json:
         print(json.dumps(rep, indent=2))
     else:
@@ -270,6 +280,7 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
 
 
 def cmd_simulate(args) -> int:
+    check_output(args.output, folder=True, force=args.force)
     path = resolve_robot_path(args.truth)
     truth = load_model(path)
     raw = load_yaml(path)
@@ -282,7 +293,8 @@ def cmd_simulate(args) -> int:
     if effect is not None:
         sim["effect"] = {"name": effect.effect, **effect.to_dict()}
     meta = session_meta(nominal, layout, truth.aperture[2], simulated=sim)
-    write_session(args.output, meta, c.point, c.t, c.q, tau=c.tau)
+    with atomic_output(args.output, folder=True) as tmp:
+        write_session(tmp, meta, c.point, c.t, c.q, tau=c.tau)
     hidden = (
         f", hidden {effect.effect} {effect.names} = {np.round(effect.params, 9).tolist()}" if effect else ""
     )

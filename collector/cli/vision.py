@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lasercal.collector.cli.options import number
 from lasercal.vision.beamcheck import fit_circle, tilt
 from lasercal.vision.camera import calibrate, load_camera, save_camera
 from lasercal.vision.errors import CalibrationError, VisionError
@@ -146,8 +147,16 @@ def args_camera_calibrate(p: argparse.ArgumentParser) -> None:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--chessboard", type=_pattern_size, metavar="COLSxROWS", help="inner corners, e.g. 9x6")
     g.add_argument("--charuco", type=_pattern_size, metavar="COLSxROWS", help="squares, e.g. 7x5")
-    p.add_argument("--square", type=float, required=True, metavar="MM", help="square side, mm")
-    p.add_argument("--marker", type=float, metavar="MM", help="ChArUco marker side, mm")
+    p.add_argument(
+        "--square",
+        type=number(0, 1000, "mm", lo_open=True),
+        required=True,
+        metavar="MM",
+        help="square side, mm",
+    )
+    p.add_argument(
+        "--marker", type=number(0, 1000, "mm", lo_open=True), metavar="MM", help="ChArUco marker side, mm"
+    )
     p.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary (default DICT_4X4_50)")
 
 

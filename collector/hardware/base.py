@@ -112,7 +112,7 @@ class RobotAdapter:
         raise NotImplementedError(f"the {self.name} backend cannot move the arm")
 
     def stop(self) -> None:
-        """Stop any commanded motion now (Ctrl-C, lost link); never raises. Backends that cannot move: no-op."""
+        """Stop any commanded motion now (Ctrl-C, lost link); never raises. No-op where nothing moves."""
 
     def pilot_buttons(self) -> PilotButtons | None:
         """The robot's pilot buttons as a trigger, or None when the backend offers none."""
