@@ -277,8 +277,7 @@ def _capture_settings(args) -> tuple[dict, Layout]:
         ]
         if missing:
             raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
-        if args.per_point < 1:
-            raise SessionError("--per-point must be at least 1")
+        check_output(args.output, folder=True)
         return {**DEFAULTS, **given}, load_layout(args.layout)
     if args.output or args.layout:
         raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")

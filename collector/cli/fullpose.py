@@ -11,6 +11,7 @@ import numpy as np
 from lasercal.collector.cli.options import FOLDS, SEED, count, number
 from lasercal.collector.sessions.store import atomic_output, check_output
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv, write_circlepoint_csv
 from lasercal.solver.formats.robots import load_model, resolve_robot_path
 from lasercal.solver.identify.fullpose import (
@@ -85,13 +86,9 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
 
 def _header(path: Path) -> list:
     """The first non-comment line's column names (to tell circle points from poses)."""
-    try:
-        with open(path) as f:
-            for line in f:
-                if line.strip() and not line.lstrip().startswith("#"):
-                    return [c.strip() for c in line.split(",")]
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    for line in read_text(path).splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            return [c.strip() for c in line.split(",")]
     raise FormatError(path, "the file is empty")
 
 

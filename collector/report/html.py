@@ -30,6 +30,7 @@ from lasercal.collector.report.plots import diagnosis_plots
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.spot import Identification, spot_residuals
@@ -84,10 +85,7 @@ def load_validation(folder) -> Validation:
         raise FormatError(
             ypath, "not a lasercal validation (expected point: {name, xyz})", field="point"
         ) from None
-    try:
-        text = cpath.read_text()
-    except OSError as e:
-        raise FormatError(cpath, f"cannot read file ({e.strerror})") from None
+    text = read_text(cpath)
     rows = [
         (ln, r)
         for ln, r in enumerate(csv.reader(io.StringIO(text)), start=1)

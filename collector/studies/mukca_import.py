@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, write_session
 
@@ -29,10 +30,7 @@ NOMINAL_TOOL = (88.0, 0.0, 926.0 - 103.4 - 30.1)
 def read_hole(path: Path) -> np.ndarray:
     """Joint angles (k, 7) rad of one hole file, with errors naming file, line and column."""
     rows = []
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    text = read_text(path)
     for ln, row in enumerate(csv.reader(text.splitlines()), start=1):
         if not row or row[0].lstrip().startswith("#"):
             continue

@@ -94,3 +94,22 @@ def degrees_hint(q: np.ndarray, limits: np.ndarray) -> str | None:
     if np.abs(q).max(initial=0) > 2 * np.pi and np.all((r >= limits[:, 0]) & (r <= limits[:, 1])):
         return "these look like degrees (expected rad)"
     return None
+
+
+def read_text(path) -> str:
+    """A text file's contents; FormatError (naming the file) if it cannot be read or is not UTF-8."""
+    from pathlib import Path
+
+    from lasercal.solver.errors import FormatError
+
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise FormatError(
+            path, f"byte 0x{data[e.start]:02x} is not UTF-8 text (expected a UTF-8 text file)", line=line
+        ) from None

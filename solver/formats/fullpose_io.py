@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.identify.circlepoint import circle_point_pose, collinear
 
 LOCKED_TOL = 1e-4  # rad: the locked joints of one configuration must agree this well
@@ -94,10 +95,7 @@ class PoseData:
 
 def _rows(path: Path):
     """(line number, row) of the non-comment, non-blank rows of a CSV file."""
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    text = read_text(path)
     for i, row in enumerate(csv.reader(text.splitlines()), start=1):
         if row and not row[0].lstrip().startswith("#") and any(c.strip() for c in row):
             yield i, [c.strip() for c in row]

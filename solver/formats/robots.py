@@ -13,6 +13,7 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
@@ -148,10 +149,7 @@ def resolve_robot_path(name_or_path, base: Path | None = None) -> Path:
 def load_yaml(path) -> Any:
     """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    text = read_text(path)
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as e:

@@ -22,6 +22,7 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.kinematics.model import RobotModel
@@ -215,12 +216,7 @@ def captures_header(n: int, dq: bool = False, tau: bool = False, extra=()) -> li
 
 
 def _read_csv(path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise FormatError(path, "not a text CSV file") from None
+    text = read_text(path)
     reader = csv.reader(io.StringIO(text))
     rows = [(reader.line_num, r) for r in reader]
     rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
