@@ -308,7 +308,6 @@ MODEL_BAD = {
     "model not utf-8": _latin1("model.yaml"),
     "model limits in degrees": _yaml("model.yaml", lambda d: [j.update(limits=[-166.0, 166.0]) for j in d["joints"]]),
     "model aperture in metres": _yaml("model.yaml", lambda d: d["laser"].update(M=[c / 1000 for c in d["laser"]["M"]])),
-    "model aperture below the base": _yaml("model.yaml", lambda d: d["laser"]["M"].__setitem__(2, -825.0)),
     "model plane z text": _yaml("model.yaml", _set("plane", {"z": "floor"})),
     "model laser omega text": _yaml("model.yaml", lambda d: d["laser"].update(omega="up")),
     "model laser v inf": _yaml("model.yaml", lambda d: d["laser"].update(v=[0.0, 0.0, float("inf")])),
