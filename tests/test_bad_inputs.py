@@ -321,7 +321,7 @@ for cid, setup in MODEL_BAD.items():
 for cid in (
     "model not utf-8",
     "model limits in degrees",
-    "model aperture below the base",
+    "model aperture in metres",
     "model extension nan",
 ):
     case(f"predict: {cid}", PREDICT, MODEL_BAD[cid], "model.yaml")

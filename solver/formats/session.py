@@ -388,7 +388,7 @@ def load_session(folder) -> Session:
             raise FormatError(
                 ypath,
                 f"aperture_z = {aperture_z:g} mm is not within {APERTURE_TOL_MM:g} mm of the {robot.name} "
-                f"model's {robot.aperture[2]:g} mm (expected the aperture's height at q = 0 in mm: sign, metres?)",
+                f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
                 field="laser.aperture_z",
             )
     header, rows = _read_csv(cpath)
