@@ -40,7 +40,7 @@ def base(tmp_path_factory):
                  "-o", str(d / "fp.csv")]) == 0  # fmt: skip
     q = np.loadtxt(d / "sess" / "captures.csv", delimiter=",", skiprows=1, usecols=range(2, 9))[:3]
     (d / "configs.csv").write_text(
-        "q1,q2,q3,q4,q5,q6,q7\n" + "".join(",".join(map(repr, r)) + "\n" for r in q)
+        "q1,q2,q3,q4,q5,q6,q7\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in q)
     )
     if (MUKCA / "panda_1" / "front").is_dir():
         shutil.copytree(MUKCA / "panda_1" / "front", d / "mukca" / "panda_1" / "front")

@@ -54,8 +54,8 @@ def parse_payload(text: str | None):
         vals = [float(v) for v in text.split(",")]
     except ValueError:
         vals = []
-    if len(vals) != 4:
-        raise FormatError("--payload", f"expected KG,X,Y,Z (kg and mm), got {text!r}")
+    if len(vals) != 4 or not np.all(np.isfinite(vals)) or not 0 < vals[0] <= 100:
+        raise FormatError("--payload", f"expected KG,X,Y,Z (0 < kg <= 100, finite mm), got {text!r}")
     return vals[0], np.array(vals[1:])
 
 

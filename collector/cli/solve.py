@@ -25,7 +25,7 @@ from lasercal.solver.formats.session import (
     session_meta,
     write_session,
 )
-from lasercal.solver.identify.measurement import fit
+from lasercal.solver.identify.measurement import check_data, fit
 from lasercal.solver.identify.point import tips
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS, Extension, extension_from_model
@@ -159,6 +159,7 @@ def _print_points(rep: dict, w) -> None:
 def cmd_solve(args) -> int:
     check_output(args.output, force=args.force)
     session = load_session(args.session)
+    check_data(session)
     diagnosis = None
     if args.extend != "none" and args.method != "lm":
         raise IdentificationError("--extend needs --method lm")

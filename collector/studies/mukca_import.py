@@ -43,7 +43,13 @@ def read_hole(path: Path) -> np.ndarray:
             raise FormatError(path, f"not a number: {row[bad]!r}", line=ln, field=f"q{bad + 1}") from None
     if not rows:
         raise FormatError(path, "no joint angles")
-    return np.array(rows)
+    q = np.array(rows)
+    if not np.all(np.isfinite(q)):
+        r, j = np.argwhere(~np.isfinite(q))[0]
+        raise FormatError(path, "not a finite number (expected rad)", field=f"q{j + 1}")
+    if np.abs(q).max() > 2 * np.pi:
+        raise FormatError(path, f"angles up to {np.abs(q).max():.4g}: these look like degrees (expected rad)")
+    return q
 
 
 def _is_float(v: str) -> bool:

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import read_text
+from lasercal.solver.formats.checks import metres_hint, read_text
 from lasercal.solver.identify.circlepoint import circle_point_pose, collinear
 
 LOCKED_TOL = 1e-4  # rad: the locked joints of one configuration must agree this well
@@ -252,6 +252,16 @@ def read_circlepoint_csv(path, n: int | None = None) -> CirclePointData:
         Q.append(q)
         P.append([v[2] for v in ordered])
     P = np.array(P)
+    hint = metres_hint(P.reshape(-1, 3))
+    if hint:
+        raise FormatError(path, hint, line=hline, field="x")
+    Qa = np.array(Q)
+    if np.abs(Qa).max() > 2 * np.pi:
+        raise FormatError(
+            path,
+            f"joint angles up to {np.abs(Qa).max():.4g}: these look like degrees (expected rad)",
+            line=hline,
+        )
     bad = collinear(P)
     if np.any(bad):
         i = int(np.argmax(bad))

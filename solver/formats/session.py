@@ -525,4 +525,5 @@ def load_configs(path, robot: RobotModel) -> Configs:
     q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
     t = _numeric_block(path, rows, header, ["t"], required=False)
     tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)
+    check_limits(path, robot, q, [ln for ln, _ in rows])
     return Configs(header, [r for _, r in rows], q, None if t is None else t[:, 0], tau)
