@@ -446,6 +446,7 @@ def cmd_validate(args) -> int:
         opts,
         trigger,
         measure,
+        out=sys.stdout,
         meta_extra={"collector": {"settings": cfg, "run": run}},
         resume=args.resume is not None,
         confirm_moves=cfg["backend"] != "fake",
