@@ -337,6 +337,18 @@ def run_validation(
         },
         **(meta_extra or {}),
     }
+    plan = None
+    robot.connect()
+    try:  # preview and confirmation before the first file and the first move
+        if not guided and todo:
+            plan = plan_moves(robot.read().q, planned[todo], model, opts.max_step)
+            out.write(preview(plan))
+            if confirm_moves:
+                confirm(plan, opts.yes, out=out)
+    except BaseException:
+        robot.close()
+        camera.close()
+        raise
     if not resume:
         (folder / "photos").mkdir(parents=True, exist_ok=True)
         write_atomic(folder / "validation.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
@@ -355,13 +367,6 @@ def run_validation(
     if resume:
         w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
     try:
-        robot.connect()
-        plan = None
-        if not guided and todo:
-            plan = plan_moves(robot.read().q, planned[todo], model, opts.max_step)
-            w(preview(plan))
-            if confirm_moves:
-                confirm(plan, opts.yes, out=out)
         for k, i in enumerate(todo):
             q = planned[i]
             if guided:
