@@ -277,7 +277,7 @@ def _capture_settings(args) -> tuple[dict, Layout]:
         ]
         if missing:
             raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
-        check_output(args.output, folder=True)
+        check_output(args.output, folder=True, instead=f"resume it with --resume {args.output}")
         return {**DEFAULTS, **given}, load_layout(args.layout)
     if args.output or args.layout:
         raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")
@@ -365,7 +365,7 @@ def _validate_settings(args) -> tuple[dict, dict]:
                 f"--layout: a real robot (--backend {args.backend}) needs the layout of the points on your "
                 "table (there is no default for real robots)"
             )
-        check_output(args.output, folder=True)
+        check_output(args.output, folder=True, instead=f"resume it with --resume {args.output}")
         run = {
             "model": str(resolve("robots", args.model).resolve()),
             "layout": str(resolve("layouts", args.layout).resolve()) if args.layout else str(THESIS_LAYOUT),

@@ -57,7 +57,14 @@ def write_atomic_bytes(path: Path, data: bytes) -> None:
     _fsync_dir(path.parent)
 
 
-def check_output(path, *, folder: bool = False, force: bool = False, option: str = "-o") -> Path:
+def check_output(
+    path,
+    *,
+    folder: bool = False,
+    force: bool = False,
+    option: str = "-o",
+    instead: str = "pass --force to replace it",
+) -> Path:
     """Check an output path before any work starts: its folder exists, it is not kept unless ``force``.
 
     Parameters
@@ -66,6 +73,7 @@ def check_output(path, *, folder: bool = False, force: bool = False, option: str
     folder : bool, the output is a folder (an existing empty folder is fine)
     force : bool, an existing output may be replaced
     option : str, how the command line named it (for the message)
+    instead : str, what to do when the output exists (the message's end)
 
     Raises
     ------
@@ -85,7 +93,7 @@ def check_output(path, *, folder: bool = False, force: bool = False, option: str
         if not folder and p.is_dir():
             raise SessionError(f"{where}: is a folder (expected a file name)")
         if not force and (not folder or any(p.iterdir())):
-            raise SessionError(f"{where}: exists and is kept (pass --force to replace it)")
+            raise SessionError(f"{where}: exists and is kept ({instead})")
     return p
 
 
