@@ -306,16 +306,22 @@ for cid in ("layout not utf-8", "layout units m", "layout in metres", "layout pl
 
 MODEL_BAD = {
     "model not utf-8": _latin1("model.yaml"),
-    "model limits in degrees": _yaml("model.yaml", lambda d: [j.update(limits=[-166.0, 166.0]) for j in d["joints"]]),
-    "model aperture in metres": _yaml("model.yaml", lambda d: d["laser"].update(M=[c / 1000 for c in d["laser"]["M"]])),
+    "model limits in degrees": _yaml(
+        "model.yaml", lambda d: [j.update(limits=[-166.0, 166.0]) for j in d["joints"]]
+    ),
+    "model aperture in metres": _yaml(
+        "model.yaml", lambda d: d["laser"].update(M=[c / 1000 for c in d["laser"]["M"]])
+    ),
     "model plane z text": _yaml("model.yaml", _set("plane", {"z": "floor"})),
     "model laser omega text": _yaml("model.yaml", lambda d: d["laser"].update(omega="up")),
     "model laser v inf": _yaml("model.yaml", lambda d: d["laser"].update(v=[0.0, 0.0, float("inf")])),
-    "model extension nan": _yaml("model.yaml", _set("extensions", {"joint_compliance": {"joints": [2], "c": [nan]}})),
+    "model extension nan": _yaml(
+        "model.yaml", _set("extensions", {"joint_compliance": {"joints": [2], "c": [nan]}})
+    ),
     "model link mass negative": _yaml("model.yaml", _set("links", [{"mass": -1.0, "com": [0, 0, 0]}] * 7)),
     "model home outside limits": _yaml("model.yaml", _set("home", [10.0] * 7)),
     "model units m": _yaml("model.yaml", _set("units", {"length": "m", "angle": "rad"})),
-}  # fmt: skip
+}
 for cid, setup in MODEL_BAD.items():
     case(f"export: {cid}", EXPORT + ["-o", "{o}"], setup, "model.yaml")
 for cid in (
@@ -334,18 +340,30 @@ SESSION_BAD = {
     "captures t nan": (_cell("sess/captures.csv", 3, "t", "nan"), "captures.csv"),
     "captures q inf": (_cell("sess/captures.csv", 3, "q2", "inf"), "captures.csv"),
     "captures unknown point": (_cell("sess/captures.csv", 0, "point", "P9"), "captures.csv"),
-    "session aperture below the plane": (_yaml("sess/session.yaml", _set("laser", "aperture_z", -825.0)),
-                                         "session.yaml"),
+    "session aperture below the plane": (
+        _yaml("sess/session.yaml", _set("laser", "aperture_z", -825.0)),
+        "session.yaml",
+    ),
     "session aperture nan": (_yaml("sess/session.yaml", _set("laser", "aperture_z", nan)), "session.yaml"),
-    "session aperture in metres": (_yaml("sess/session.yaml", _set("laser", "aperture_z", 0.825)), "session.yaml"),
-    "session points in metres": (_yaml("sess/session.yaml", lambda d: d.update(
-        points={k: [c / 1000 for c in v] for k, v in d["points"].items()})), "session.yaml"),
+    "session aperture in metres": (
+        _yaml("sess/session.yaml", _set("laser", "aperture_z", 0.825)),
+        "session.yaml",
+    ),
+    "session points in metres": (
+        _yaml(
+            "sess/session.yaml",
+            lambda d: d.update(points={k: [c / 1000 for c in v] for k, v in d["points"].items()}),
+        ),
+        "session.yaml",
+    ),
     "session units m": (_yaml("sess/session.yaml", _set("units", "length", "m")), "session.yaml"),
     "session plane z text": (_yaml("sess/session.yaml", _set("plane", "z", "low")), "session.yaml"),
     "session one capture at a point": (lambda d: _keep_only("sess/captures.csv", 25)(d), "P3"),
-    "session collinear points": (_yaml("sess/session.yaml", lambda d: d["points"].__setitem__(
-        "P2", [521.0, 0.0, d["plane"]["z"]])), "collinear"),
-}  # fmt: skip
+    "session collinear points": (
+        _yaml("sess/session.yaml", lambda d: d["points"].__setitem__("P2", [521.0, 0.0, d["plane"]["z"]])),
+        "collinear",
+    ),
+}
 for cid, (setup, needle) in SESSION_BAD.items():
     case(f"solve: {cid}", SOLVE + ["-o", "{o}"], setup, needle)
 for cid in ("session.yaml not utf-8", "captures in degrees", "session aperture below the plane"):
@@ -389,9 +407,8 @@ case("validate --point a calibration point", VALIDATE + ["-o", "{o}", "--point",
 case("validate --point unknown", VALIDATE + ["-o", "{o}", "--point", "P9"], None, "P9")
 case("validate --resume not a run", ["validate", "--resume", "{d}/sess"], None, "sess")
 case("validate --resume missing", ["validate", "--resume", "{d}/nothing"], None, "nothing")
-case("validate real backend without --layout",
-     ["validate", "{d}/model.yaml", "--backend", "franky", "--host", "192.0.2.1", "--camera", "0", "-o", "{o}"],
-     None, "--layout")  # fmt: skip
+REAL = ["validate", "{d}/model.yaml", "--backend", "franky", "--host", "192.0.2.1", "--camera", "0"]
+case("validate real backend without --layout", REAL + ["-o", "{o}"], None, "--layout")
 case("capture --hold on resume -1", ["capture", "--resume", "{d}/sess", "--hold", "-1"], None, "--hold")
 
 MUKCA_BAD = {
@@ -407,6 +424,25 @@ for cid, (setup, needle) in MUKCA_BAD.items():
     case(f"import-mukca: {cid}", IMPORT + ["-o", "{o}"], setup, needle)
 for cid in ("mukca missing hole file", "mukca hole not utf-8"):
     case(f"study-mukca: {cid}", STUDY + ["-o", "{o}"], MUKCA_BAD[cid][0], MUKCA_BAD[cid][1])
+
+
+# vision commands (their options; spot detection itself is another module's business)
+CALIB = ["camera-calibrate", "{d}/val/photos/0000.png", "--chessboard", "9x6"]
+for v in ("0", "-1", "nan"):
+    case(f"camera-calibrate --square {v}", CALIB + ["--square", v, "-o", "{o}"], None, "--square")
+case(
+    "camera-calibrate -o existing",
+    CALIB + ["--square", "20", "-o", "{d}/kept.yaml"],
+    _touch("kept.yaml"),
+    "--force",
+)
+case("spots --expect 0", ["spots", "{d}/val/photos/0000.png", "--expect", "0"], None, "--expect")
+case(
+    "beam-check --laser-length -1",
+    ["beam-check", "{d}/val/photos/0000.png", "--laser-length", "-1"],
+    None,
+    "laser-length",
+)
 
 
 def _data_lines(path: Path):
@@ -474,14 +510,3 @@ def test_at_least_150_cases_cover_every_command():
     named = {c[1][0] for c in CASES}
     missing = {c.name for c in COMMANDS} - named
     assert not missing, missing
-
-
-# vision commands (their options; spot detection itself is another module's business)
-for v in ("0", "-1", "nan"):
-    case(f"camera-calibrate --square {v}", ["camera-calibrate", "{d}/val/photos/0000.png", "--chessboard", "9x6",
-         "--square", v, "-o", "{o}"], None, "--square")  # fmt: skip
-case("camera-calibrate -o existing", ["camera-calibrate", "{d}/val/photos/0000.png", "--chessboard", "9x6",
-     "--square", "20", "-o", "{d}/kept.yaml"], _touch("kept.yaml"), "--force")  # fmt: skip
-case("spots: no such image", ["spots", "{d}/nothing.png"], None, "nothing.png")
-case("spots: not an image", ["spots", "{d}/configs.csv"], None, "configs.csv")
-case("beam-check: no such image", ["beam-check", "{d}/nothing.png", "{d}/nothing2.png"], None, "nothing")
