@@ -160,6 +160,8 @@ def main(argv=None) -> int:
     try:
         args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
         return int(args.func(args) or 0)
+    except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported
+        raise
     except _user_errors() as e:
         print(f"lasercal: error: {e}", file=sys.stderr)
         return 2

@@ -4,7 +4,7 @@ File readers and command-line options describe what they accept with a :class:`R
 (bounds and unit); :meth:`Range.problem` says what is wrong with a value in one phrase
 ending in what was expected, e.g. ``"-1 s is out of range (expected > 0 s)"``. Readers
 wrap it in a :class:`~lasercal.solver.errors.FormatError` (file, line, column), options in
-an argparse error (the option's name). Suspicious values -- positions that look like
+a command-line error (the option's name). Suspicious values -- positions that look like
 metres, angles that look like degrees -- are errors too, with the hint
 (:func:`metres_hint`, :func:`degrees_hint`).
 """
