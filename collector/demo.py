@@ -283,6 +283,7 @@ def validate_model(
         ValidateOptions(opts.n_validation, opts.seed),
         measure=lambda img, name: measure_known_view(img, name, view),
         out=io.StringIO(),
+        confirm_moves=False,  # the simulated arm
     )
 
 

@@ -212,7 +212,7 @@ def test_validate_fake_photos_measure_the_true_spots(tmp_path, capsys):
     assert (
         main(["validate", "panda", "-n", "5", "--backend", "fake", "-o", str(tmp_path / "v")]) == 2
     )  # never overwritten
-    assert "already holds a validation run" in capsys.readouterr().err
+    assert "exists and is kept (resume it with --resume" in capsys.readouterr().err
     # the true geometry as the model under test: the spots land on P4 up to the standstill residue
     assert (
         main(

@@ -195,6 +195,60 @@ def scenario(workdir: str, host: str) -> dict:
     return report
 
 
+def validate_scenario(workdir: str, host: str) -> dict:
+    """``lasercal validate`` on franky-sim: refused without confirmation, then --yes, in bounded steps."""
+    sys.path.insert(0, str(ROOT))
+    import cv2
+
+    from lasercal.collector.cli.main import main
+    from lasercal.collector.hardware.franky import FrankyRobot
+
+    report: dict = {}
+    frames = Path(workdir) / "frames"
+    frames.mkdir()
+    for k in range(64):  # an image sequence stands in for the camera
+        cv2.imwrite(str(frames / f"{k:04d}.png"), np.zeros((48, 64, 3), np.uint8))
+    server = subprocess.Popen(
+        [sys.executable, __file__, "serve", host], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    moves: list = []
+    real_move = FrankyRobot.move_to
+
+    def recording_move(self, q):
+        moves.append([float(v) for v in q])
+        real_move(self, q)
+
+    FrankyRobot.move_to = recording_move
+    try:
+        assert server.stdout.readline().strip() == "READY"
+        probe = FrankyRobot(host)
+        probe.connect()
+        start = probe.read().q
+        probe.close()
+        common = ["validate", "panda", "--backend", "franky", "--host", host, "--layout", "thesis",
+                  "--camera", str(frames / "%04d.png"), "-n", "2", "--dynamics", "0.3",
+                  "--speed-threshold", "0.5", "--hold", "0.1"]  # fmt: skip
+        sys.stdin = open(os.devnull)  # no terminal
+        report["refused_rc"] = main(common + ["-o", str(Path(workdir) / "refused")])
+        report["refused_moves"] = len(moves)
+        report["refused_csv"] = (Path(workdir) / "refused" / "validation.csv").exists()
+        probe.connect()
+        report["moved_while_refused"] = float(np.abs(probe.read().q - start).max())
+        probe.close()
+        report["rc"] = main(common + ["-o", str(Path(workdir) / "val"), "--yes", "--max-step", "0.4"])
+        path = np.vstack([start, np.array(moves)])
+        report["moves"] = len(moves)
+        report["largest_step"] = float(np.abs(np.diff(path, axis=0)).max())
+        text = (Path(workdir) / "val" / "validation.csv").read_text().splitlines()
+        report["rows"] = len([ln for ln in text if ln and not ln.startswith("#")]) - 1
+    finally:
+        FrankyRobot.move_to = real_move
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    return report
+
+
 def _netns_available() -> bool:
     try:
         return subprocess.run(["unshare", "--net", "true"], capture_output=True, timeout=10).returncode == 0
@@ -238,10 +292,32 @@ def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path
     assert r["disconnect_s"] < 5
 
 
+def test_validate_on_franky_sim_refuses_without_confirmation_and_moves_in_bounded_steps(tmp_path):
+    pytest.importorskip("franky", reason="the [sim] extra is not installed: franky-control missing")
+    pytest.importorskip("franky_sim", reason="the [sim] extra is not installed: franky-sim missing")
+    host = f"127.0.0.{2 + (os.getpid() + 101) % 250}"
+    cmd = [sys.executable, __file__, "validate", str(tmp_path), host]
+    netns = _netns_available()
+    if netns:
+        cmd = ["unshare", "--net", "--"] + cmd + ["--netns"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert run.returncode == 0, run.stderr[-3000:]
+    r = json.loads(run.stdout.strip().splitlines()[-1])
+    print("franky-sim validate:", r, "netns", netns)
+    # no terminal and no --yes: exit 2 before any move or any file
+    assert r["refused_rc"] == 2 and r["refused_moves"] == 0 and not r["refused_csv"]
+    assert r["moved_while_refused"] < 1e-3
+    # with --yes: no commanded move changes a joint by more than --max-step; both configurations photographed
+    assert r["rc"] == 0 and r["rows"] == 2
+    assert r["largest_step"] <= 0.4 + 1e-9
+    assert r["moves"] > 2  # the aiming configurations are further apart than 0.4 rad: moves were split
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "serve":
         serve(sys.argv[2])
     else:
         if "--netns" in sys.argv:
             _loopback_up()
-        print(json.dumps(scenario(sys.argv[2], sys.argv[3])))
+        fn = validate_scenario if sys.argv[1] == "validate" else scenario
+        print(json.dumps(fn(sys.argv[2], sys.argv[3])))

@@ -246,14 +246,30 @@ def test_cli_simulate_then_calibrate(tmp_path, capsys):
     assert "absolute position [mm]" in text and "3-fold cross-validation" in text
     model = load_model(out)
     assert model.ee_pose is not None and model.identification["identifiability"]["rank"] == 30
+    with pytest.raises(LasercalError, match="exists and is kept"):  # no silent overwrite
+        run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--json", "--method", "circle"])
     assert (
-        run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--json", "--method", "circle"]) == 0
+        run(
+            [
+                "fullpose",
+                str(m),
+                "--robot",
+                "puma560",
+                "-o",
+                str(out),
+                "--json",
+                "--method",
+                "circle",
+                "--force",
+            ]
+        )
+        == 0
     )
     rep = json.loads(capsys.readouterr().out)
     assert rep["accuracy"]["after"]["position_mm"]["mean"] < 0.05 and "frames" in rep
     m.write_text(m.read_text().replace("config,", "cfg,"))
     with pytest.raises(FormatError, match="missing column 'config'"):
-        run(["fullpose", str(m), "--robot", "puma560", "-o", str(out)])
+        run(["fullpose", str(m), "--robot", "puma560", "-o", str(out), "--force"])
 
 
 # ------------------------------------------------------------------ real data: FR3 camera poses

@@ -246,6 +246,8 @@ def test_report_cli(experiment, tmp_path, capsys):
     first = Tables(experiment[-1].read_text())
     assert t.tables["parameters"] == first.tables["parameters"]  # the same calibration as the library's
     assert main(["report", str(root / "nominal"), "-o", str(out)]) == 2
+    assert "exists and is kept (pass --force to replace it)" in capsys.readouterr().err
+    assert main(["report", str(root / "nominal"), "-o", str(out), "--force"]) == 2
     assert (
         "exactly one capture session folder (with session.yaml) among its folders, got 0"
         in capsys.readouterr().err

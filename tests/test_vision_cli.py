@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 from lasercal.collector.cli.main import build_parser, main
+from lasercal.solver.errors import LasercalError
 from lasercal.vision.plane import layout_markers
 from lasercal.vision.render import (
     LaserSpot,
@@ -256,7 +257,7 @@ def test_parser_of_the_vision_subcommands():
         .laser_length
         == 350
     )
-    with pytest.raises(SystemExit):
+    with pytest.raises(LasercalError, match="argument --expect"):  # one line, not usage + SystemExit
         parser.parse_args(["spots", "a.jpg", "--expect", "0"])
 
 

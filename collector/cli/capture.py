@@ -9,6 +9,9 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasercal.collector.cli.options import count, number
+from lasercal.collector.sessions.motion import MAX_STEP
+from lasercal.solver.formats.checks import METRES_BELOW_MM
 from lasercal.solver.formats.data import builtin_dir
 
 THESIS_LAYOUT = builtin_dir("layouts") / "thesis.yaml"
@@ -46,6 +49,7 @@ if TYPE_CHECKING:  # annotations only: the modules load when a command runs
 
 def _backend_options(p: argparse.ArgumentParser) -> None:
     """Options shared by capture and validate (None = not given, so a resume can tell)."""
+    from lasercal.collector.cli.options import SEED
     from lasercal.collector.hardware import BACKENDS
 
     g = p.add_argument_group("robot backend")
@@ -54,16 +58,16 @@ def _backend_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--host", help="robot FCI address (franky, panda-py) or rosbridge host (ros)")
     g.add_argument(
         "--dynamics",
-        type=float,
+        type=number(0, 0.3, lo_open=True),
         metavar="F",
-        help="franky/panda-py: speed of commanded moves, fraction of the limits (default 0.1)",
+        help="franky/panda-py: speed of commanded moves, fraction of the limits, in (0, 0.3] (default 0.1)",
     )
     g.add_argument(
         "--desk-user",
         metavar="USER",
         help="Desk user for --trigger pilot (password in $LASERCAL_DESK_PASSWORD)",
     )
-    g.add_argument("--ros-port", type=int, metavar="PORT", help="rosbridge port (default 9090)")
+    g.add_argument("--ros-port", type=count(1, 65535), metavar="PORT", help="rosbridge port (default 9090)")
     g.add_argument(
         "--ros-joints",
         metavar="NAMES",
@@ -82,30 +86,34 @@ def _backend_options(p: argparse.ArgumentParser) -> None:
     )
     f.add_argument(
         "--perturb-seed",
-        type=int,
+        type=SEED,
         metavar="S",
         help="instead of --truth: a seeded random perturbation of the nominal robot",
     )
-    f.add_argument("--seed", type=int, metavar="S", help="seed of the simulation (default 0)")
+    f.add_argument("--seed", type=SEED, metavar="S", help="seed of the simulation (default 0)")
     s = p.add_argument_group("standstill")
     s.add_argument(
         "--speed-threshold",
-        type=float,
+        type=number(0, 1, "rad/s", lo_open=True),
         metavar="RAD_S",
         help="the arm is still when every joint is slower (default 0.005)",
     )
-    s.add_argument("--hold", type=float, metavar="S", help="... for this long (default 0.5)")
+    s.add_argument(
+        "--hold", type=number(0, 60, "s", lo_open=True), metavar="S", help="... for this long (default 0.5)"
+    )
 
 
 def args_capture(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal capture``."""
     p.add_argument("--layout", help="layout YAML with the reference points")
-    p.add_argument("--per-point", type=int, metavar="N", help="captures at each calibration point")
+    p.add_argument(
+        "--per-point", type=count(1, 10000), metavar="N", help="captures at each calibration point"
+    )
     p.add_argument("-o", "--output", metavar="SESSION", help="new session folder")
     p.add_argument("--resume", metavar="SESSION", help="continue an interrupted session where it stopped")
     p.add_argument(
         "--aperture-z",
-        type=float,
+        type=number(METRES_BELOW_MM, 5000, "mm"),
         metavar="MM",
         help="measured height of the laser aperture at q = 0, mm (p_Mz)",
     )
@@ -124,13 +132,13 @@ def args_capture(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--auto-pace",
-        type=float,
+        type=number(0, 60, "s"),
         metavar="S",
         help="with --auto: real seconds per capture, to watch (default 0)",
     )
     p.add_argument(
         "--aim-noise",
-        type=float,
+        type=number(0, 100, "mm"),
         metavar="MM",
         help="fake backend: aiming noise per in-plane axis, mm (default 1.0)",
     )
@@ -150,17 +158,29 @@ def args_capture(p: argparse.ArgumentParser) -> None:
 
 def args_validate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal validate``."""
-    p.add_argument("model", help="robot model YAML under test (nominal or identified)")
+    p.add_argument("model", nargs="?", help="robot model YAML under test (nominal or identified)")
     p.add_argument("--point", help="validation point (default: the layout's first validation point)")
-    p.add_argument("-n", type=int, default=60, help="configurations (default 60)")
+    p.add_argument("-n", type=count(1, 10000), default=60, help="configurations (default 60)")
     p.add_argument(
-        "-o",
-        "--output",
-        required=True,
-        metavar="DIR",
-        help="new folder: validation.yaml, validation.csv, photos/",
+        "-o", "--output", metavar="DIR", help="new folder: validation.yaml, validation.csv, photos/"
     )
-    p.add_argument("--layout", default=str(THESIS_LAYOUT), help="layout YAML (default: the thesis layout)")
+    p.add_argument(
+        "--resume", metavar="DIR", help="continue an interrupted validation run (its settings are kept)"
+    )
+    p.add_argument(
+        "--layout",
+        help="layout YAML (required for a real robot; default with --backend fake: the thesis layout)",
+    )
+    p.add_argument(
+        "--yes", action="store_true", help="confirm the arm's moves in advance (scripts; else type yes)"
+    )
+    p.add_argument(
+        "--max-step",
+        type=number(0, 3.14159, "rad", lo_open=True),
+        default=MAX_STEP,
+        metavar="RAD",
+        help=f"largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
+    )
     p.add_argument(
         "--camera",
         help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
@@ -243,6 +263,7 @@ def _capture_settings(args) -> tuple[dict, Layout]:
     """The settings and layout of a new session (command line) or a resumed one (its session.yaml + command
     line)."""
     from lasercal.collector.errors import SessionError
+    from lasercal.collector.sessions.store import check_output
     from lasercal.solver.formats.robots import load_yaml
     from lasercal.solver.formats.session import load_layout
 
@@ -263,8 +284,7 @@ def _capture_settings(args) -> tuple[dict, Layout]:
         ]
         if missing:
             raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
-        if args.per_point < 1:
-            raise SessionError("--per-point must be at least 1")
+        check_output(args.output, folder=True, instead=f"resume it with --resume {args.output}")
         return {**DEFAULTS, **given}, load_layout(args.layout)
     if args.output or args.layout:
         raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")
@@ -284,6 +304,8 @@ def _capture_settings(args) -> tuple[dict, Layout]:
 
 
 def cmd_capture(args) -> int:
+    import numpy as np
+
     from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
     from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
     from lasercal.collector.sessions.capture import CaptureOptions, run_capture
@@ -361,12 +383,63 @@ def cmd_capture(args) -> int:
     return 0
 
 
+def _validate_settings(args) -> tuple[dict, dict]:
+    """The settings of a new validation run (command line) or a resumed one (its validation.yaml)."""
+    from lasercal.collector.errors import SessionError
+    from lasercal.collector.sessions.store import check_output
+    from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.data import resolve
+    from lasercal.solver.formats.robots import load_yaml
+
+    if args.resume is None:
+        missing = [
+            f for f, v in (("MODEL", args.model), ("-o", args.output), ("--backend", args.backend)) if not v
+        ]
+        if missing:
+            raise SessionError(f"validate needs {', '.join(missing)} (or --resume DIR)")
+        if args.layout is None and args.backend != "fake":
+            raise SessionError(
+                f"--layout: a real robot (--backend {args.backend}) needs the layout of the points on your "
+                "table (there is no default for real robots)"
+            )
+        check_output(args.output, folder=True, instead=f"resume it with --resume {args.output}")
+        run = {
+            "model": str(resolve("robots", args.model).resolve()),
+            "layout": str(resolve("layouts", args.layout).resolve()) if args.layout else str(THESIS_LAYOUT),
+            "point": args.point,
+            "n": args.n,
+            "camera": args.camera,
+            "guide": args.guide,
+            "max_step": args.max_step,
+        }
+        return {**DEFAULTS, **_settings(args), "backend": args.backend}, run
+    if args.output or args.model or args.layout or args.point:
+        raise SessionError("--resume DIR continues that run with its own model, layout and point: drop them")
+    folder = Path(args.resume)
+    if not (folder / "validation.yaml").is_file():
+        raise SessionError(
+            f"--resume {folder}: not a validation folder (no validation.yaml): nothing to resume"
+        )
+    meta = load_yaml(folder / "validation.yaml")
+    stored = meta.get("collector") if isinstance(meta, dict) else None
+    if not isinstance(stored, dict) or "settings" not in stored:
+        raise FormatError(folder / "validation.yaml", "written without resume settings", field="collector")
+    given = _settings(args)
+    for k in FIXED:
+        if k in given and given[k] != stored["settings"].get(k):
+            raise SessionError(
+                f"--resume {folder}: started with {k.replace('_', '-')} {stored['settings'].get(k)}"
+            )
+    return {**DEFAULTS, **stored["settings"], **given}, stored["run"]
+
+
 def cmd_validate(args) -> int:
     from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
     from lasercal.collector.sessions.validate import (
         FakeCamera,
         OpenCVCamera,
         ValidateOptions,
+        check_layout,
         fake_view,
         measure_known_view,
         measure_with_markers,
@@ -378,18 +451,16 @@ def cmd_validate(args) -> int:
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout
 
-    cfg = {**DEFAULTS, **_settings(args)}
-    if args.backend is None:
-        raise LasercalError("validate needs --backend (fake, franky, panda-py or ros)")
-    cfg["backend"] = args.backend
-    layout = load_layout(args.layout)
-    point = validation_point(layout, args.point)
-    model = load_model(args.model)
+    cfg, run = _validate_settings(args)
+    layout = load_layout(run["layout"])
+    point = validation_point(layout, run["point"])
+    model = load_model(run["model"])
+    check_layout(layout, model, run["model"], point)
     robot = make_robot(cfg, load_model(cfg["robot"]), layout)
-    camera_spec = args.camera or ("fake" if args.backend == "fake" else None)
+    camera_spec = run["camera"] or ("fake" if cfg["backend"] == "fake" else None)
     measure = None
     if camera_spec == "fake":
-        if args.backend != "fake":
+        if cfg["backend"] != "fake":
             raise LasercalError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
         view = fake_view(layout.points[point][:2], layout.plane_z)
         camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
@@ -402,24 +473,48 @@ def cmd_validate(args) -> int:
         camera = OpenCVCamera(int(camera_spec) if camera_spec.isdigit() else camera_spec)
         from lasercal.vision.plane import load_layout as load_markers
 
-        markers = load_markers(args.layout)
+        markers = load_markers(run["layout"])
         if markers is not None:
             measure = lambda img, name: measure_with_markers(img, name, markers)  # noqa: E731
     trigger = None
-    if args.guide or not robot.can_move:
-        trigger = AutoTrigger() if args.backend == "fake" else make_trigger(cfg["trigger"], robot)
-    opts = ValidateOptions(args.n, cfg["seed"], args.guide, cfg["speed_threshold"], cfg["hold"])
-    res = run_validation(
-        args.output, model, str(args.model), layout, point, robot, camera, opts, trigger, measure
+    if run["guide"] or not robot.can_move:
+        trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
+    opts = ValidateOptions(
+        run["n"],
+        cfg["seed"],
+        run["guide"],
+        cfg["speed_threshold"],
+        cfg["hold"],
+        yes=args.yes,
+        max_step=run["max_step"],
     )
-    print(f"wrote {res.path} ({res.photos} photos)")
+    folder = args.resume or args.output
+    res = run_validation(
+        folder,
+        model,
+        str(run["model"]),
+        layout,
+        point,
+        robot,
+        camera,
+        opts,
+        trigger,
+        measure,
+        out=sys.stdout,
+        meta_extra={"collector": {"settings": cfg, "run": run}},
+        resume=args.resume is not None,
+        confirm_moves=cfg["backend"] != "fake",
+    )
+    print(f"wrote {res.path} ({res.photos} photos this run; {res.summary()})")
+    if not res.complete:
+        print(f"continue with: lasercal validate --resume {folder}")
     if len(res.spots) > 1:
         s = spot_stats(res.spots, layout.points[point])
         print(
             f"{point}: {s.n} spots measured: scatter mean {s.scatter_mean:.3f} mm (std {s.scatter_std:.3f}), "
             f"error mean {s.error_mean:.3f} mm (max {s.error_max:.3f})"
         )
-    else:
+    elif res.spots.size == 0 and res.photos:
         print(
             f"measure the photos with: lasercal spots {res.path.parent}/photos/*.png --layout "
             "LAYOUT_WITH_MARKERS.yaml"

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from lasercal.collector.cli.options import SEED
+
 
 def args_demo(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal demo``."""
@@ -14,7 +16,7 @@ def args_demo(p: argparse.ArgumentParser) -> None:
         default="lasercal-demo",
         help="folder for the session, models, validations and report (default: ./lasercal-demo)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
 
 
 def cmd_demo(args) -> int:

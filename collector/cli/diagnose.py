@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from lasercal.collector.cli.options import SEED, count, number
 from lasercal.solver.analysis import ALPHA
 
 
@@ -15,18 +16,24 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--report", metavar="DIR", help="write the plots that make the case")
     p.add_argument(
-        "--alpha", type=float, default=ALPHA, help=f"family-wise significance level (default {ALPHA})"
+        "--alpha",
+        type=number(0, 1, lo_open=True, hi_open=True),
+        default=ALPHA,
+        help=f"family-wise significance level (default {ALPHA})",
     )
     p.add_argument(
         "--bootstrap",
-        type=int,
+        type=count(0, 10**6),
         default=2000,
         help="first-order parametric-bootstrap replicates (default 2000; 0 skips)",
     )
     p.add_argument(
-        "--refits", type=int, default=10, help="full simulations of the experiment with refits (default 10)"
+        "--refits",
+        type=count(0, 10**4),
+        default=10,
+        help="full simulations of the experiment with refits (default 10)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument(
         "--payload",
         metavar="KG,X,Y,Z",
@@ -47,8 +54,8 @@ def parse_payload(text: str | None):
         vals = [float(v) for v in text.split(",")]
     except ValueError:
         vals = []
-    if len(vals) != 4:
-        raise FormatError("--payload", f"expected KG,X,Y,Z (kg and mm), got {text!r}")
+    if len(vals) != 4 or not np.all(np.isfinite(vals)) or not 0 < vals[0] <= 100:
+        raise FormatError("--payload", f"expected KG,X,Y,Z (0 < kg <= 100, finite mm), got {text!r}")
     return vals[0], np.array(vals[1:])
 
 

@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasercal.collector.cli.options import FOLDS, SEED, count, number
+
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.solver.identify.fullpose import FullPoseCalibration
     from lasercal.solver.identify.fullpose_ml import PointCalibration
@@ -28,32 +30,49 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
         help="circle points: ml (default) fits every measured point (maximum likelihood; the circle-point "
         "poses are its start), circle the paper's method (one frame per configuration, then a pose fit)",
     )
-    p.add_argument("--folds", type=int, default=0, help="K of a K-fold cross-validation (default 0: none)")
+    p.add_argument("--folds", type=FOLDS, default=0, help="K of a K-fold cross-validation (default 0: none)")
     p.add_argument(
         "--estimate-frames",
         action="store_true",
         help="estimate the sensor-to-base and tool transforms first (always done when the robot file has no "
         "ee.M)",
     )
-    p.add_argument("--seed", type=int, default=0, help="shuffle of the cross-validation folds")
+    p.add_argument("--seed", type=SEED, default=0, help="shuffle of the cross-validation folds")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate-fullpose``."""
     p.add_argument("--robot", required=True, help="true robot YAML (or built-in name)")
-    p.add_argument("--configs", type=int, default=30, help="robot configurations g (default 30)")
+    p.add_argument("--configs", type=count(1, 10**5), default=30, help="robot configurations g (default 30)")
     p.add_argument(
-        "--angles", type=int, default=6, help="angles m of the last joint per configuration (default 6)"
+        "--angles",
+        type=count(3, 360),
+        default=6,
+        help="angles m of the last joint per configuration (default 6)",
     )
-    p.add_argument("--step", type=float, default=20.0, help="the last joint's step, deg (default 20)")
-    p.add_argument("--noise", type=float, default=0.01, help="sensor noise std per axis, mm (default 0.01)")
     p.add_argument(
-        "--radius", type=float, default=50.0, help="target distance from the last axis, mm (default 50)"
+        "--step",
+        type=number(0, 120, "deg", lo_open=True),
+        default=20.0,
+        help="the last joint's step, deg (default 20)",
+    )
+    p.add_argument(
+        "--noise",
+        type=number(0, 100, "mm"),
+        default=0.01,
+        help="sensor noise std per axis, mm (default 0.01)",
+    )
+    p.add_argument(
+        "--radius",
+        type=number(0, 5000, "mm", lo_open=True),
+        default=50.0,
+        help="target distance from the last axis, mm (default 50)",
     )
     p.add_argument(
         "--offset",
-        type=float,
+        type=number(-5000, 5000, "mm"),
         default=50.0,
         help="target offset along the last axis from the aperture, mm (default 50)",
     )
@@ -65,21 +84,19 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
         help="the truth's base in the sensor frame: origin (mm) and x-y-z Euler angles (deg, extrinsic); "
         "default: the sensor frame is the base frame",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("-o", "--output", required=True, help="MEASUREMENTS.csv to write")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def _header(path: Path) -> list:
     """The first non-comment line's column names (to tell circle points from poses)."""
     from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.checks import read_text
 
-    try:
-        with open(path) as f:
-            for line in f:
-                if line.strip() and not line.lstrip().startswith("#"):
-                    return [c.strip() for c in line.split(",")]
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    for line in read_text(path).splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            return [c.strip() for c in line.split(",")]
     raise FormatError(path, "the file is empty")
 
 
@@ -148,11 +165,13 @@ def report(cal: FullPoseCalibration | PointCalibration, cv, source: str) -> dict
 
 
 def cmd_fullpose(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
     from lasercal.solver.identify.fullpose_ml import calibrate_points, cross_validate_points
 
+    check_output(args.output, force=args.force)
     model = load_model(args.robot)
     path = Path(args.measurements)
     estimate = True if args.estimate_frames else None
@@ -189,7 +208,8 @@ def cmd_fullpose(args) -> int:
             meta[k] = rep[k]
     meta["units"] = "mm, rad"
     meta["robot"] = str(resolve_robot_path(args.robot).resolve())
-    cal.model.replace(identification=json.loads(json.dumps(meta))).save(args.output)
+    with atomic_output(args.output) as tmp:
+        cal.model.replace(identification=json.loads(json.dumps(meta))).save(tmp)
     if args.json:
         print(json.dumps(rep, indent=2))
         return 0
@@ -246,10 +266,12 @@ def cmd_fullpose(args) -> int:
 def cmd_simulate_fullpose(args) -> int:
     import numpy as np
 
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.formats.fullpose_io import write_circlepoint_csv
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import default_target, simulate_circlepoint
 
+    check_output(args.output, force=args.force)
     X = np.eye(4)
     if args.sensor is not None:
         from scipy.spatial.transform import Rotation
@@ -276,7 +298,8 @@ def cmd_simulate_fullpose(args) -> int:
         f"target at q = 0 (truth base frame): {target[0]:.6f} {target[1]:.6f} {target[2]:.6f} mm",
         "sensor frame ^S T_base: " + " ".join(f"{v:.9g}" for v in X[:3].ravel()) + " (rows 1-3, mm)",
     )
-    write_circlepoint_csv(args.output, d, notes)
+    with atomic_output(args.output) as tmp:
+        write_circlepoint_csv(tmp, d, notes)
     print(
         f"wrote {args.output}: {args.configs} configurations x {args.angles} angles (truth {truth.name}, "
         f"noise {args.noise} mm)"

@@ -120,6 +120,15 @@ COMMANDS = (
 BY_NAME = {c.name: c for c in COMMANDS}
 
 
+class UsageArgumentParser(argparse.ArgumentParser):
+    """A parser whose errors are one line (``lasercal: error: argument --hold: ...``), not usage + error."""
+
+    def error(self, message: str):
+        from lasercal.solver.errors import LasercalError
+
+        raise LasercalError(message)
+
+
 def load(cmd: Command):
     """The command's module, imported now (``lasercal.collector.cli.<module>``)."""
     return importlib.import_module(f"lasercal.collector.cli.{cmd.module}")
@@ -127,7 +136,7 @@ def load(cmd: Command):
 
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     """The parser: every command listed, only ``selected``'s arguments (and module) loaded."""
-    parser = argparse.ArgumentParser(
+    parser = UsageArgumentParser(
         prog="lasercal",
         description="Kinematic calibration of a serial arm with a laser pointer, a table of reference points "
         "and a camera.",
@@ -154,9 +163,11 @@ def main(argv=None) -> int:
     """Run ``lasercal``; returns the exit code (0 ok, 2 bad input or nothing measured)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = next((a for a in argv if not a.startswith("-")), None)
-    args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
     try:
+        args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
         return int(args.func(args) or 0)
+    except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported
+        raise
     except _user_errors() as e:
         print(f"lasercal: error: {e}", file=sys.stderr)
         return 2

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from lasercal.collector.cli.options import SEED, count
 from lasercal.solver.formats.export import FORMATS
 
 
@@ -26,14 +27,18 @@ def args_report(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--bootstrap",
-        type=int,
+        type=count(0, 10**6),
         default=2000,
         help="diagnosis: first-order bootstrap replicates (default 2000)",
     )
     p.add_argument(
-        "--refits", type=int, default=10, help="diagnosis: full simulations with refits (default 10)"
+        "--refits",
+        type=count(0, 10**4),
+        default=10,
+        help="diagnosis: full simulations with refits (default 10)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_export(p: argparse.ArgumentParser) -> None:
@@ -46,16 +51,21 @@ def args_export(p: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="urdf of a model from a URDF: also write the sensor-to-base transform as a URDF of its own",
     )
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def cmd_report(args) -> int:
+    import numpy as np
+
     from lasercal.collector.errors import SessionError
     from lasercal.collector.report.html import load_validation, write_report
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.session import load_session
     from lasercal.solver.identify.measurement import fit
 
+    check_output(args.output, folder=True, force=args.force)
     sessions, validations = [], []
     for f in map(Path, args.folders):
         if (f / "session.yaml").is_file():
@@ -72,30 +82,47 @@ def cmd_report(args) -> int:
             f"{len(sessions)}"
         )
     session = load_session(sessions[0])
+    for v in validations:
+        for nm in sorted(set(session.point)):
+            if np.linalg.norm(session.points[nm] - v.xyz) < 1.0:
+                raise FormatError(
+                    v.folder / "validation.yaml",
+                    f"validated at {v.point}, which is calibration point {nm} of the session (expected a "
+                    "point the model was not fitted to)",
+                    field="point",
+                )
     if session.measurement != "laser":
         raise FormatError(
             sessions[0], "the report covers laser sessions (spots on a plane)", field="measurement"
         )
     ident = fit(session, method=args.method)
     d = diagnose(session, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
-    index = write_report(args.output, session, ident, d, validations)
-    print(f"wrote {index}")
+    with atomic_output(args.output, folder=True) as tmp:
+        write_report(tmp, session, ident, d, validations)
+    print(f"wrote {Path(args.output) / 'index.html'}")
     return 0
 
 
 def cmd_export(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.formats.export import export
     from lasercal.solver.formats.robots import load_model
 
+    if args.output:
+        check_output(args.output, force=args.force)
+    if args.sensor_output:
+        check_output(args.sensor_output, force=args.force)
     model = load_model(args.model)
     text = export(model, args.format)
     if args.sensor_output:
         from lasercal.solver.formats.urdf import sensor_urdf
 
-        Path(args.sensor_output).write_text(sensor_urdf(model))
+        with atomic_output(args.sensor_output) as tmp:
+            tmp.write_text(sensor_urdf(model))
         print(f"wrote {args.sensor_output}", file=sys.stderr)
     if args.output:
-        Path(args.output).write_text(text)
+        with atomic_output(args.output) as tmp:
+            tmp.write_text(text)
         print(f"wrote {args.output}", file=sys.stderr)
     else:
         sys.stdout.write(text)

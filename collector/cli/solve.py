@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasercal.collector.cli.options import FOLDS, SEED, count, number
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
@@ -27,7 +28,7 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         default="lm",
         help="lm (default, ours) or thesis (Section 3.2 as written)",
     )
-    p.add_argument("--folds", type=int, default=5, help="K of the K-fold cross-validation (0: skip)")
+    p.add_argument("--folds", type=FOLDS, default=5, help="K of the K-fold cross-validation (0: skip)")
     p.add_argument("--no-robust", action="store_true", help="lm: do not flag or drop outlier captures")
     p.add_argument(
         "--extend",
@@ -38,13 +39,16 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "the model",
     )
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_predict(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal predict``."""
     p.add_argument("model", help="robot model YAML")
     p.add_argument("configs", help="configurations CSV (q1..qN; t, tau1..tauN optional)")
-    p.add_argument("--plane-z", type=float, help="plane height, mm (default: the model's plane)")
+    p.add_argument(
+        "--plane-z", type=number(-5000, 5000, "mm"), help="plane height, mm (default: the model's plane)"
+    )
 
 
 def args_simulate(p: argparse.ArgumentParser) -> None:
@@ -57,12 +61,18 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         default="laser",
         help="position: targets on the tool measured by a 3-D sensor (default laser)",
     )
-    p.add_argument("--configs", type=int, default=60, help="position: robot poses (default 60)")
-    p.add_argument("--targets", type=int, default=3, help="position: targets on the tool (default 3)")
-    p.add_argument("--noise", type=float, default=0.02, help="position: sensor noise std per axis, mm")
-    p.add_argument("--per-point", type=int, default=15, help="captures per calibration point")
-    p.add_argument("--aim-noise", type=float, default=1.0, help="aiming noise std per axis, mm")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--configs", type=count(1, 10**5), default=60, help="position: robot poses (default 60)")
+    p.add_argument(
+        "--targets", type=count(1, 100), default=3, help="position: targets on the tool (default 3)"
+    )
+    p.add_argument(
+        "--noise", type=number(0, 100, "mm"), default=0.02, help="position: sensor noise std per axis, mm"
+    )
+    p.add_argument("--per-point", type=count(1, 10**4), default=15, help="captures per calibration point")
+    p.add_argument(
+        "--aim-noise", type=number(0, 100, "mm"), default=1.0, help="aiming noise std per axis, mm"
+    )
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument(
         "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
     )
@@ -77,10 +87,11 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
     p.add_argument(
         "--effect-size",
-        type=float,
+        type=number(),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
     p.add_argument("-o", "--output", required=True, help="session folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def print_report(rep: dict, out=None) -> None:
@@ -159,14 +170,17 @@ def _print_points(rep: dict, w) -> None:
 
 def cmd_solve(args) -> int:
     from lasercal.collector.cli.diagnose import format_diagnosis
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import fit
+    from lasercal.solver.identify.measurement import check_data, fit
     from lasercal.solver.kinematics.effects import robot_extensions
 
+    check_output(args.output, force=args.force)
     session = load_session(args.session)
+    check_data(session)
     diagnosis = None
     robust = not args.no_robust
     if args.extend != "none" and args.method != "lm":
@@ -225,9 +239,10 @@ def cmd_solve(args) -> int:
             meta[k] = rep[k]
     # MODEL.yaml carries robot effects only: a session effect (drift, a misplaced point) was fitted so that
     # it does not bend the geometry, and is reported in identification.diagnosis, not applied at run time
-    ident.model.replace(identification=meta, extensions=robot_extensions(ident.model.extensions)).save(
-        args.output
-    )
+    with atomic_output(args.output) as tmp:
+        ident.model.replace(identification=meta, extensions=robot_extensions(ident.model.extensions)).save(
+            tmp
+        )
     if args.json:
         print(json.dumps(rep, indent=2))
     else:
@@ -239,6 +254,7 @@ def cmd_solve(args) -> int:
 
 
 def cmd_predict(args) -> int:
+
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_configs
@@ -322,11 +338,13 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
 def cmd_simulate(args) -> int:
     import numpy as np
 
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
+    check_output(args.output, folder=True, force=args.force)
     path = Path(args.truth) if str(args.truth).lower().endswith(".urdf") else resolve_robot_path(args.truth)
     if args.measurement == "position":
         from lasercal.collector.cli.position import cmd_simulate_position
@@ -348,7 +366,8 @@ def cmd_simulate(args) -> int:
     if effect is not None:
         sim["effect"] = {"name": effect.effect, **effect.to_dict()}
     meta = session_meta(nominal, layout, truth.aperture[2], simulated=sim)
-    write_session(args.output, meta, c.point, c.t, c.q, tau=c.tau)
+    with atomic_output(args.output, folder=True) as tmp:
+        write_session(tmp, meta, c.point, c.t, c.q, tau=c.tau)
     hidden = (
         f", hidden {effect.effect} {effect.names} = {np.round(effect.params, 9).tolist()}" if effect else ""
     )

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import replace
+from pathlib import Path
 
+from lasercal.collector.cli.options import SEED, count
 from lasercal.collector.studies.mukca import QUICK, ROBOTS, StudyOptions
 
 
@@ -14,6 +16,7 @@ def args_import_mukca(p: argparse.ArgumentParser) -> None:
     p.add_argument("robot_dir", help="e.g. ../shared/data/mukca/panda_1")
     p.add_argument("-o", "--output", required=True, help="session folder to write")
     p.add_argument("--positions", help="comma-separated tool positions to import (default: all)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_study_mukca(p: argparse.ArgumentParser) -> None:
@@ -31,7 +34,7 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--bootstrap",
-        type=int,
+        type=count(1, 10**6),
         help=f"simulated replicates (default {StudyOptions.bootstrap}; --quick {QUICK.bootstrap})",
     )
     p.add_argument(
@@ -40,26 +43,41 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
         help=f"{QUICK.bootstrap} replicates and {QUICK.refits} full refits instead of "
         f"{StudyOptions.bootstrap} and {StudyOptions.refits}",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def cmd_import(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.collector.studies.mukca_import import import_mukca
 
     only = [p.strip() for p in args.positions.split(",")] if args.positions else None
-    out = import_mukca(args.robot_dir, args.output, only)
-    print(f"wrote {out}")
+    check_output(args.output, folder=True, force=args.force)
+    with atomic_output(args.output, folder=True) as tmp:
+        import_mukca(args.robot_dir, tmp, only)
+    print(f"wrote {args.output}")
     return 0
 
 
 def cmd_study(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.collector.studies.mukca import run_study
+    from lasercal.solver.errors import LasercalError
 
     opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed)
     if args.bootstrap is not None:
         opts = replace(opts, bootstrap=args.bootstrap)
     robots = [r.strip() for r in args.robots.split(",") if r.strip()]
-    rep = run_study(args.data_dir, args.output, robots, opts)
+    if not robots:
+        raise LasercalError(
+            f"--robots {args.robots!r}: no robot folder named (expected e.g. panda_1,panda_2)"
+        )
+    missing = [r for r in robots if not (Path(args.data_dir) / r).is_dir()]
+    if missing:
+        raise LasercalError(f"--robots: no folder {missing[0]} in {args.data_dir}")
+    check_output(args.output, folder=True, force=args.force)
+    with atomic_output(args.output, folder=True) as tmp:
+        rep = run_study(args.data_dir, tmp, robots, opts)
     print(
         f"{'robot':10} {'held-out spread RMS, nominal -> geometric -> extended (mm)':60} finding (whole "
         "session)"

@@ -17,6 +17,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasercal.collector.cli.options import number
+
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.vision.measure import Options
 
@@ -137,11 +139,20 @@ def args_camera_calibrate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal camera-calibrate``."""
     p.add_argument("photos", nargs="+", metavar="PHOTO")
     p.add_argument("-o", "--output", required=True, metavar="CAMERA.yaml")
+    p.add_argument("--force", action="store_true", help="replace an existing camera YAML")
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--chessboard", type=_pattern_size, metavar="COLSxROWS", help="inner corners, e.g. 9x6")
     g.add_argument("--charuco", type=_pattern_size, metavar="COLSxROWS", help="squares, e.g. 7x5")
-    p.add_argument("--square", type=float, required=True, metavar="MM", help="square side, mm")
-    p.add_argument("--marker", type=float, metavar="MM", help="ChArUco marker side, mm")
+    p.add_argument(
+        "--square",
+        type=number(0, 1000, "mm", lo_open=True),
+        required=True,
+        metavar="MM",
+        help="square side, mm",
+    )
+    p.add_argument(
+        "--marker", type=number(0, 1000, "mm", lo_open=True), metavar="MM", help="ChArUco marker side, mm"
+    )
     p.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary (default DICT_4X4_50)")
 
 
@@ -374,10 +385,12 @@ def camera_calibrate_command(args) -> int:
     """``lasercal camera-calibrate``: write a camera YAML."""
     import numpy as np
 
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.vision.camera import calibrate, save_camera
     from lasercal.vision.errors import CalibrationError, VisionError
     from lasercal.vision.images import read_image, to_gray
 
+    check_output(args.output, force=args.force)
     if args.square <= 0:
         raise VisionError(f"--square must be positive, got {args.square} mm")
     if args.charuco:
@@ -407,7 +420,8 @@ def camera_calibrate_command(args) -> int:
     if not images:
         raise CalibrationError("no readable photo")
     cam, used = calibrate(images, pattern, _warn)
-    save_camera(args.output, cam, pattern, used)
+    with atomic_output(args.output) as tmp:
+        save_camera(tmp, cam, pattern, used)
     print(
         f"camera: {cam.size[0]}x{cam.size[1]} px, fx {cam.K[0, 0]:.2f} fy {cam.K[1, 1]:.2f} px, "
         f"centre ({cam.K[0, 2]:.2f}, {cam.K[1, 2]:.2f}) px, dist {np.round(cam.dist[:5], 5).tolist()}, "

@@ -111,6 +111,9 @@ class RobotAdapter:
         """Move the arm to configuration q (rad) and return when it got there (``can_move`` backends)."""
         raise NotImplementedError(f"the {self.name} backend cannot move the arm")
 
+    def stop(self) -> None:
+        """Stop any commanded motion now (Ctrl-C, lost link); never raises. No-op where nothing moves."""
+
     def pilot_buttons(self) -> PilotButtons | None:
         """The robot's pilot buttons as a trigger, or None when the backend offers none."""
         return None

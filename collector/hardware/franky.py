@@ -82,6 +82,13 @@ class FrankyRobot(RobotAdapter):
                 f"franky: the move to {np.round(q, 4).tolist()} failed ({e})"
             ) from None
 
+    def stop(self) -> None:
+        if self._robot is not None:
+            try:
+                self._robot.stop()
+            except Exception:  # the link may be gone already: the robot then stops by itself (reflex)
+                pass
+
     def pilot_buttons(self) -> PilotButtons | None:
         if self.desk is None:
             return None

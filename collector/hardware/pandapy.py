@@ -98,6 +98,13 @@ class PandaPyRobot(RobotAdapter):
                 f"panda-py: the move to {np.round(q, 4).tolist()} did not reach its target"
             )
 
+    def stop(self) -> None:
+        if self._panda is not None:
+            try:
+                self._panda.stop_controller()
+            except Exception:  # the link may be gone already: the robot then stops by itself (reflex)
+                pass
+
     def pilot_buttons(self) -> PilotButtons | None:
         if self.desk is None:
             return None

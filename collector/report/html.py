@@ -30,6 +30,7 @@ from lasercal.collector.report.plots import diagnosis_plots
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.spot import Identification, spot_residuals
@@ -84,10 +85,7 @@ def load_validation(folder) -> Validation:
         raise FormatError(
             ypath, "not a lasercal validation (expected point: {name, xyz})", field="point"
         ) from None
-    try:
-        text = cpath.read_text()
-    except OSError as e:
-        raise FormatError(cpath, f"cannot read file ({e.strerror})") from None
+    text = read_text(cpath)
     rows = [
         (ln, r)
         for ln, r in enumerate(csv.reader(io.StringIO(text)), start=1)
@@ -96,7 +94,23 @@ def load_validation(folder) -> Validation:
     if not rows or not {"x_mm", "y_mm"} <= set(rows[0][1]):
         raise FormatError(cpath, "expected a header with x_mm and y_mm", line=rows[0][0] if rows else None)
     header = rows[0][1]
+    n = meta.get("n")
+    if not isinstance(n, int) or n < 1:
+        raise FormatError(
+            ypath, f"n = {n!r} (expected the number of configurations, a whole number >= 1)", field="n"
+        )
     ix, iy = header.index("x_mm"), header.index("y_mm")
+    qcols = [j for j, h in enumerate(header) if h.startswith("q") and h[1:].isdigit()]
+    for ln, r in rows[1:]:
+        for j in qcols:
+            try:
+                big = abs(float(r[j])) > 2 * np.pi
+            except (ValueError, IndexError):
+                continue
+            if big:
+                raise FormatError(
+                    cpath, f"{r[j]} looks like degrees (expected rad)", line=ln, field=header[j]
+                )
     spots = []
     for ln, r in rows[1:]:
         if len(r) != len(header):

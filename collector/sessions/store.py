@@ -12,6 +12,10 @@ from __future__ import annotations
 import csv
 import io
 import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +46,88 @@ def write_atomic(path: Path, text: str) -> None:
     _fsync_dir(path.parent)
 
 
+def write_atomic_bytes(path: Path, data: bytes) -> None:
+    """Replace ``path`` by ``data`` all at once: a kill leaves the old file or the new one, never half."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def check_output(
+    path,
+    *,
+    folder: bool = False,
+    force: bool = False,
+    option: str = "-o",
+    instead: str = "pass --force to replace it",
+) -> Path:
+    """Check an output path before any work starts: its folder exists, it is not kept unless ``force``.
+
+    Parameters
+    ----------
+    path : str or Path, a file (``folder=False``) or a folder to be written
+    folder : bool, the output is a folder (an existing empty folder is fine)
+    force : bool, an existing output may be replaced
+    option : str, how the command line named it (for the message)
+    instead : str, what to do when the output exists (the message's end)
+
+    Raises
+    ------
+    SessionError
+        One line naming the option and the path: what is wrong and what was expected.
+    """
+    p = Path(path)
+    where = f"{option} {p}"
+    parent = p.resolve().parent
+    if not parent.is_dir():
+        raise SessionError(f"{where}: the folder {parent} does not exist (expected an existing folder)")
+    if not os.access(parent, os.W_OK):
+        raise SessionError(f"{where}: the folder {parent} is not writable")
+    if p.exists():
+        if folder and not p.is_dir():
+            raise SessionError(f"{where}: is a file (expected a folder)")
+        if not folder and p.is_dir():
+            raise SessionError(f"{where}: is a folder (expected a file name)")
+        if not force and (not folder or any(p.iterdir())):
+            raise SessionError(f"{where}: exists and is kept ({instead})")
+    return p
+
+
+@contextmanager
+def atomic_output(path, *, folder: bool = False) -> Iterator[Path]:
+    """A temporary sibling of ``path`` to write; on success it replaces ``path`` in one rename.
+
+    A file is replaced with ``os.replace``; a folder is renamed into place (an old one is moved
+    aside first and removed after). On an exception the temporary is removed and ``path`` is
+    untouched. Check the path first with :func:`check_output`.
+    """
+    p = Path(path)
+    parent = p.resolve().parent
+    tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    target = tmp if folder else tmp / p.name
+    try:
+        yield target
+        if folder:
+            old = None
+            if p.exists():
+                old = parent / f".{p.name}.old-{os.getpid()}"
+                os.replace(p, old)
+            os.replace(tmp, p)
+            if old is not None:
+                shutil.rmtree(old)
+        else:
+            os.replace(target, p)
+            shutil.rmtree(tmp)
+        _fsync_dir(parent)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
 def csv_line(cells: list) -> bytes:
     """One CSV row, numbers at full precision, ending in a newline."""
     buf = io.StringIO()
@@ -58,6 +144,17 @@ def append_durably(fd: int, line: bytes, path) -> None:
     os.fsync(fd)
 
 
+def cut_torn_line(path: Path) -> int:
+    """Cut anything after the last newline (a row torn by a kill); returns the bytes cut."""
+    data = path.read_bytes()
+    keep = data.rfind(b"\n") + 1
+    if keep < len(data):
+        with open(path, "r+b") as f:
+            f.truncate(keep)
+            os.fsync(f.fileno())
+    return len(data) - keep
+
+
 class CsvLog:
     """A CSV file grown one durable row at a time (validation runs).
 
@@ -66,12 +163,16 @@ class CsvLog:
     path : Path, created with ``comment`` lines (each starting with '#') and the header
     header : list of str
     comment : list of str
+    resume : bool, append to an existing log (a torn last row is cut off first)
     """
 
-    def __init__(self, path: Path, header: list[str], comment=()):
-        if path.exists():
+    def __init__(self, path: Path, header: list[str], comment=(), resume: bool = False):
+        if resume:
+            cut_torn_line(path)
+        elif path.exists():
             raise SessionError(f"{path} exists: choose another folder")
-        write_atomic(path, "".join(f"# {c}\n" for c in comment) + csv_line(header).decode())
+        else:
+            write_atomic(path, "".join(f"# {c}\n" for c in comment) + csv_line(header).decode())
         self.path, self.header = path, header
         self._fd = os.open(path, os.O_WRONLY | os.O_APPEND)
 

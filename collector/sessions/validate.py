@@ -25,7 +25,8 @@ import yaml
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.sessions.capture import wait_still
-from lasercal.collector.sessions.store import CsvLog, write_atomic
+from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
+from lasercal.collector.sessions.store import CsvLog, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.kinematics.aim import aim
@@ -148,13 +149,93 @@ def validation_point(layout: Layout, point: str | None) -> str:
     return point
 
 
+SAME_POINT_MM = 1.0  # two reference points closer than this are the same point
+
+
+def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) -> None:
+    """Cross-check the layout against the model and the session it was identified from.
+
+    The validation point must not be a calibration point (a model is not validated on the
+    data it was fitted to), the model's plane must be the layout's, and every point the
+    model's session names must be where the layout has it.
+
+    Raises
+    ------
+    FormatError
+        Naming the layout file and the point or plane that disagrees.
+    """
+    p = layout.points[point]
+    for nm in layout.calibration:
+        if np.linalg.norm(layout.points[nm] - p) < SAME_POINT_MM:
+            raise FormatError(
+                layout.path,
+                f"validation point {point} is calibration point {nm} (expected a point the model was not "
+                "fitted to: pass --point)",
+                field="points",
+            )
+    if model.plane_z is not None and abs(model.plane_z - layout.plane_z) > SAME_POINT_MM:
+        raise FormatError(
+            layout.path,
+            f"plane z = {layout.plane_z:g} mm but the model {model_ref} was identified on z = "
+            f"{model.plane_z:g} mm (expected the layout of the table the model was calibrated on)",
+            field="plane",
+        )
+    session = Path(str(model.identification.get("session", "")))
+    if model.identification.get("session") and (session / "session.yaml").is_file():
+        from lasercal.solver.formats.robots import load_yaml
+
+        meta = load_yaml(session / "session.yaml")
+        for nm, xyz in ((meta or {}).get("points") or {}).items():
+            if xyz is None or str(nm) not in layout.points:
+                continue
+            if np.linalg.norm(np.asarray(xyz, dtype=float) - layout.points[str(nm)]) > SAME_POINT_MM:
+                raise FormatError(
+                    layout.path,
+                    f"point {nm} is at {layout.points[str(nm)].tolist()} mm but the session the model was "
+                    f"identified from ({session}) has it at {list(xyz)} mm (expected the same table)",
+                    field=f"points.{nm}",
+                )
+
+
 @dataclass(frozen=True)
 class ValidationResult:
-    """Where a validation run wrote its table, and the spots it measured ((k, 2) mm, base frame)."""
+    """Where a validation run wrote its table, and the spots it measured ((k, 2) mm, base frame).
+
+    ``photos`` counts the rows written by this run, ``done`` those in the table (a resumed run
+    adds to earlier ones) out of ``n`` planned configurations.
+    """
 
     path: Path
     photos: int
     spots: np.ndarray
+    done: int = 0
+    n: int = 0
+
+    @property
+    def complete(self) -> bool:
+        return self.done >= self.n
+
+    def summary(self) -> str:
+        """'60 of 60 configurations' or 'partial: 20 of 60 configurations'."""
+        return f"{'' if self.complete else 'partial: '}{self.done} of {self.n} configurations"
+
+
+def done_indices(path: Path) -> set[int]:
+    """The configuration indices a validation.csv already holds (for --resume)."""
+    import csv
+
+    rows = [
+        r for r in csv.reader(path.read_text(encoding="utf-8").splitlines()) if r and not r[0].startswith("#")
+    ]
+    if not rows or rows[0][0] != "index":
+        raise FormatError(path, "not a validation table (expected a header starting with 'index')", line=1)
+    out = set()
+    for ln, r in enumerate(rows[1:], start=2):
+        try:
+            out.add(int(r[0]))
+        except ValueError:
+            raise FormatError(path, f"index {r[0]!r} is not a whole number", line=ln, field="index") from None
+    return out
 
 
 @dataclass(frozen=True)
@@ -167,6 +248,8 @@ class ValidateOptions:
     seed : int, seed of the configurations the model computes
     guide : bool, guide the operator even where the backend could move the arm
     speed_threshold, hold, still_timeout, poll : standstill before each photo (rad/s, s, s, s)
+    yes : bool, moves confirmed in advance (``--yes``); otherwise typed ``yes`` on a terminal
+    max_step : float, rad, largest joint change in one commanded move (larger moves are split)
     """
 
     n: int = 60
@@ -176,6 +259,8 @@ class ValidateOptions:
     hold: float = 0.5
     still_timeout: float = 30.0
     poll: float = 1 / 64
+    yes: bool = False
+    max_step: float = MAX_STEP
 
 
 def run_validation(
@@ -190,6 +275,9 @@ def run_validation(
     trigger=None,
     measure=None,
     out=sys.stdout,
+    meta_extra: dict | None = None,
+    resume: bool = False,
+    confirm_moves: bool = True,
 ) -> ValidationResult:
     """Photograph the spot at N configurations ``model`` computes for ``point``; write validation.csv.
 
@@ -206,6 +294,13 @@ def run_validation(
     trigger : Trigger, needed when the operator guides the arm
     measure : callable(img, name) -> (2,) mm, or None to leave x_mm, y_mm empty
     out : text stream
+    meta_extra : dict, more keys for validation.yaml (the CLI stores what ``--resume`` needs)
+    resume : bool, continue the run in ``folder``: configurations already photographed are skipped
+    confirm_moves : bool, ask (:func:`collector.sessions.motion.confirm`) before the first move; off only
+        for the simulated robot
+
+    A Ctrl-C or a lost link stops the arm; the table keeps every photo taken (each written
+    atomically), and ``resume`` continues where it stopped.
 
     Returns
     -------
@@ -213,15 +308,16 @@ def run_validation(
     """
     p = layout.points[point]
     folder = Path(folder)
-    if (folder / "validation.csv").exists():
-        raise SessionError(f"{folder} already holds a validation run: choose another folder")
-    (folder / "photos").mkdir(parents=True, exist_ok=True)
+    if not resume and (folder / "validation.csv").exists():
+        raise SessionError(f"{folder} already holds a validation run: resume it with --resume {folder}")
     planned = aim(model, p, opts.n, np.random.default_rng(opts.seed), **layout.aim_kwargs())
     guided = opts.guide or not robot.can_move
     if guided and trigger is None:
         raise DeviceError(
             f"the {robot.name} backend cannot move the arm: the operator guides it, so a trigger is needed"
         )
+    done = done_indices(folder / "validation.csv") if resume else set()
+    todo = [i for i in range(len(planned)) if i not in done]
     meta = {
         "format": VALIDATION_FORMAT,
         "model": model_ref,
@@ -239,8 +335,23 @@ def run_validation(
             "x_mm, y_mm": "the spot on the plane, base frame (empty: not measured; use lasercal spots)",
             "q_dev": "largest joint deviation from the configuration the model computed",
         },
+        **(meta_extra or {}),
     }
-    write_atomic(folder / "validation.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
+    plan = None
+    robot.connect()
+    try:  # preview and confirmation before the first file and the first move
+        if not guided and todo:
+            plan = plan_moves(robot.read().q, planned[todo], model, opts.max_step)
+            out.write(preview(plan))
+            if confirm_moves:
+                confirm(plan, opts.yes, out=out)
+    except BaseException:
+        robot.close()
+        camera.close()
+        raise
+    if not resume:
+        (folder / "photos").mkdir(parents=True, exist_ok=True)
+        write_atomic(folder / "validation.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
     header = ["index"] + [f"q{j + 1}" for j in range(model.n)] + ["photo", "x_mm", "y_mm", "q_dev"]
     log = CsvLog(
         folder / "validation.csv",
@@ -249,12 +360,15 @@ def run_validation(
             f"lasercal validation of {model_ref} at {point}: q rad, x_mm/y_mm mm "
             f"(plane z = {layout.plane_z:g} mm), q_dev rad; see validation.yaml"
         ],
+        resume=resume,
     )
     w = out.write
     photos, spots = 0, []
+    if resume:
+        w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
     try:
-        robot.connect()
-        for i, q in enumerate(planned):
+        for k, i in enumerate(todo):
+            q = planned[i]
             if guided:
                 robot.prompt_configuration(q)
                 now = robot.read().q
@@ -264,13 +378,14 @@ def run_validation(
                 )
                 cmd = trigger.wait()
                 if cmd == "quit":
-                    w(f"stopped after {i} photos: {log.path}\n")
+                    w(f"stopped after {photos} photos: {log.path}\n")
                     break
                 if cmd == "discard":
                     w(f"configuration {i + 1} skipped\n")
                     continue
             else:
-                robot.move_to(q)
+                for step in plan.steps[plan.target_of == k]:
+                    robot.move_to(step)
             state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
             if state is None:
                 w(
@@ -280,8 +395,10 @@ def run_validation(
                 continue
             img = camera.photo()
             name = f"photos/{i:04d}.png"
-            if not cv2.imwrite(str(folder / name), img):
-                raise DeviceError(f"cannot write {folder / name}")
+            ok, png = cv2.imencode(".png", img)
+            if not ok:
+                raise DeviceError(f"cannot encode photo {name}")
+            write_atomic_bytes(folder / name, png.tobytes())  # a kill leaves no truncated photo
             row = {
                 "index": str(i),
                 **{f"q{j + 1}": v for j, v in enumerate(state.q)},
@@ -301,10 +418,19 @@ def run_validation(
             log.append(row)
             photos += 1
             w(msg + "\n")
-    except RobotConnectionError as e:
-        raise RobotConnectionError(f"{e}; the photos so far are in {log.path}") from None
+    except (RobotConnectionError, KeyboardInterrupt) as e:
+        robot.stop()
+        total = len(done) + photos
+        where = (
+            f"partial: {total} of {opts.n} configurations in {log.path}; "
+            f"continue with lasercal validate --resume {folder}"
+        )
+        if isinstance(e, KeyboardInterrupt):
+            w(f"\ninterrupted: the arm was stopped; {where}\n")
+            raise
+        raise RobotConnectionError(f"{e}; {where}") from None
     finally:
         log.close()
         robot.close()
         camera.close()
-    return ValidationResult(log.path, photos, np.array(spots).reshape(-1, 2))
+    return ValidationResult(log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, write_session
 
@@ -28,10 +29,7 @@ NOMINAL_TOOL = (88.0, 0.0, 926.0 - 103.4 - 30.1)
 def read_hole(path: Path) -> np.ndarray:
     """Joint angles (k, 7) rad of one hole file, with errors naming file, line and column."""
     rows = []
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    text = read_text(path)
     for ln, row in enumerate(csv.reader(text.splitlines()), start=1):
         if not row or row[0].lstrip().startswith("#"):
             continue
@@ -44,7 +42,13 @@ def read_hole(path: Path) -> np.ndarray:
             raise FormatError(path, f"not a number: {row[bad]!r}", line=ln, field=f"q{bad + 1}") from None
     if not rows:
         raise FormatError(path, "no joint angles")
-    return np.array(rows)
+    q = np.array(rows)
+    if not np.all(np.isfinite(q)):
+        r, j = np.argwhere(~np.isfinite(q))[0]
+        raise FormatError(path, "not a finite number (expected rad)", field=f"q{j + 1}")
+    if np.abs(q).max() > 2 * np.pi:
+        raise FormatError(path, f"angles up to {np.abs(q).max():.4g}: these look like degrees (expected rad)")
+    return q
 
 
 def _is_float(v: str) -> bool:

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import metres_hint, read_text
 from lasercal.solver.identify.circlepoint import circle_point_pose, collinear
 
 LOCKED_TOL = 1e-4  # rad: the locked joints of one configuration must agree this well
@@ -94,10 +95,7 @@ class PoseData:
 
 def _rows(path: Path):
     """(line number, row) of the non-comment, non-blank rows of a CSV file."""
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    text = read_text(path)
     for i, row in enumerate(csv.reader(text.splitlines()), start=1):
         if row and not row[0].lstrip().startswith("#") and any(c.strip() for c in row):
             yield i, [c.strip() for c in row]
@@ -254,6 +252,16 @@ def read_circlepoint_csv(path, n: int | None = None) -> CirclePointData:
         Q.append(q)
         P.append([v[2] for v in ordered])
     P = np.array(P)
+    hint = metres_hint(P.reshape(-1, 3))
+    if hint:
+        raise FormatError(path, hint, line=hline, field="x")
+    Qa = np.array(Q)
+    if np.abs(Qa).max() > 2 * np.pi:
+        raise FormatError(
+            path,
+            f"joint angles up to {np.abs(Qa).max():.4g}: these look like degrees (expected rad)",
+            line=hline,
+        )
     bad = collinear(P)
     if np.any(bad):
         i = int(np.argmax(bad))

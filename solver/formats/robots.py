@@ -13,10 +13,14 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import Range, metres_hint, read_text
 from lasercal.solver.formats.data import resolve
+from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
 
+PLANE_Z = Range(-5000.0, 5000.0, "mm")
+MASS = Range(0.0, 1000.0, "kg")
 _TOL_UNIT = 1e-6  # a printed axis further than this from unit length is reported
 
 
@@ -81,13 +85,19 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             raise FormatError(
                 path, "limits must be [lower, upper] with lower < upper", field=f"{where}.limits"
             )
+        if np.abs(lim).max() > 4 * np.pi:
+            raise FormatError(
+                path,
+                f"limits {lim.tolist()} look like degrees (expected rad, within +-4 pi)",
+                field=f"{where}.limits",
+            )
         limits.append(lim)
         names.append(str(j.get("name", f"joint{i + 1}")))
     n = len(screws)
     laser = d.get("laser")
     if not isinstance(laser, dict):
         raise FormatError(path, "missing 'laser' mapping (omega, v, M)", field="laser")
-    lw = np.array(laser.get("omega", [0, 0, 0]), dtype=float)
+    lw = _vec(laser, "omega", 3, path, "laser") if "omega" in laser else np.zeros(3)
     if np.linalg.norm(lw) > 0:
         raise FormatError(
             path, "the laser is a prismatic joint: its omega must be [0, 0, 0]", field="laser.omega"
@@ -97,9 +107,25 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         raise FormatError(path, "laser direction v must be (close to) a unit vector", field="laser.v")
     laser_S = _checked_screw(np.zeros(3), lv, path, "laser", notes)
     aperture = _vec(laser, "M", 3, path, "laser")
+    hint = metres_hint(aperture)
+    if hint:
+        raise FormatError(path, f"aperture {aperture.tolist()}: {hint}", field="laser.M")
     plane = d.get("plane")
-    plane_z = float(plane["z"]) if isinstance(plane, dict) and "z" in plane else None
+    plane_z = None
+    if isinstance(plane, dict) and "z" in plane:
+        msg = PLANE_Z.problem(plane["z"])
+        if msg:
+            raise FormatError(path, f"plane z {msg}", field="plane.z")
+        plane_z = float(plane["z"])
     home = _vec(d, "home", n, path, "model") if d.get("home") is not None else None
+    lim = np.array(limits)
+    if home is not None and np.any((home < lim[:, 0]) | (home > lim[:, 1])):
+        j = int(np.argmax((home < lim[:, 0]) | (home > lim[:, 1])))
+        raise FormatError(
+            path,
+            f"home joint {j + 1} = {home[j]:g} rad is outside its limits [{lim[j, 0]:g}, {lim[j, 1]:g}] rad",
+            field="home",
+        )
     tool = d.get("tool")
     tool_point = (
         _vec(tool, "point", 3, path, "tool")
@@ -130,12 +156,17 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         R = sensor_pose[:3, :3]
         if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
             raise FormatError(path, "sensor.T must be a rigid transform", field="sensor.T")
-    links = tuple(
-        Link(float(lk["mass"]), _frozen(_vec(lk, "com", 3, path, f"links[{i}]")))
-        for i, lk in enumerate(d.get("links", []) or [])
-    )
+    links = []
+    for i, lk in enumerate(d.get("links", []) or []):
+        mass = lk.get("mass") if isinstance(lk, dict) else None
+        msg = MASS.problem(mass)
+        if msg:
+            raise FormatError(path, f"mass {msg}", field=f"links[{i}].mass")
+        links.append(Link(float(mass), _frozen(_vec(lk, "com", 3, path, f"links[{i}]"))))
+    links = tuple(links)
     if links and len(links) != n:
         raise FormatError(path, f"'links' must have one entry per joint ({n})", field="links")
+    extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
     return RobotModel(
         name=str(d.get("name", Path(str(path)).stem)),
         joint_names=tuple(names),
@@ -165,10 +196,7 @@ def resolve_robot_path(name_or_path, base: Path | None = None) -> Path:
 def load_yaml(path) -> Any:
     """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    text = read_text(path)
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as e:

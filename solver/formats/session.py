@@ -23,6 +23,7 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint, read_text
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.kinematics.model import RobotModel
@@ -32,6 +33,9 @@ LAYOUT_FORMAT = "lasercal-layout/1"
 UNITS = {"length": "mm", "angle": "rad", "torque": "Nm", "time": "s"}
 CLOCKS = ("seconds", "order")  # what the t column is: a real clock (s), or the recording order (a count)
 _LIMIT_TOL = 1e-6  # rad: logged angles are allowed to sit on a limit up to rounding
+SAME_POINT_MM = 1.0  # reference points closer than this are one point
+APERTURE_TOL_MM = 100.0  # a measured aperture height further than this from the nominal model's is a mistake
+AIMING = {"tilt_deg": Range(0.0, 90.0, "deg"), "length": Range(0.0, 5000.0, "mm", lo_open=True)}
 
 
 @dataclass(frozen=True)
@@ -84,15 +88,22 @@ def _points(d, path, key="points", allow_unknown: bool = False) -> dict:
                 path, f"point {name!r} must be [x, y, z] in mm, got {xyz!r}", field=f"{key}.{name}"
             )
         out[str(name)] = a
+    known = [a for a in out.values() if a is not None]
+    hint = metres_hint(np.array(known)) if known else None
+    if hint:
+        raise FormatError(path, hint, field=key)
     return out
 
 
 def _plane_z(d, path) -> float:
     plane = d.get("plane")
     try:
-        return float(plane["z"])
+        z = float(plane["z"])
     except (TypeError, KeyError, ValueError):
         raise FormatError(path, "'plane' must be a mapping {z: <mm>}", field="plane") from None
+    if not math.isfinite(z):
+        raise FormatError(path, f"plane z = {z} (expected a finite height, mm)", field="plane.z")
+    return z
 
 
 def _names(d, key, points, path) -> tuple:
@@ -117,12 +128,66 @@ def load_layout(path) -> Layout:
         raise FormatError(
             path, f"unsupported format {d.get('format')!r} (expected {LAYOUT_FORMAT})", field="format"
         )
+    units = d.get("units") or {}
+    if not isinstance(units, dict) or units.get("length", "mm") != "mm":
+        raise FormatError(path, f"units {units!r} (expected length: mm)", field="units")
     points = _points(d, path)
     calib = _names(d, "calibration", points, path)
     valid = _names(d, "validation", points, path)
     if not calib:
         calib = tuple(p for p in points if p not in valid)
-    return Layout(str(path), _plane_z(d, path), points, calib, valid, dict(d.get("aiming", {}) or {}), d)
+    plane_z = _plane_z(d, path)
+    check_layout_geometry(path, points, plane_z, calib)
+    aiming = dict(d.get("aiming", {}) or {}) if isinstance(d.get("aiming", {}) or {}, dict) else None
+    if aiming is None:
+        raise FormatError(path, "'aiming' must be a mapping (tilt_deg, length)", field="aiming")
+    for key, rng in AIMING.items():
+        if key in aiming:
+            v = aiming[key]
+            bad = not isinstance(v, list) or len(v) != 2 or any(rng.problem(x) for x in v) or v[0] > v[1]
+            if bad:
+                raise FormatError(
+                    path,
+                    f"aiming {key} = {v!r} (expected [low, high], each {rng.expected()})",
+                    field=f"aiming.{key}",
+                )
+    return Layout(str(path), plane_z, points, calib, valid, aiming, d)
+
+
+def check_layout_geometry(path, points: dict, plane_z: float, calibration: tuple) -> None:
+    """Points lie on the plane, no two coincide, and the calibration points are not collinear.
+
+    Raises
+    ------
+    FormatError
+        Naming the layout and the point(s) at fault, and what would fix it.
+    """
+    names = list(points)
+    xyz = np.array([points[n] for n in names])
+    for n, p in zip(names, xyz):
+        if abs(p[2] - plane_z) > SAME_POINT_MM:
+            raise FormatError(
+                path,
+                f"point {n} z = {p[2]:g} mm is off the plane z = {plane_z:g} mm (expected on it)",
+                field=f"points.{n}",
+            )
+    d = np.linalg.norm(xyz[:, None] - xyz[None], axis=2) + np.eye(len(xyz)) * 1e9
+    if d.min() < SAME_POINT_MM:
+        i, j = np.unravel_index(np.argmin(d), d.shape)
+        raise FormatError(
+            path,
+            f"points {names[i]} and {names[j]} are the same point "
+            f"(expected distinct points, > {SAME_POINT_MM:g} mm apart)",
+            field="points",
+        )
+    c = np.array([points[n][:2] for n in calibration])
+    if len(c) >= 3 and np.linalg.svd(c - c.mean(axis=0), compute_uv=False)[1] < SAME_POINT_MM:
+        raise FormatError(
+            path,
+            f"calibration points {', '.join(calibration)} are collinear: the direction along their line is "
+            "unidentifiable (expected at least three points not on one line)",
+            field="points",
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -234,12 +299,7 @@ def captures_header(n: int, dq: bool = False, tau: bool = False, extra=()) -> li
 
 
 def _read_csv(path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except OSError as e:
-        raise FormatError(path, f"cannot read file ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise FormatError(path, "not a text CSV file") from None
+    text = read_text(path)
     reader = csv.reader(io.StringIO(text))
     rows = [(reader.line_num, r) for r in reader]
     rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
@@ -281,9 +341,11 @@ def check_limits(path, robot: RobotModel, q: np.ndarray, lines) -> None:
     if bad.any():
         r, j = np.argwhere(bad)[0]
         lo, hi = robot.limits[j]
+        hint = degrees_hint(q, robot.limits)
         raise FormatError(
             path,
-            f"joint {j + 1} = {q[r, j]:.6g} rad is outside its limits [{lo:.4f}, {hi:.4f}]",
+            f"joint {j + 1} = {q[r, j]:.6g} rad is outside its limits [{lo:.4f}, {hi:.4f}]"
+            + (f": {hint}" if hint else ""),
             line=int(lines[r]),
             field=f"q{j + 1}",
         )
@@ -359,6 +421,13 @@ def load_session(folder) -> Session:
             raise FormatError(
                 ypath, "laser.aperture_z must be a number (mm)", field="laser.aperture_z"
             ) from None
+        if not abs(aperture_z - robot.aperture[2]) <= APERTURE_TOL_MM:
+            raise FormatError(
+                ypath,
+                f"aperture_z = {aperture_z:g} mm is not within {APERTURE_TOL_MM:g} mm of the {robot.name} "
+                f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
+                field="laser.aperture_z",
+            )
     header, rows = _read_csv(cpath)
     n = robot.n
     if header[:2] != ["point", "t"]:
@@ -495,4 +564,5 @@ def load_configs(path, robot: RobotModel) -> Configs:
     q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
     t = _numeric_block(path, rows, header, ["t"], required=False)
     tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)
+    check_limits(path, robot, q, [ln for ln, _ in rows])
     return Configs(header, [r for _, r in rows], q, None if t is None else t[:, 0], tau)

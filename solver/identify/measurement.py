@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
@@ -56,3 +57,31 @@ def residuals(
     if ext is not None:
         target[:, :2] += ext.target_offset(session.point)
     return spot_residuals(model, q, target)
+
+
+MIN_PER_POINT = 3  # captures at one point: fewer cannot tell a point's spread from the model's error
+
+
+def check_data(session) -> None:
+    """Refuse data that cannot identify the geometry: a point with too few captures, collinear points.
+
+    Raises
+    ------
+    IdentificationError
+        Naming the point or points, what cannot be identified and what data would fix it.
+    """
+    names, counts = np.unique(np.asarray(session.point, dtype=str), return_counts=True)
+    few = [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
+    if few:
+        raise IdentificationError(
+            f"too few captures at {', '.join(few)}: that point's position cannot be told from the model's "
+            f"error (capture at least {MIN_PER_POINT} configurations there, or drop the point)"
+        )
+    if session.measurement != "laser" or len(names) < 3:
+        return
+    xy = np.array([session.points[nm][:2] for nm in names])
+    if np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)[1] < 1.0:
+        raise IdentificationError(
+            f"points {', '.join(names)} are collinear: the base rotation about their line and the offset "
+            "across it are unidentifiable (add a point off that line)"
+        )

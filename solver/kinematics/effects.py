@@ -187,6 +187,10 @@ def extension_from_model(extensions: dict, path="<model>", n: int | None = None)
             f"extension {name} needs 'joints' and {', '.join(_PARAMS[name])} lists",
             field=f"extensions.{name}",
         ) from None
+    if not all(np.all(np.isfinite(c)) for c in cols):
+        raise FormatError(
+            path, f"extension {name}: every coefficient must be a finite number", field=f"extensions.{name}"
+        )
     if any(len(c) != len(joints) for c in cols) or (n is not None and any(not 1 <= j <= n for j in joints)):
         raise FormatError(
             path, f"extension {name}: one value per joint, joints numbered 1..{n}", field=f"extensions.{name}"

@@ -1,0 +1,53 @@
+"""Command-line option types that check range and units (through :class:`solver.formats.checks.Range`).
+
+``type=number(0, None, "s", lo_open=True)`` makes argparse refuse ``--hold -1`` with one line
+naming the option: ``argument --hold: -1 s is out of range (expected a finite number > 0 s)``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from lasercal.solver.formats.checks import Range
+
+
+def number(
+    lo: float | None = None,
+    hi: float | None = None,
+    unit: str = "",
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    integer: bool = False,
+):
+    """An argparse ``type`` accepting finite numbers in [lo, hi] (open ends as asked), in ``unit``."""
+    rng = Range(lo, hi, unit, lo_open, hi_open, integer)
+
+    def parse(text: str):
+        try:
+            return rng.parse(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    parse.__name__ = rng.expected()  # argparse names the type in some messages
+    return parse
+
+
+def count(lo: int = 0, hi: int | None = None):
+    """An argparse ``type`` for whole numbers in [lo, hi]."""
+    return number(lo, hi, integer=True)
+
+
+SEED = count(0, 2**32 - 1)
+"""A random seed: numpy accepts 0 .. 2**32 - 1."""
+
+
+def _folds(text: str) -> int:
+    """K of a K-fold cross-validation: 0 (none) or 2 .. 1000."""
+    k = count(0, 1000)(text)
+    if k == 1:
+        raise argparse.ArgumentTypeError("1 fold holds nothing out (expected 0 for none, or at least 2)")
+    return k
+
+
+FOLDS = _folds

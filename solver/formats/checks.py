@@ -1,0 +1,115 @@
+"""One place that checks numbers at the edge: finite, in a range, in the right units.
+
+File readers and command-line options describe what they accept with a :class:`Range`
+(bounds and unit); :meth:`Range.problem` says what is wrong with a value in one phrase
+ending in what was expected, e.g. ``"-1 s is out of range (expected > 0 s)"``. Readers
+wrap it in a :class:`~lasercal.solver.errors.FormatError` (file, line, column), options in
+a command-line error (the option's name). Suspicious values -- positions that look like
+metres, angles that look like degrees -- are errors too, with the hint
+(:func:`metres_hint`, :func:`degrees_hint`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+# A reference point or aperture closer than this to the base in every coordinate is not a table
+# point in mm: it is (almost surely) a position in metres.
+METRES_BELOW_MM = 5.0
+
+
+@dataclass(frozen=True)
+class Range:
+    """The accepted values of one number.
+
+    Attributes
+    ----------
+    lo, hi : float or None, bounds (None: unbounded)
+    unit : str, printed after the numbers ('' for counts)
+    lo_open, hi_open : bool, the bound itself is excluded
+    integer : bool, only whole numbers
+    """
+
+    lo: float | None = None
+    hi: float | None = None
+    unit: str = ""
+    lo_open: bool = False
+    hi_open: bool = False
+    integer: bool = False
+
+    def _u(self, x) -> str:
+        return f"{x:g} {self.unit}".rstrip() if isinstance(x, float | int) else str(x)
+
+    def expected(self) -> str:
+        """What is accepted, e.g. 'a number > 0 s', 'a whole number >= 1', 'a number in (0, 0.3]'."""
+        kind = "a whole number" if self.integer else "a finite number"
+        if self.lo is not None and self.hi is not None:
+            lb, rb = "(" if self.lo_open else "[", ")" if self.hi_open else "]"
+            return f"{kind} in {lb}{self.lo:g}, {self.hi:g}{rb} {self.unit}".rstrip()
+        if self.lo is not None:
+            return f"{kind} {'>' if self.lo_open else '>='} {self._u(self.lo)}"
+        if self.hi is not None:
+            return f"{kind} {'<' if self.hi_open else '<='} {self._u(self.hi)}"
+        return f"{kind}{' in ' + self.unit if self.unit else ''}"
+
+    def problem(self, x) -> str | None:
+        """None when ``x`` is accepted, else 'what is wrong (expected ...)'."""
+        try:
+            v = float(x)
+        except (TypeError, ValueError):
+            return f"{x!r} is not a number (expected {self.expected()})"
+        if not math.isfinite(v):
+            return f"{x!r} is not finite (expected {self.expected()})"
+        if self.integer and v != int(v):
+            return f"{x!r} is not a whole number (expected {self.expected()})"
+        below = self.lo is not None and (v <= self.lo if self.lo_open else v < self.lo)
+        above = self.hi is not None and (v >= self.hi if self.hi_open else v > self.hi)
+        if below or above:
+            return f"{self._u(v)} is out of range (expected {self.expected()})"
+        return None
+
+    def parse(self, text) -> float | int:
+        """The value of ``text``; ValueError with :meth:`problem`'s phrase when it is not accepted."""
+        msg = self.problem(text)
+        if msg is not None:
+            raise ValueError(msg)
+        return int(float(text)) if self.integer else float(text)
+
+
+def metres_hint(xyz: np.ndarray) -> str | None:
+    """A hint when points (k, 3) given in mm are all within a few mm of the base: metres, not mm."""
+    a = np.abs(np.asarray(xyz, dtype=float)).reshape(-1, 3)
+    if a.size and a.max() > 0 and a.max() < METRES_BELOW_MM:
+        return f"every coordinate is below {METRES_BELOW_MM:g} mm: these look like metres (expected mm)"
+    return None
+
+
+def degrees_hint(q: np.ndarray, limits: np.ndarray) -> str | None:
+    """A hint when joint angles (m, n) outside ``limits`` (n, 2) rad would fit them read as degrees."""
+    q = np.asarray(q, dtype=float).reshape(-1, limits.shape[0])
+    r = np.radians(q)
+    if np.abs(q).max(initial=0) > 2 * np.pi and np.all((r >= limits[:, 0]) & (r <= limits[:, 1])):
+        return "these look like degrees (expected rad)"
+    return None
+
+
+def read_text(path) -> str:
+    """A text file's contents; FormatError (naming the file) if it cannot be read or is not UTF-8."""
+    from pathlib import Path
+
+    from lasercal.solver.errors import FormatError
+
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise FormatError(
+            path, f"byte 0x{data[e.start]:02x} is not UTF-8 text (expected a UTF-8 text file)", line=line
+        ) from None
