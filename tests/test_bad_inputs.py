@@ -168,6 +168,7 @@ DIAGNOSE = ["diagnose", "{d}/sess", "--bootstrap", "0", "--refits", "0"]
 EXPORT = ["export", "{d}/model.yaml"]
 PREDICT = ["predict", "{d}/model.yaml", "{d}/configs.csv"]
 IMPORT = ["import-mukca", "{d}/mukca/panda_1"]
+PLAN = ["plan", "{d}/sess", "--next", "2"]
 STUDY = ["study-mukca", "{d}/mukca", "--robots", "panda_1", "--quick"]
 
 # (id, argv, setup, needle in the message); "{o}" is the output path (must not appear), "{d}" the folder
@@ -224,6 +225,11 @@ OPTION_VALUES = {
     "fullpose": (FULLPOSE + ["-o", "{o}"], {"--folds": ["-1", "1"], "--seed": ["-1"]}),
     "study-mukca": (STUDY + ["-o", "{o}"], {"--bootstrap": ["-1", "0"], "--seed": ["-1"]}),
     "demo": (["demo", "-o", "{o}"], {"--seed": ["-1"]}),
+    "plan": (PLAN + ["-o", "{o}"], {
+        "--next": ["0", "-1", "nan"],
+        "--aim-noise": ["0", "-1", "nan"],
+        "--seed": ["-1"],
+    }),
 }  # fmt: skip
 for cmd, (argv, opts) in OPTION_VALUES.items():
     for opt, values in opts.items():
@@ -424,6 +430,16 @@ for cid, (setup, needle) in MUKCA_BAD.items():
     case(f"import-mukca: {cid}", IMPORT + ["-o", "{o}"], setup, needle)
 for cid in ("mukca missing hole file", "mukca hole not utf-8"):
     case(f"study-mukca: {cid}", STUDY + ["-o", "{o}"], MUKCA_BAD[cid][0], MUKCA_BAD[cid][1])
+
+
+# plan: a box inside out, a layout point out of reach, an output that exists
+case("plan --workspace min > max", PLAN + ["-o", "{o}", "--workspace", "600", "0", "-8", "400", "300", "-8"],
+     None, "workspace")  # fmt: skip
+case("plan --workspace nan", PLAN + ["-o", "{o}", "--workspace", "nan", "0", "-8", "600", "300", "-8"], None,
+     "workspace")  # fmt: skip
+case("plan layout point out of reach", PLAN + ["-o", "{o}", "--layout", "{d}/layout.yaml"],
+     _yaml("layout.yaml", _set("points", "P4", [2521.0, 160.0, -8.0])), "out of reach")  # fmt: skip
+case("plan -o existing", PLAN + ["-o", "{d}/kept.csv"], _touch("kept.csv"), "--force")
 
 
 # vision commands (their options; spot detection itself is another module's business)

@@ -9,6 +9,8 @@ import sys
 
 import numpy as np
 
+from lasercal.collector.cli.options import SEED, count, number
+
 
 def args_plan(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal plan``."""
@@ -16,24 +18,27 @@ def args_plan(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--layout", help="layout YAML (default: the points, calibration and validation lists of the session)"
     )
-    p.add_argument("--next", type=int, default=10, metavar="K", help="captures to plan (default 10)")
+    p.add_argument(
+        "--next", type=count(1, 1000), default=10, metavar="K", help="captures to plan (default 10)"
+    )
     p.add_argument("-o", "--output", metavar="NEXT.csv", help="write point,q1..qN,expected_mm here")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
     p.add_argument("--json", action="store_true", help="print the plan and the prediction as JSON")
     p.add_argument(
         "--workspace",
-        type=float,
+        type=number(-1e5, 1e5, "mm"),
         nargs=6,
         metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
         help="predict the error at points in this box (mm) instead of the layout's validation points",
     )
     p.add_argument(
         "--aim-noise",
-        type=float,
+        type=number(0, 100, "mm", lo_open=True),
         default=1.0,
         metavar="MM",
         help="the operator's expected aiming noise per axis, mm (prior; default 1.0)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the candidate sampling (default 0)")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the candidate sampling (default 0)")
 
 
 def _layout(args, session):
@@ -52,11 +57,12 @@ def _layout(args, session):
 
 
 def cmd_plan(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.design import Coach, DesignError, Prior, posterior
     from lasercal.solver.formats.session import load_session
 
-    if args.next <= 0:
-        raise DesignError(f"--next must be positive, got {args.next}")
+    if args.output:
+        check_output(args.output, force=args.force)
     session = load_session(args.session)
     if session.measurement != "laser":
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
@@ -77,7 +83,7 @@ def cmd_plan(args) -> int:
         for nm, q, e in zip(plan.point, plan.q, plan.expected)
     ]
     if args.output:
-        with open(args.output, "w", newline="") as f:
+        with atomic_output(args.output) as tmp, open(tmp, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(header)
             w.writerows(rows)
