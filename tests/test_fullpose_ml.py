@@ -85,5 +85,5 @@ def test_cli_default_is_maximum_likelihood(tmp_path, capsys):
     assert rep["identifiability"]["rank"] == 31 and abs(rep["sigma_mm"] / 0.01 - 1) < 0.2
     E = load_model(out).ee_pose
     assert np.allclose(E[:3, :3].T @ E[:3, :3], np.eye(3), atol=1e-9)
-    assert run(args + ["--method", "circle"]) == 0
+    assert run(args + ["--method", "circle", "--force"]) == 0  # the model just written is replaced on purpose
     assert json.loads(capsys.readouterr().out)["method"].startswith("fullpose-poe")

@@ -85,7 +85,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             raise FormatError(
                 path, "limits must be [lower, upper] with lower < upper", field=f"{where}.limits"
             )
-        if np.abs(lim).max() > 4 * np.pi:
+        if not prismatic and np.abs(lim).max() > 4 * np.pi:  # a prismatic joint's limits are mm
             raise FormatError(
                 path,
                 f"limits {lim.tolist()} look like degrees (expected rad, within +-4 pi)",
