@@ -53,7 +53,7 @@ def main() -> None:
             cv = loto(s, common, None, QUICK)
             for f in cv["folds"]:
                 t = f["test"]
-                kept = f["nested_effect"] + (f" {f['nested_joints']}" if f["nested_joints"] else "")
+                kept = f["nested_label"]
                 print(
                     f"{robot:8} {f['held_out']:13} {f['captures']['test']:4d} "
                     + " ".join(f"{t[c]['spread_rms_mm']:9.3f}" for c in COLS)

@@ -276,6 +276,7 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
             "flagged": len(d.geometric.outliers),
             "nested_effect": d.effect,
             "nested_joints": list(d.extension.joints) if d.extension else [],
+            "nested_label": d.extension.label if d.extension else "none",
             "nested_p": d.p_value,
             "nested_proposed": d.proposed.effect if d.proposed else "none",
             "converged": bool(d.geometric.converged),
@@ -512,7 +513,7 @@ def _regressor_plot(d: Diagnosis) -> dict:
     'none')."""
     s = d.session
     fitted = d.extended or d.geometric
-    ext = d.extension or d.tests[0].extension
+    ext = (d.extension or d.tests[0].extension).parts[0]  # a combination: its first effect
     j = ext.joints[0] - 1
     used = fitted.weights > 0
     q = d.extension.true_q(s.q, s.t, s.tau) if d.extension else s.q
@@ -528,7 +529,7 @@ def _regressor_plot(d: Diagnosis) -> dict:
     }[ext.effect]
     effect = np.zeros(s.m)
     if d.extension is not None:
-        p = d.extension.params
+        p = d.extension.parts[0].params
         effect = p[0] * np.sin(x) + p[1] * np.cos(x) if ext.effect == "encoder_eccentricity" else p[0] * x
     order = np.argsort(x[used])
     return {
@@ -731,11 +732,7 @@ def conclusion(rep: dict) -> dict:
     gains = 100.0 * (g - e) / g
     h = stdtrit(len(gains) - 1, 0.975) * gains.std(ddof=1) / np.sqrt(len(gains)) if len(gains) > 1 else np.nan
     dg = rep["diagnosis"]
-    kept = (
-        dg["effect"]
-        if dg["effect"] == "none"
-        else f"{dg['effect']} at joints {','.join(map(str, dg['joints']))}"
-    )
+    kept = dg["label"]
     worst = max(f["geometric_over_plain"] for f in folds)
     line = (
         f"{kept}; held-out spread geometric {g.mean():.3f} -> extended {e.mean():.3f} mm, gain "
@@ -1021,7 +1018,7 @@ def markdown(rep: dict) -> str:
                 [r, f["held_out"], f["captures"]["test"]]
                 + [f"{t[m]['spread_rms_mm']:.3f}" for m in ("nominal", "geometric", "nested", "fixed")]
                 + [f"{t[m]['distance_error_mm']:.3f}" for m in ("nominal", "geometric", "nested", "fixed")]
-                + [f"{f['nested_effect']} {','.join(map(str, f['nested_joints']))}".strip()]
+                + [f["nested_label"]]
             )
     md.append(
         _table(
@@ -1159,7 +1156,12 @@ def markdown(rep: dict) -> str:
                 ",".join(map(str, dg["joints"])),
                 _p(dg["p_value"]),
                 _p(dg["details"]["bootstrap_p_value"]),
-                params + (f" ({dg['parameters'][next(iter(dg['parameters']))]['units']})" if params else ""),
+                params
+                + (
+                    f" ({'; '.join(dict.fromkeys(v['units'] for v in dg['parameters'].values()))})"
+                    if params
+                    else ""
+                ),
                 runner,
             ]
         )

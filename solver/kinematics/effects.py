@@ -257,8 +257,9 @@ class Combination:
 
 def combine(parts) -> Extension | Combination:
     """One extension from parts (a Combination when there are several), ordered as the catalogue."""
-    parts = sorted(parts, key=lambda e: JOINT_EFFECTS.index(e.effect))
-    return parts[0] if len(parts) == 1 else Combination(tuple(parts))
+    if len(parts) == 1:
+        return parts[0]
+    return Combination(tuple(sorted(parts, key=lambda e: JOINT_EFFECTS.index(e.effect))))
 
 
 def robot_extensions(extensions: dict) -> dict:
