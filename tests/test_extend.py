@@ -17,7 +17,7 @@ from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
 from lasercal.solver.identify.measurement import fit
-from lasercal.solver.kinematics.effects import Extension
+from lasercal.solver.kinematics.effects import Combination, Extension, combine, extension_from_model
 
 TRUTH = load_model("panda_thesis_identified")
 LAYOUT = load_layout(builtin_dir("layouts") / "thesis.yaml")
@@ -139,3 +139,39 @@ def test_a_fold_that_cannot_be_fitted_is_reported_not_fatal(tmp_path):
     h = held_out(s, fitter(), f)
     assert list(h.failed) == [1] and "too few" in h.failed[1]
     assert np.all(np.isnan(h.residuals[f == 1])) and np.all(np.isfinite(h.residuals[f == 0]))
+
+
+# ------------------------------------------------------------------ combinations
+COMPLIANCE2 = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))
+ECCENTRICITY3 = Extension("encoder_eccentricity", (3,), None, np.array([-0.5e-3, 2.0e-3]))
+
+
+def test_compliance_and_eccentricity_hidden_together_are_found_as_their_combination(tmp_path, capsys):
+    truth = combine([COMPLIANCE2, ECCENTRICITY3])
+    s = sim(tmp_path / "s", truth, 61)
+    d = diagnose(s, n_boot=0, k=5)
+    assert d.effect == "joint_compliance+encoder_eccentricity"
+    assert [(e.effect, e.joints) for e in d.extension.parts] == [
+        ("joint_compliance", (2,)),
+        ("encoder_eccentricity", (3,)),
+    ]
+    assert np.all(np.abs(d.extension.params - truth.params) < 4 * d.extension.std_errors)
+    combo = d.acceptance["combination"]
+    assert combo["accepted"] and all(p < 0.05 for p in combo["term_p"].values())
+    assert combo["holdout_rms_mm"]["combination"] < combo["holdout_rms_mm"]["single"]
+    # MODEL.yaml: one entry per effect; read back as the combination; predict applies it from q alone
+    assert main(["solve", str(s.path), "-o", str(tmp_path / "m.yaml"), "--extend", "auto"]) == 0
+    model = load_model(tmp_path / "m.yaml")
+    assert set(model.extensions) == {"joint_compliance", "encoder_eccentricity"}
+    back = extension_from_model(model.extensions, n=7)
+    assert isinstance(back, Combination) and back.names == ["c2", "a3", "b3"]
+    np.testing.assert_allclose(back.params, d.extension.params, rtol=1e-6)
+    np.testing.assert_allclose(back.logged_q(back.true_q(s.q, tau=s.tau), tau=s.tau), s.q, atol=1e-12)
+    assert predict_rms(capsys, tmp_path / "m.yaml", q_only_csv(s.path, tmp_path / "q.csv")) < 1.0
+
+
+@pytest.mark.parametrize("effect,seed", [(COMPLIANCE2, 62), (ECCENTRICITY3, 63), (COMPLIANCE2, 64)])
+def test_one_hidden_effect_is_never_diagnosed_as_a_combination(tmp_path, effect, seed):
+    d = diagnose(sim(tmp_path / "s", effect, seed), n_boot=0, k=0)  # the F tests alone: no held-out rescue
+    assert d.effect == effect.effect and d.extension.joints == effect.joints
+    assert "combination" not in d.acceptance

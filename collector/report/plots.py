@@ -35,7 +35,8 @@ def diagnosis_plots(d, out) -> list[Path]:
     res = geo.residuals
     written = []
 
-    ext = d.extension or d.tests[0].extension
+    ext = (d.extension or d.tests[0].extension).parts[0]  # a combination: its first effect
+    fitted = d.extension.parts[0] if d.extension is not None else None
     fig, ax = plt.subplots(figsize=(6, 4))
     if ext.effect == "reference_point_offset":
         names = list(dict.fromkeys(s.point))
@@ -56,13 +57,13 @@ def diagnosis_plots(d, out) -> list[Path]:
             np.linalg.norm(col, axis=1) ** 2, 1e-12
         )  # rad of joint motion that would remove it
         ax.scatter(G[:, 0], 1e3 * along, s=8, label="captures")
-        if d.extension is not None:
+        if fitted is not None:
             gx = np.linspace(G[:, 0].min(), G[:, 0].max(), 50)
             ax.plot(
                 gx,
-                1e3 * d.extension.params[0] * gx,
+                1e3 * fitted.params[0] * gx,
                 "r",
-                label=f"fitted {d.extension.names[0]} (the geometric fit absorbs part of it)",
+                label=f"fitted {fitted.names[0]} (the geometric fit absorbs part of it)",
             )
             ax.legend()
         lo, hi = np.percentile(1e3 * along, [3, 97])

@@ -70,7 +70,7 @@ PUBLISHED = {
     "source": "platonics-delft/kinematics_calibration README; calibrate_fk/utils.py evaluate_model, "
     "compute_improved_performance",
 }
-MODELS = ("nominal", "plain", "geometric", "nested", "fixed", "compliance")  # see loto()
+MODELS = ("nominal", "plain", "geometric", "nested", "nested_plain", "fixed", "compliance")  # see loto()
 PLAIN_TOLERANCE = 0.02  # the robust fit's held-out spread may exceed plain least squares' by this share
 
 
@@ -233,7 +233,8 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     Per fold, fitted on the other positions (robust loss on): plain least squares ('plain', no
     outlier test: MUKCa's own optimiser), the geometric model and the effect :func:`diagnose`
     selects and accepts on them by its own inner leave-one-position-out ('nested': no selection
-    leak; the geometric model when nothing is kept), the whole-session finding refitted
+    leak; the geometric model when nothing is kept), that model fitted by plain least squares
+    ('nested_plain': what the outlier test costs it), the whole-session finding refitted
     ('fixed'), and joint compliance on ``common`` ('compliance'). Train metrics use the
     training captures the geometric fit kept; test metrics use every held-out capture.
 
@@ -264,8 +265,13 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
             "nested": (d.extended.model, d.extended.extension) if d.extended else (d.geometric.model, None),
             "compliance": (comp.model, comp.extension),
         }
+        if d.extended is not None:  # the same extended model without the outlier test
+            npl = fit(train, d.extension.with_params(np.zeros(d.extension.size)), robust=False)
+            fits["nested_plain"] = (npl.model, npl.extension)
+        else:
+            fits["nested_plain"] = fits["plain"]
         if fixed is not None:
-            fx = fit(train, replace(fixed, params=np.zeros(fixed.size), std_errors=None))
+            fx = fit(train, fixed.with_params(np.zeros(fixed.size)))
             fits["fixed"] = (fx.model, fx.extension)
         else:
             fits["fixed"] = fits["geometric"]
@@ -276,6 +282,7 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
             "flagged": len(d.geometric.outliers),
             "nested_effect": d.effect,
             "nested_joints": list(d.extension.joints) if d.extension else [],
+            "nested_label": d.extension.label if d.extension else "none",
             "nested_p": d.p_value,
             "nested_proposed": d.proposed.effect if d.proposed else "none",
             "converged": bool(d.geometric.converged),
@@ -290,6 +297,9 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
         g, pl = rec["test"]["geometric"]["spread_rms_mm"], rec["test"]["plain"]["spread_rms_mm"]
         rec["geometric_over_plain"] = g / pl
         rec["nested_over_plain"] = rec["test"]["nested"]["spread_rms_mm"] / pl
+        rec["nested_over_nested_plain"] = (
+            rec["test"]["nested"]["spread_rms_mm"] / rec["test"]["nested_plain"]["spread_rms_mm"]
+        )
         c_folds.append(comp.extension.params.tolist())
         folds.append(rec)
     detail = {m: _merge(test_parts[m]) for m in MODELS}
@@ -512,7 +522,7 @@ def _regressor_plot(d: Diagnosis) -> dict:
     'none')."""
     s = d.session
     fitted = d.extended or d.geometric
-    ext = d.extension or d.tests[0].extension
+    ext = (d.extension or d.tests[0].extension).parts[0]  # a combination: its first effect
     j = ext.joints[0] - 1
     used = fitted.weights > 0
     q = d.extension.true_q(s.q, s.t, s.tau) if d.extension else s.q
@@ -528,7 +538,7 @@ def _regressor_plot(d: Diagnosis) -> dict:
     }[ext.effect]
     effect = np.zeros(s.m)
     if d.extension is not None:
-        p = d.extension.params
+        p = d.extension.parts[0].params
         effect = p[0] * np.sin(x) + p[1] * np.cos(x) if ext.effect == "encoder_eccentricity" else p[0] * x
     order = np.argsort(x[used])
     return {
@@ -731,12 +741,8 @@ def conclusion(rep: dict) -> dict:
     gains = 100.0 * (g - e) / g
     h = stdtrit(len(gains) - 1, 0.975) * gains.std(ddof=1) / np.sqrt(len(gains)) if len(gains) > 1 else np.nan
     dg = rep["diagnosis"]
-    kept = (
-        dg["effect"]
-        if dg["effect"] == "none"
-        else f"{dg['effect']} at joints {','.join(map(str, dg['joints']))}"
-    )
-    worst = max(f["geometric_over_plain"] for f in folds)
+    kept = dg["label"]
+    worst = max(max(f["geometric_over_plain"], f["nested_over_nested_plain"]) for f in folds)
     line = (
         f"{kept}; held-out spread geometric {g.mean():.3f} -> extended {e.mean():.3f} mm, gain "
         f"{gains.mean():+.1f}% (95% CI {gains.mean() - h:+.1f} to {gains.mean() + h:+.1f}% over "
@@ -1021,7 +1027,7 @@ def markdown(rep: dict) -> str:
                 [r, f["held_out"], f["captures"]["test"]]
                 + [f"{t[m]['spread_rms_mm']:.3f}" for m in ("nominal", "geometric", "nested", "fixed")]
                 + [f"{t[m]['distance_error_mm']:.3f}" for m in ("nominal", "geometric", "nested", "fixed")]
-                + [f"{f['nested_effect']} {','.join(map(str, f['nested_joints']))}".strip()]
+                + [f["nested_label"]]
             )
     md.append(
         _table(
@@ -1159,7 +1165,12 @@ def markdown(rep: dict) -> str:
                 ",".join(map(str, dg["joints"])),
                 _p(dg["p_value"]),
                 _p(dg["details"]["bootstrap_p_value"]),
-                params + (f" ({dg['parameters'][next(iter(dg['parameters']))]['units']})" if params else ""),
+                params
+                + (
+                    f" ({'; '.join(dict.fromkeys(v['units'] for v in dg['parameters'].values()))})"
+                    if params
+                    else ""
+                ),
                 runner,
             ]
         )

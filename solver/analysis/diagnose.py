@@ -50,7 +50,14 @@ from lasercal.solver.identify.point import polish_point, session_targets, tip_jo
 from lasercal.solver.identify.position import point_joint_jacobian, sensor_points
 from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.aim import polish
-from lasercal.solver.kinematics.effects import ROBOT_EFFECTS, Extension, candidates, untested
+from lasercal.solver.kinematics.effects import (
+    ROBOT_EFFECTS,
+    Combination,
+    Extension,
+    candidates,
+    combine,
+    untested,
+)
 from lasercal.solver.kinematics.gravity import gravity_torques, model_torques
 from lasercal.solver.kinematics.laser import spot_joint_jacobian
 
@@ -128,10 +135,10 @@ class Diagnosis:
     robust: bool = True
 
     @property
-    def robot_extension(self) -> Extension | None:
+    def robot_extension(self) -> Extension | Combination | None:
         """The kept extension if it is a robot effect (what MODEL.yaml carries), else None."""
         e = self.extension
-        return e if e is not None and e.effect in ROBOT_EFFECTS else None
+        return e if e is not None and all(p.effect in ROBOT_EFFECTS for p in e.parts) else None
 
     @property
     def gain_percent(self) -> float:
@@ -143,14 +150,21 @@ class Diagnosis:
         ext = self.extension
         params = {}
         if ext is not None:
-            for nm, v, se in zip(
-                ext.names, ext.params, ext.std_errors if ext.std_errors is not None else [np.nan] * ext.size
+            for nm, v, se, u in zip(
+                ext.names,
+                ext.params,
+                ext.std_errors if ext.std_errors is not None else [np.nan] * ext.size,
+                ext.units,
             ):
-                params[nm] = {"value": float(v), "std_error": float(se), "units": _unit(ext.effect)}
+                params[nm] = {"value": float(v), "std_error": float(se), "units": u}
         return {
             "effect": self.effect,
             "joints": [int(j) for j in ext.joints] if ext else [],
             "point": ext.point if ext else None,
+            "parts": [{"effect": e.effect, "joints": [int(j) for j in e.joints]} for e in ext.parts]
+            if ext
+            else [],
+            "label": ext.label if ext else "none",
             "parameters": params,
             "p_value": float(self.p_value),
             "holdout_rms_mm": {k: round(float(v), 6) for k, v in self.holdout_rms.items()},
@@ -186,12 +200,6 @@ class Diagnosis:
                 ],
             },
         }
-
-
-def _unit(effect: str) -> str:
-    from lasercal.solver.kinematics.effects import UNITS
-
-    return UNITS[effect]
 
 
 def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, str]:
@@ -394,6 +402,100 @@ def acceptance(h_geo: HeldOut, h_ext: HeldOut, keep: np.ndarray, grouping: str) 
     }
 
 
+def _grow(session: Session, first: Extension, fixed: list, exts: list, tau, alpha: float, robust: bool):
+    """Forward selection of one effect's joints: start at ``first`` and add the joint of the same effect
+    whose conditional score test (Bonferroni over the remaining joints, at the refit) is significant, while
+    one is. ``fixed`` are other effects fitted alongside (a combination's first part).
+
+    Returns
+    -------
+    (Extension, the grown effect), (Identification, the fit of ``fixed`` + it)
+    """
+    grown = first
+    ext_fit = fit(session, combine(fixed + [grown]), robust=robust)
+    if first.effect == "reference_point_offset":
+        return grown, ext_fit
+    while True:
+        rest = [e for e in exts if e.effect == grown.effect and e.joints[0] not in grown.joints]
+        if not rest:
+            return grown, ext_fit
+        nxt = score_tests(session, ext_fit, rest, tau)[0]
+        if nxt.p_adjusted >= alpha:
+            return grown, ext_fit
+        grown = Extension(
+            grown.effect,
+            tuple(sorted(grown.joints + nxt.extension.joints)),
+            None,
+            np.zeros(grown.size + nxt.extension.size),
+        )
+        ext_fit = fit(session, combine(fixed + [grown]), robust=robust)
+
+
+def _merge(terms: list) -> Extension | Combination:
+    """One extension from single-joint terms: an Extension per effect (joints sorted), combined."""
+    parts = []
+    for eff in dict.fromkeys(t.effect for t in terms):
+        joints = tuple(sorted(j for t in terms if t.effect == eff for j in t.joints))
+        parts.append(Extension(eff, joints, None, np.zeros(sum(t.size for t in terms if t.effect == eff))))
+    return combine(parts)
+
+
+def _combination(
+    session: Session, chosen: Extension, ext_fit: Identification, exts: list, tau, alpha: float, robust: bool
+) -> dict | None:
+    """The other robot effect on further joints, given the chosen one.
+
+    Proposed when its score test (Bonferroni over its joints, at the chosen effect's fit) is significant;
+    its joints are grown like the first effect's. Then every term (one effect on one joint) must pass the
+    nested F test given all the others (score test at the fit without it, Bonferroni over the terms): the
+    least significant failing term is dropped and the rest retested -- e.g. eccentricity on the joint
+    whose compliance is in the model, which gravity torques ~ sin q make nearly collinear with it. What
+    remains is a combination only when both effects keep a joint.
+
+    Returns
+    -------
+    None, or dict: 'extension' (Combination, parameters zero), 'fit' (Identification), 'term_p' (term
+    label -> Bonferroni-corrected p given the other terms), 'dropped' (labels of the terms that failed)
+    """
+    others = [e for e in exts if e.effect in ROBOT_EFFECTS and e.effect != chosen.effect]
+    if not others:
+        return None
+    nxt = score_tests(session, ext_fit, others, tau)[0]
+    if nxt.p_adjusted >= alpha:
+        return None
+    second, _ = _grow(session, nxt.extension, [chosen], exts, tau, alpha, robust)
+    terms = [
+        Extension(e.effect, (j,), None, np.zeros(e.size // len(e.joints)))
+        for e in (chosen, second)
+        for j in e.joints
+    ]
+    dropped = []
+    while True:
+        p = [
+            min(
+                1.0,
+                len(terms)
+                * score_tests(
+                    session, fit(session, _merge(terms[:i] + terms[i + 1 :]), robust=robust), [t], tau
+                )[0].p,
+            )
+            for i, t in enumerate(terms)
+        ]
+        worst = int(np.argmax(p))
+        if p[worst] < alpha:
+            break
+        dropped.append(terms.pop(worst).label)
+        if len({t.effect for t in terms}) < 2:
+            return None
+    combo = _merge(terms)
+    return {
+        "extension": combo,
+        "fit": fit(session, combo, robust=robust),
+        "term_p": {t.label: pi for t, pi in zip(terms, p)},
+        "dropped": dropped,
+    }
+
+
 def diagnose(
     session: Session,
     alpha: float = ALPHA,
@@ -448,24 +550,11 @@ def diagnose(
     tests = tester.tests()
     best = tests[0]
     chosen = None
+    combo = None  # a combination proposed by the F tests, with its fit and the part tests
     if best.p_adjusted < alpha or effect is not None:
-        chosen = best.extension
-        ext_fit = fit(session, chosen, robust=robust)
-        if chosen.effect != "reference_point_offset":  # more joints of the same effect, while significant
-            while True:
-                rest = [e for e in exts if e.effect == chosen.effect and e.joints[0] not in chosen.joints]
-                if not rest:
-                    break
-                nxt = score_tests(session, ext_fit, rest, tau)[0]
-                if nxt.p_adjusted >= alpha:
-                    break
-                chosen = Extension(
-                    chosen.effect,
-                    tuple(sorted(chosen.joints + nxt.extension.joints)),
-                    None,
-                    np.zeros(chosen.size + nxt.extension.size),
-                )
-                ext_fit = fit(session, chosen, robust=robust)
+        chosen, ext_fit = _grow(session, best.extension, [], exts, tau, alpha, robust)
+        if effect is None and chosen.effect in ROBOT_EFFECTS:
+            combo = _combination(session, chosen, ext_fit, exts, tau, alpha, robust)
     ambiguous = tuple(
         t.label
         for t in tests[1:]
@@ -483,16 +572,33 @@ def diagnose(
         )
         h_geo = held_out(session, fitter(robust=robust), f)
         h_ext = held_out(session, fitter(robust=robust, extension=chosen), f) if chosen else h_geo
+        if combo is not None:  # kept only when it predicts held-out data better than its first effect alone
+            h_combo = held_out(session, fitter(robust=robust, extension=combo["extension"]), f)
+            vs = acceptance(h_ext, h_combo, inlier, grouping)
+            combo["accepted"] = vs["accepted"]
+            combo["holdout_rms_mm"] = {"single": vs["holdout_rms_mm"]["geometric"]} | {
+                "combination": vs["holdout_rms_mm"]["extended"]
+            }
+            combo["gain_percent_folds"] = vs["gain_percent_folds"]
+            if vs["accepted"]:
+                chosen, ext_fit, h_ext = combo["extension"], combo["fit"], h_combo
         acc = acceptance(h_geo, h_ext, inlier, grouping)
         if chosen is not None and not acc["accepted"] and effect is None:
             acc["rejected"] = "the extension does not predict held-out data better than the geometry"
         r_geo, r_ext = h_geo.residuals, h_ext.residuals
         held = acc["holdout_rms_mm"]
     else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
+        if combo is not None:
+            combo["accepted"] = True
+            chosen, ext_fit = combo["extension"], combo["fit"]
         acc = {"decided_by": "F test only", "accepted": chosen is not None}
         r_geo = geo.residuals
         r_ext = ext_fit.residuals if chosen else r_geo
         held = {"geometric": rms(r_geo), "extended": rms(r_ext)}
+    if combo is not None:
+        acc["combination"] = {k: v for k, v in combo.items() if k not in ("extension", "fit")} | {
+            "label": combo["extension"].label
+        }
     keep = chosen is not None and (acc["accepted"] or effect is not None)
     statistics = {
         "nominal": {"train": nominal_rms, "holdout": nominal_rms if k > 1 else None},

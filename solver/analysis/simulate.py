@@ -15,7 +15,7 @@ from lasercal.solver.errors import AimingError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim, polish
-from lasercal.solver.kinematics.effects import JOINT_EFFECTS, Extension
+from lasercal.solver.kinematics.effects import Combination, Extension
 from lasercal.solver.kinematics.gravity import gravity_torques
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -47,7 +47,7 @@ def simulate_captures(
     aim_noise: float,
     rng: np.random.Generator,
     points=None,
-    effect: Extension | None = None,
+    effect: Extension | Combination | None = None,
     tau_noise: float = 0.05,
 ) -> SimulatedCaptures:
     """Configurations of the true robot aimed at each reference point with aiming noise.
@@ -84,7 +84,7 @@ def simulate_captures(
         raise AimingError("a noisy aim left the joint limits; lower the aiming noise")
     t = np.cumsum(rng.uniform(10.0, 30.0, len(q)))
     tau_true = gravity_torques(truth, q) if truth.links else None
-    if effect is not None and effect.effect in JOINT_EFFECTS:
+    if effect is not None and effect.acts_on_joints:
         q = effect.logged_q(q, t, tau_true)
     tau = None if tau_true is None else tau_true + rng.normal(0, tau_noise, tau_true.shape)
     return SimulatedCaptures(
@@ -114,7 +114,7 @@ def simulate_positions(
     names: np.ndarray,
     noise_mm: float,
     rng: np.random.Generator,
-    effect: Extension | None = None,
+    effect: Extension | Combination | None = None,
     tau: np.ndarray | None = None,
 ) -> np.ndarray:
     """Sensor readings (m, 3) mm of the truth's targets (its ``targets`` and ``sensor_pose``) at the logged

@@ -181,7 +181,7 @@ def identify_point(
     k = extension.size if extension else 0
     if extension:
         require(extension, t, tau)
-        if extension.effect not in ("joint_compliance", "encoder_eccentricity", "drift"):
+        if not extension.acts_on_joints:
             raise IdentificationError(f"{extension.effect} does not apply to point measurements")
         idx, G = extension.regressors(q, t, tau)
     p = P.size
@@ -224,9 +224,7 @@ def identify_point(
         "n_params": p + k,
     }
     fitted = extension.with_params(fit.v[p:], se[p:]) if extension else None
-    model = P.to_model(
-        fit.v[:p], identification=meta, extensions={fitted.effect: fitted.to_dict()} if fitted else {}
-    )
+    model = P.to_model(fit.v[:p], identification=meta, extensions=fitted.model_entries() if fitted else {})
     points = {nm: fit.v[c : c + 3].tolist() for nm, c in P.col.items()}
     return Identification(
         "lm",

@@ -287,7 +287,7 @@ def identify_position(
     k = extension.size if extension else 0
     if extension:
         require(extension, t, tau)
-        if extension.effect not in ("joint_compliance", "encoder_eccentricity", "drift"):
+        if not extension.acts_on_joints:
             raise IdentificationError(f"{extension.effect} does not apply to position measurements")
         idx, G = extension.regressors(q, t, tau)
     p = P.size
@@ -333,7 +333,7 @@ def identify_position(
     }
     fitted = extension.with_params(fit.v[p:], se[p:]) if extension else None
     model = P.to_model(
-        fit.v[:p], X0, identification=meta, extensions={fitted.effect: fitted.to_dict()} if fitted else {}
+        fit.v[:p], X0, identification=meta, extensions=fitted.model_entries() if fitted else {}
     )
     return Identification(
         "lm",

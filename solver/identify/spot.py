@@ -239,9 +239,7 @@ def identify_lm(
         "n_params": p + k,
     }
     fitted = extension.with_params(v[p:], se_all[p:]) if extension else None
-    extensions = (
-        {fitted.effect: fitted.to_dict()} if fitted and fitted.effect != "reference_point_offset" else {}
-    )
+    extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
     model = P.to_model(v[:p], identification=meta, extensions=extensions)
     return Identification(
         "lm",

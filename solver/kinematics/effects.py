@@ -7,6 +7,11 @@ Each effect adds a few parameters and is linear in them:
 * ``drift``                 q_true_i = q_logged_i + r_i t                 (r: rad/s)
 * ``reference_point_offset`` the true point is the session's point + (dx, dy)    (mm)
 
+A :class:`Combination` applies several joint effects at once (e.g. compliance on joints 2-3 and
+eccentricity on joint 4): q_true = q_logged + sum over its parts of their corrections, each
+evaluated at the logged angles (so the parameters stay linear and the Jacobian exact). In a model
+file it is simply several entries of ``extensions`` (one per effect).
+
 Sign convention: tau is the torque that holds the arm still against gravity, tau = dV/dq
 (:mod:`solver.gravity`, libfranka's ``tau_J`` at standstill). A joint that yields under load
 turns down the gradient, so a physical sag has c < 0 and the joint's stiffness is k = -1/c.
@@ -73,6 +78,34 @@ class Extension:
             return [f"{self.point}.dx", f"{self.point}.dy"]
         return [f"{p}{j}" for j in self.joints for p in _PARAMS[self.effect]]
 
+    @property
+    def parts(self) -> tuple:
+        """The single-effect extensions it consists of (itself)."""
+        return (self,)
+
+    @property
+    def acts_on_joints(self) -> bool:
+        """Whether it corrects joint angles (every effect but a reference-point offset)."""
+        return self.effect in JOINT_EFFECTS
+
+    @property
+    def units(self) -> list[str]:
+        """Unit of each parameter."""
+        return [UNITS[self.effect]] * self.size
+
+    @property
+    def label(self) -> str:
+        """'joint_compliance at joints 2,3' or 'reference_point_offset at P2'."""
+        if self.point:
+            return f"{self.effect} at {self.point}"
+        return (
+            f"{self.effect} at joint{'s' if len(self.joints) > 1 else ''} {','.join(map(str, self.joints))}"
+        )
+
+    def model_entries(self) -> dict:
+        """The model file's ``extensions`` entries: effect -> :meth:`to_dict`."""
+        return {self.effect: self.to_dict()}
+
     def with_params(self, params, std_errors=None) -> Extension:
         return Extension(
             self.effect,
@@ -112,7 +145,7 @@ class Extension:
 
     def true_q(self, q: np.ndarray, t: np.ndarray | None = None, tau: np.ndarray | None = None) -> np.ndarray:
         """q_true (m, n) from the logged q (unchanged for a point offset)."""
-        if self.effect not in JOINT_EFFECTS or not self.joints:
+        if not self.acts_on_joints or not self.joints:
             return q
         idx, G = self.regressors(q, t, tau)
         dq = np.zeros_like(q)
@@ -157,14 +190,88 @@ class Extension:
         return d
 
 
+@dataclass(frozen=True)
+class Combination:
+    """Several joint effects applied together: q_true = q_logged + sum_k dq_k(q_logged, t, tau).
+
+    The interface of :class:`Extension` (parameters concatenated part by part, in the order of
+    ``parts``), so every fit, prediction and export takes either.
+
+    Attributes
+    ----------
+    parts : tuple of Extension, joint effects, at most one per effect family
+    """
+
+    parts: tuple
+
+    def __post_init__(self):
+        effects = [e.effect for e in self.parts]
+        if (
+            len(self.parts) < 2
+            or len(set(effects)) != len(effects)
+            or not all(e.acts_on_joints for e in self.parts)
+        ):
+            raise ModelError(f"a combination takes two or more different joint effects, not {effects}")
+
+    effect = property(lambda self: "+".join(e.effect for e in self.parts), doc="'joint_compliance+...'")
+    joints = property(lambda self: tuple(sorted({j for e in self.parts for j in e.joints})))
+    point = None
+    acts_on_joints = True
+    params = property(lambda self: np.concatenate([e.params for e in self.parts]))
+    size = property(lambda self: sum(e.size for e in self.parts))
+    names = property(lambda self: [n for e in self.parts for n in e.names])
+    units = property(lambda self: [u for e in self.parts for u in e.units])
+    label = property(lambda self: " + ".join(e.label for e in self.parts))
+
+    @property
+    def std_errors(self) -> np.ndarray | None:
+        if any(e.std_errors is None for e in self.parts):
+            return None
+        return np.concatenate([e.std_errors for e in self.parts])
+
+    def _split(self, x) -> list:
+        return np.split(np.asarray(x, float), np.cumsum([e.size for e in self.parts])[:-1])
+
+    def with_params(self, params, std_errors=None) -> Combination:
+        se = [None] * len(self.parts) if std_errors is None else self._split(std_errors)
+        return Combination(tuple(e.with_params(p, s) for e, p, s in zip(self.parts, self._split(params), se)))
+
+    def needs(self) -> set:
+        return set().union(*(e.needs() for e in self.parts))
+
+    def regressors(self, q, t, tau) -> tuple[np.ndarray, np.ndarray]:
+        """Joint index (k,) and regressor values (m, k) of every parameter, part by part."""
+        idx, G = zip(*(e.regressors(q, t, tau) for e in self.parts))
+        return np.concatenate(idx), np.concatenate(G, axis=1)
+
+    true_q = Extension.true_q
+    logged_q = Extension.logged_q
+
+    def target_offset(self, point_names: np.ndarray) -> np.ndarray:
+        return np.zeros((len(point_names), 2))
+
+    def model_entries(self) -> dict:
+        """One ``extensions`` entry per part."""
+        return {e.effect: e.to_dict() for e in self.parts}
+
+
+def combine(parts) -> Extension | Combination:
+    """One extension from parts (a Combination when there are several), ordered as the catalogue."""
+    if len(parts) == 1:
+        return parts[0]
+    return Combination(tuple(sorted(parts, key=lambda e: JOINT_EFFECTS.index(e.effect))))
+
+
 def robot_extensions(extensions: dict) -> dict:
     """The model file's ``extensions`` mapping restricted to robot effects (what MODEL.yaml exports)."""
     return {k: v for k, v in (extensions or {}).items() if k in ROBOT_EFFECTS}
 
 
-def extension_from_model(extensions: dict, path="<model>", n: int | None = None) -> Extension | None:
-    """The (single) joint effect a model file carries in ``extensions``, validated; None if none."""
-    joint = [e for e in (extensions or {}) if e in JOINT_EFFECTS]
+def extension_from_model(
+    extensions: dict, path="<model>", n: int | None = None
+) -> Extension | Combination | None:
+    """The joint effect(s) a model file carries in ``extensions``, validated: an Extension, a
+    Combination when it carries several effects, or None."""
     unknown = [e for e in (extensions or {}) if e not in EFFECTS]
     if unknown:
         raise FormatError(
@@ -172,30 +279,34 @@ def extension_from_model(extensions: dict, path="<model>", n: int | None = None)
             f"unknown extension {unknown[0]!r} (known: {', '.join(EFFECTS[:-1])})",
             field=f"extensions.{unknown[0]}",
         )
-    if not joint:
-        return None
-    if len(joint) > 1:
-        raise FormatError(path, "only one joint effect per model is supported", field="extensions")
-    name = joint[0]
-    d = extensions[name]
-    try:
-        joints = tuple(int(j) for j in d["joints"])
-        cols = [np.array(d[p], dtype=float) for p in _PARAMS[name]]
-    except (KeyError, TypeError, ValueError):
-        raise FormatError(
-            path,
-            f"extension {name} needs 'joints' and {', '.join(_PARAMS[name])} lists",
-            field=f"extensions.{name}",
-        ) from None
-    if not all(np.all(np.isfinite(c)) for c in cols):
-        raise FormatError(
-            path, f"extension {name}: every coefficient must be a finite number", field=f"extensions.{name}"
-        )
-    if any(len(c) != len(joints) for c in cols) or (n is not None and any(not 1 <= j <= n for j in joints)):
-        raise FormatError(
-            path, f"extension {name}: one value per joint, joints numbered 1..{n}", field=f"extensions.{name}"
-        )
-    return Extension(name, joints, None, np.stack(cols, axis=1).ravel())
+    parts = []
+    for name in (e for e in JOINT_EFFECTS if e in (extensions or {})):
+        d = extensions[name]
+        try:
+            joints = tuple(int(j) for j in d["joints"])
+            cols = [np.array(d[p], dtype=float) for p in _PARAMS[name]]
+        except (KeyError, TypeError, ValueError):
+            raise FormatError(
+                path,
+                f"extension {name} needs 'joints' and {', '.join(_PARAMS[name])} lists",
+                field=f"extensions.{name}",
+            ) from None
+        if not all(np.all(np.isfinite(c)) for c in cols):
+            raise FormatError(
+                path,
+                f"extension {name}: every coefficient must be a finite number",
+                field=f"extensions.{name}",
+            )
+        if any(len(c) != len(joints) for c in cols) or (
+            n is not None and any(not 1 <= j <= n for j in joints)
+        ):
+            raise FormatError(
+                path,
+                f"extension {name}: one value per joint, joints numbered 1..{n}",
+                field=f"extensions.{name}",
+            )
+        parts.append(Extension(name, joints, None, np.stack(cols, axis=1).ravel()))
+    return combine(parts) if parts else None
 
 
 def candidates(n: int, points, has_tau: bool, has_t: bool) -> list[Extension]:
