@@ -54,6 +54,13 @@ def test_libraries_do_not_import_the_application(pkg, forbidden):
     assert not bad
 
 
+def test_only_the_command_line_imports_the_command_line():
+    for pkg in PACKAGES:
+        for name, f in modules(pkg).items():
+            if not name.startswith("lasercal.collector.cli"):
+                assert not [m for m in imports(f) if m.startswith("lasercal.collector.cli")], name
+
+
 def test_solver_never_prints_nor_parses_arguments():
     for name, f in modules("solver").items():
         tree = ast.parse(f.read_text())

@@ -59,78 +59,8 @@ def parse_payload(text: str | None):
     return vals[0], np.array(vals[1:])
 
 
-def format_diagnosis(d) -> str:
-    """A person's summary of a Diagnosis."""
-    import numpy as np
-
-    o = d.as_dict()
-    lines = []
-    if o["effect"] == "none":
-        lines.append(
-            "finding: none -- the geometric model and aiming noise explain the data (best candidate "
-            f"{d.tests[0].label}, corrected p = {o['p_value']:.3g})"
-        )
-    else:
-        where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(map(str, o["joints"]))
-        lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
-        for nm, v in o["parameters"].items():
-            lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
-        if d.ambiguous_with:
-            lines.append(
-                "  (explains the data almost as well: "
-                + ", ".join(d.ambiguous_with)
-                + " -- more reference points would tell them apart)"
-            )
-    b = d.bootstrap
-    if b:
-        lines.append(
-            f"simulation: {b['replicates']} first-order re-runs of the experiment on the identified "
-            "geometric robot; the measured strongest-candidate statistic beats "
-            f"{100 * (1 - b['p_value']):.1f}% of them (bootstrap p = {b['p_value']:.3g})"
-        )
-        if b["rms_mm"]:
-            lines.append(
-                f"  residual RMS: measured {b['observed_rms_mm']:.3f} mm, simulated "
-                f"{np.mean(b['rms_mm']):.3f} +- {np.std(b['rms_mm']):.3f} mm ({b['refits']} full refits)"
-            )
-    acc, st = d.acceptance, d.statistics
-    if d.proposed is not None and d.extension is None:
-        lines.append(
-            f"proposed by the F test: {d.proposed.effect} {d.proposed.names} -- not kept: "
-            + acc.get("rejected", "")
-        )
-    if acc.get("decided_by") == "cross-validation":
-        ci = acc.get("gain_percent_ci95")
-        h = acc["holdout_rms_mm"]
-        cand = d.proposed.effect if d.proposed else "no extension"
-        lines.append(
-            f"held-out ({acc['folds']} folds by {acc['grouping']}): geometric {h['geometric']:.3f} mm, "
-            f"with {cand} {h['extended']:.3f} mm; gain per fold "
-            + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
-            + f"  (torques: {d.torque_source})"
-        )
-        for i, why in acc.get("failed_folds", {}).items():
-            lines.append(f"  fold {i} could not be fitted: {why}")
-    else:
-        lines.append(f"no cross-validation: the F test decided alone  (torques: {d.torque_source})")
-    if st:
-        lines.append(f"{'RMS (mm)':10} {'nominal':>9} {'geometric':>10} {'extended':>9}")
-        for part in ("train", "holdout"):
-            vals = [st[m][part] for m in ("nominal", "geometric", "extended")]
-            lines.append(
-                f"{part:10} " + " ".join(f"{v:9.3f}" if v is not None else f"{'-':>9}" for v in vals)
-            )
-    for eff, why in d.untested.items():
-        lines.append(f"not tested: {eff} -- {why}")
-    if d.extension is not None and d.robot_extension is None:
-        lines.append(f"{d.effect} is a session effect: fitted and reported, not written to the robot model")
-    lines.append("candidates (F test against the geometric model, Bonferroni over all):")
-    for t in d.tests[:6]:
-        lines.append(f"  {t.label:38} F = {t.F:9.3f}  df {t.df}  p = {t.p:.3g}  corrected {t.p_adjusted:.3g}")
-    return "\n".join(lines)
-
-
 def cmd_diagnose(args) -> int:
+    from lasercal.collector.report.text import format_diagnosis
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.formats.session import load_session
 

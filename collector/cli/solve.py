@@ -169,7 +169,7 @@ def _print_points(rep: dict, w) -> None:
 
 
 def cmd_solve(args) -> int:
-    from lasercal.collector.cli.diagnose import format_diagnosis
+    from lasercal.collector.report.text import format_diagnosis
     from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
@@ -207,6 +207,7 @@ def cmd_solve(args) -> int:
             inlier=ident.weights > 0,
             robust=robust,
             extension=diagnosis.extension if diagnosis else None,
+            start=ident.model if args.method == "lm" else None,  # each fold converges from here in few steps
         )
         if args.folds and args.folds > 1
         else None

@@ -17,22 +17,20 @@ Contents, in the thesis's terms (Section 4.3):
 
 from __future__ import annotations
 
-import csv
 import html
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from lasercal.collector.cli.diagnose import format_diagnosis
 from lasercal.collector.report.plots import diagnosis_plots
+from lasercal.collector.report.text import format_diagnosis
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
+from lasercal.solver.formats.table import csv_rows
 from lasercal.solver.identify.spot import Identification, spot_residuals
 from lasercal.solver.kinematics.laser import LaserParams
 
@@ -85,12 +83,7 @@ def load_validation(folder) -> Validation:
         raise FormatError(
             ypath, "not a lasercal validation (expected point: {name, xyz})", field="point"
         ) from None
-    text = read_text(cpath)
-    rows = [
-        (ln, r)
-        for ln, r in enumerate(csv.reader(io.StringIO(text)), start=1)
-        if r and not r[0].startswith("#")
-    ]
+    rows = csv_rows(cpath)
     if not rows or not {"x_mm", "y_mm"} <= set(rows[0][1]):
         raise FormatError(cpath, "expected a header with x_mm and y_mm", line=rows[0][0] if rows else None)
     header = rows[0][1]

@@ -29,6 +29,7 @@ from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, pr
 from lasercal.collector.sessions.store import CsvLog, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
+from lasercal.solver.formats.table import csv_rows
 from lasercal.solver.kinematics.aim import aim
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.vision.detect import detect_spots
@@ -222,15 +223,11 @@ class ValidationResult:
 
 def done_indices(path: Path) -> set[int]:
     """The configuration indices a validation.csv already holds (for --resume)."""
-    import csv
-
-    rows = [
-        r for r in csv.reader(path.read_text(encoding="utf-8").splitlines()) if r and not r[0].startswith("#")
-    ]
-    if not rows or rows[0][0] != "index":
+    rows = csv_rows(path)
+    if not rows or rows[0][1][0] != "index":
         raise FormatError(path, "not a validation table (expected a header starting with 'index')", line=1)
     out = set()
-    for ln, r in enumerate(rows[1:], start=2):
+    for ln, r in rows[1:]:
         try:
             out.add(int(r[0]))
         except ValueError:

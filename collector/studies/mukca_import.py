@@ -10,15 +10,14 @@ no times, so no effect in time is a candidate on them).
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import read_text
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, write_session
+from lasercal.solver.formats.table import csv_rows
 
 HOLE_DISTANCE = 50.0  # mm, checked with calipers by the authors
 # Nominal ball centre at q = 0: the hand's TCP is 103.4 mm beyond the flange (88, 0, 926) along
@@ -29,10 +28,7 @@ NOMINAL_TOOL = (88.0, 0.0, 926.0 - 103.4 - 30.1)
 def read_hole(path: Path) -> np.ndarray:
     """Joint angles (k, 7) rad of one hole file, with errors naming file, line and column."""
     rows = []
-    text = read_text(path)
-    for ln, row in enumerate(csv.reader(text.splitlines()), start=1):
-        if not row or row[0].lstrip().startswith("#"):
-            continue
+    for ln, row in csv_rows(path):
         if len(row) != 7:
             raise FormatError(path, f"expected 7 joint angles, found {len(row)}", line=ln)
         try:

@@ -147,11 +147,12 @@ def held_out(session: Session, fitter, fold: np.ndarray) -> HeldOut:
     return HeldOut(out, fold, failed)
 
 
-def fitter(method: str = "lm", robust: bool = True, extension=None):
-    """The ``fitter`` of :func:`held_out` for :func:`solver.identify.measurement.fit`."""
+def fitter(method: str = "lm", robust: bool = True, extension=None, start: RobotModel | None = None):
+    """The ``fitter`` of :func:`held_out` for :func:`solver.identify.measurement.fit`, from ``start``
+    (default: the session's nominal robot)."""
 
     def f(train: Session):
-        r = fit(train, extension, robust=robust, method=method)
+        r = fit(train, extension, nominal=start, robust=robust, method=method)
         return r.model, r.extension, r.extra.get("points")
 
     return f
@@ -199,6 +200,7 @@ def cross_validate(
     inlier: np.ndarray | None = None,
     robust: bool = True,
     extension=None,
+    start: RobotModel | None = None,
 ) -> CrossValidation:
     """Held-out error of each capture, predicted by a model fitted on the other folds.
 
@@ -211,13 +213,16 @@ def cross_validate(
     inlier : (m,) bool array, the captures the summary counts (default: all)
     robust : bool, the robust loss in every fold's fit
     extension : Extension, optional effect fitted with the geometry in every fold
+    start : RobotModel, where every fold's fit starts (e.g. the whole session's ``lm`` fit: each fold then
+        converges to its own optimum in a few steps; not for ``thesis``, whose iteration cap would keep it
+        near the start)
 
     Returns
     -------
     CrossValidation (in-plane spot errors, or tool-point errors against the training fit's points;
     NaN for the captures of a fold that could not be fitted, listed in ``failed``)
     """
-    h = held_out(session, fitter(method, robust, extension), grouped_folds(session, k, seed))
+    h = held_out(session, fitter(method, robust, extension, start), grouped_folds(session, k, seed))
     return CrossValidation(
         int(h.fold.max()) + 1,
         np.linalg.norm(h.residuals, axis=1),

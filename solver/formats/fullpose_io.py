@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import metres_hint, read_text
+from lasercal.solver.formats.checks import metres_hint
+from lasercal.solver.formats.table import csv_rows
 from lasercal.solver.identify.circlepoint import circle_point_pose, collinear
 
 LOCKED_TOL = 1e-4  # rad: the locked joints of one configuration must agree this well
@@ -93,14 +94,6 @@ class PoseData:
     path: str
 
 
-def _rows(path: Path):
-    """(line number, row) of the non-comment, non-blank rows of a CSV file."""
-    text = read_text(path)
-    for i, row in enumerate(csv.reader(text.splitlines()), start=1):
-        if row and not row[0].lstrip().startswith("#") and any(c.strip() for c in row):
-            yield i, [c.strip() for c in row]
-
-
 def _joint_columns(header: list, path: Path, line: int) -> list:
     """The q1..qN column names of a header, checked to be contiguous from q1."""
     qs = [h for h in header if h.startswith("q") and h[1:].isdigit()]
@@ -114,7 +107,7 @@ def _joint_columns(header: list, path: Path, line: int) -> list:
 
 def _parse(path: Path, required: list) -> tuple[list, list, list]:
     """Header-checked rows: (column names, [(line, {column: text})], header line)."""
-    rows = _rows(path)
+    rows = iter(csv_rows(path))
     try:
         hline, header = next(rows)
     except StopIteration:

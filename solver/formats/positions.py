@@ -26,10 +26,10 @@ from lasercal.solver.formats.session import (
     Session,
     _joint_columns,
     _numeric_block,
-    _read_csv,
     check_limits,
     format_row,
 )
+from lasercal.solver.formats.table import read_csv
 from lasercal.solver.kinematics.model import RobotModel
 
 DEFAULT_TARGET = "T1"
@@ -50,14 +50,14 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
     Session with ``measurement='position'``, ``target`` the measured positions (m, 3) mm
     """
     cpath = folder / "captures.csv"
-    header, rows = _read_csv(cpath)
+    header, rows = read_csv(cpath)
     n = robot.n
     qcols = _joint_columns("q", n)
     q = _numeric_block(cpath, rows, header, qcols)
     spath, sheader, srows = cpath, header, rows
     if meta.get("positions") is not None:
         spath = folder / str(meta["positions"])
-        sheader, srows = _read_csv(spath)
+        sheader, srows = read_csv(spath)
         if len(srows) != len(rows):
             raise FormatError(
                 spath,

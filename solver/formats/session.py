@@ -14,7 +14,6 @@ Every malformed input raises :class:`~solver.errors.FormatError` naming file, li
 from __future__ import annotations
 
 import csv
-import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,9 +22,10 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint, read_text
+from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
+from lasercal.solver.formats.table import read_csv
 from lasercal.solver.kinematics.model import RobotModel
 
 SESSION_FORMAT = "lasercal-session/1"
@@ -298,17 +298,6 @@ def captures_header(n: int, dq: bool = False, tau: bool = False, extra=()) -> li
     )
 
 
-def _read_csv(path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    text = read_text(path)
-    reader = csv.reader(io.StringIO(text))
-    rows = [(reader.line_num, r) for r in reader]
-    rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
-    if not rows:
-        raise FormatError(path, "empty file: expected a header line")
-    header = [h.strip() for h in rows[0][1]]
-    return header, rows[1:]
-
-
 def _numeric_block(path, rows, header, cols, required=True) -> np.ndarray | None:
     """Columns ``cols`` of the rows as floats, with errors naming line and column."""
     missing = [c for c in cols if c not in header]
@@ -428,7 +417,7 @@ def load_session(folder) -> Session:
                 f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
                 field="laser.aperture_z",
             )
-    header, rows = _read_csv(cpath)
+    header, rows = read_csv(cpath)
     n = robot.n
     if header[:2] != ["point", "t"]:
         raise FormatError(
@@ -560,7 +549,7 @@ class Configs:
 
 def load_configs(path, robot: RobotModel) -> Configs:
     """Load a configurations CSV (columns q1..qN, optional t and tau1..tauN; others passed through)."""
-    header, rows = _read_csv(path)
+    header, rows = read_csv(path)
     q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
     t = _numeric_block(path, rows, header, ["t"], required=False)
     tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)
