@@ -96,6 +96,7 @@ def test_spots_json_shape_and_mm(files, capsys):
             "saturated",
             "area",
             "on_ink",
+            "evidence",
         }
     got = np.array([[s["x_mm"], s["y_mm"]] for s in doc[1]["spots"]])
     for p in XY:
@@ -138,7 +139,7 @@ def test_imagej_method_from_the_command_line(files, capsys):
     [
         ("missing", "missing.jpg: no such file"),
         ("text", "text.jpg: not an image OpenCV can decode"),
-        ("none", "none.jpg: no red laser spot found"),
+        ("none", "none.jpg: no red or green laser spot found"),
         ("two", "two.jpg: 2 spots found where 1 is expected"),
     ],
 )

@@ -10,7 +10,7 @@ Stands alone: imports neither ``solver`` nor ``collector``.
 
 from lasercal.vision.beamcheck import Circle, fit_circle, tilt
 from lasercal.vision.camera import Camera, calibrate, load_camera, save_camera
-from lasercal.vision.detect import Spot, detect_spots
+from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import (
     CalibrationError,
     ImageReadError,
@@ -20,14 +20,18 @@ from lasercal.vision.errors import (
     SpotCountError,
     VisionError,
 )
+from lasercal.vision.exposure import Exposure, exposure_advice
 from lasercal.vision.images import read_image
-from lasercal.vision.measure import Options, PhotoResult, measure_photo
+from lasercal.vision.measure import Options, PhotoResult, measure_batch, measure_file, measure_photo
 from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane, load_layout
+from lasercal.vision.spot import Evidence, Spot
 
 __all__ = [
     "CalibrationError",
     "Camera",
     "Circle",
+    "Evidence",
+    "Exposure",
     "ImageReadError",
     "LayoutError",
     "MarkerError",
@@ -41,11 +45,14 @@ __all__ = [
     "VisionError",
     "calibrate",
     "detect_spots",
+    "exposure_advice",
     "find_fiducials",
     "fit_circle",
     "fit_plane",
     "load_camera",
     "load_layout",
+    "measure_batch",
+    "measure_file",
     "measure_photo",
     "read_image",
     "save_camera",

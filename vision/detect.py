@@ -1,30 +1,32 @@
 """Laser-spot detection and the precise sub-pixel centroid.
 
-Coordinates are pixels in OpenCV's convention (pixel centres at integer
-coordinates, ``u`` to the right, ``v`` down); intensities are digital numbers (DN)
-of the photo. ImageJ reports the same point at ``(u + 0.5, v + 0.5)``.
+Coordinates are pixels in OpenCV's convention (pixel centres at integer coordinates, ``u`` to the
+right, ``v`` down); intensities are digital numbers (DN) of the photo. ImageJ reports the same
+point at ``(u + 0.5, v + 0.5)``.
 
-Detection, on a red (or green) laser on white paper under room light:
+Detection, of a red (or green) laser on white paper under room light as a phone records it:
+from a dim coloured spot to a white clipped core whose colour survives only in a thin, pink
+(or pale green) halo.
 
-1. candidates: on a 1/f-size block average (fast on 12-megapixel photos), the
-   paper level (a tile percentile, so black markers do not sink it) is removed
-   from the laser's channel and from its *colour excess* (the channel minus the
-   brighter other one: ~0 on white paper, black ink and white glare alike). Laser
-   light is both brighter than the paper and coloured; both must pass 6 robust
-   sigmas. A saturated white core keeps a coloured rim, so it is found too.
-2. each candidate, at full resolution: a plane fitted to the box border is the
-   local background. Rejected: blobs not clearly brighter than the paper (red ink,
-   JPEG colour fringes beside ink), not laser-coloured on their unsaturated pixels
-   (white reflections), or dark at their own centre (fringe rings).
-3. centroid (``precise``): background-subtracted intensity-weighted centroid of the
-   laser's channel in a circular window re-centred until it settles, excluding
-   other spots' pixels. Clipping a symmetric spot keeps it symmetric, so
-   saturated pixels take part at their clipped value and do not bias the centre.
-   Where printed ink lies under an unsaturated spot, a Gaussian is fitted (in
-   linear intensity) to the pixels off the ink instead; spots on ink are flagged.
+1. candidates: on a 1/f-size block average (fast on 12-megapixel photos), the paper level (a
+   tile percentile, so black markers do not sink it) is removed from the laser's channel and
+   from its *colour excess* (the channel minus the brighter other one: ~0 on white paper, black
+   ink and white glare alike). A region brighter than the paper in the laser's channel is a
+   candidate as a whole when a few of its pixels are laser-coloured (the halo of a white core).
+2. each candidate, at full resolution, with a plane fitted to the box border as the local
+   background, is measured (:class:`Evidence`) and rejected when it is not brighter than the
+   paper in the laser's channel *and* in the luma (red ink: a phone's colour correction lifts
+   its red above the paper's, but it takes light away), when its halo is white (glare), or
+   when it is a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre).
+3. centroid (``precise``): an elliptical profile fitted in linear light to the spot and its
+   flanks; clipped pixels only bound the profile from below, so the centre of a clipped spot
+   comes from the plateau's edge and the unclipped flanks (see :func:`_fit_profile`). Its
+   sigma propagates the spot's asymmetry about the centre through the fit. Where printed ink
+   lies under a spot, its pixels are left out; spots on ink are flagged.
 
-With a laser-off reference photo the candidates come from the difference image,
-which holds nothing but laser light, and fainter spots are believed.
+With a laser-off reference photo the candidates come from the difference image, which holds
+nothing but laser light, and fainter spots are believed. ``colour="auto"`` tries both lasers
+and keeps the more convincing.
 """
 
 from __future__ import annotations
@@ -38,10 +40,15 @@ from scipy.optimize import least_squares
 from lasercal.vision.errors import NoSpotError, SpotCountError, VisionError
 from lasercal.vision.imagej import measure as imagej_measure
 from lasercal.vision.images import full_scale
-from lasercal.vision.spot import CHANNEL, Spot
+from lasercal.vision.spot import CHANNEL, Evidence, Spot
 
 LUMA = np.array([0.114, 0.587, 0.299])  # BGR weights of JPEG's luma (ITU-R BT.601)
 MAX_CANDIDATES = 50
+FIT_STRAY = 1.0  # px
+CLIP = 0.985  # a recorded value at or above this fraction of full scale is clipped
+LUMA_CLIP = 0.97  # the same for the luma: JPEG ringing wobbles a white core by a few DN
+HALO_MIN = 1.04  # halo colour ratio below which light is white, not laser light (white glare: <= 1.01)
+HALO_CAP = 20.0
 
 
 @dataclass(frozen=True)
@@ -59,13 +66,26 @@ class Candidate:
     v: float
 
 
+REASONS = {
+    "dim": "not brighter than the paper (printed marks?)",
+    "white": "white, not laser-coloured (reflections?)",
+    "fringe": "a faint coloured fringe beside ink or a ring (JPEG artefact)",
+}
+
+
 @dataclass(frozen=True)
 class Rejection:
-    """Why a candidate is not a laser spot (``kind`` is ``"dim"`` or ``"white"``)."""
+    """Why a candidate is not a laser spot (``kind`` is a key of :data:`REASONS`)."""
 
     kind: str
     u: float
     v: float
+    evidence: Evidence | None = None
+
+    def describe(self) -> str:
+        """One line: where, why, and the evidence when it was measured."""
+        ev = "" if self.evidence is None else f" ({self.evidence.describe()})"
+        return f"at ({self.u:.0f}, {self.v:.0f}) px: {REASONS[self.kind]}{ev}"
 
 
 def _channels(img: np.ndarray, ch: int) -> tuple[np.ndarray, np.ndarray]:
@@ -130,12 +150,21 @@ def find_candidates(
     small = cv2.resize(src, (w // f, h // f), interpolation=cv2.INTER_AREA) if f > 1 else src
     laser, excess = _channels(small, ch)
     strength = _highpass(excess.astype(np.float32))
-    mask = strength > max(k_sigma * _robust_sigma(strength), floor)
-    if src.ndim == 3:
+    if src.ndim == 2:
+        mask = strength > max(k_sigma * _robust_sigma(strength), floor)
+    else:
         # Laser light is both coloured and brighter than its surroundings; JPEG colour
         # fringes at ink edges are coloured but not brighter, red ink neither.
         bright = _highpass(laser.astype(np.float32))
-        mask &= bright > max(k_sigma * _robust_sigma(bright), floor)
+        lit = bright > max(k_sigma * _robust_sigma(bright), floor)
+        # A clipped spot is coloured only in a thin halo around its white core, and only faintly
+        # when the photo is bright: a region of bright pixels is a candidate as a whole when a few
+        # of its pixels are laser-coloured, at a third of the threshold.
+        faint = lit & (strength > max(k_sigma * _robust_sigma(strength), floor) / 3)
+        n, labels = cv2.connectedComponents(lit.astype(np.uint8), connectivity=8)
+        hit = np.bincount(labels[faint], minlength=n) >= 2
+        hit[0] = False
+        mask = hit[labels]
     # Speckle and JPEG blocks break a spot's mask into pieces: join pieces a few pixels apart.
     mask = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8))
     n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
@@ -184,12 +213,16 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     vals = roi[yy, xx].reshape(len(xx), c).astype(float)
     coef, *_ = np.linalg.lstsq(A, vals, rcond=None)
     res = vals - A @ coef
-    mad = 1.4826 * np.median(np.abs(res), 0) + 1e-6
-    keep = np.all(np.abs(res) < 3 * mad + 1, 1)  # drop border pixels crossed by ink or a neighbour spot
-    if keep.sum() >= 8:
+    for _ in range(3):  # drop border pixels crossed by ink or a neighbour spot; a big dot needs a few rounds
+        mad = 1.4826 * np.median(np.abs(res - np.median(res, 0)), 0) + 1e-6
+        keep = np.all(np.abs(vals - A @ coef) < 3 * mad + 1, 1)
+        if keep.sum() < 8:
+            break
         coef, *_ = np.linalg.lstsq(A[keep], vals[keep], rcond=None)
         res = vals[keep] - A[keep] @ coef
-    noise = np.maximum(np.std(res, 0), 0.3)  # quantisation keeps at least ~0.3 DN
+    # Robust: ink fringes that survive on the border must not pass for noise. Quantisation
+    # keeps at least ~0.3 DN.
+    noise = np.maximum(1.4826 * np.median(np.abs(res - np.median(res, 0)), 0), 0.3)
     Y, X = np.mgrid[:h, :w]
     bg = coef[0] + (X - w / 2)[..., None] * coef[1] + (Y - h / 2)[..., None] * coef[2]
     return bg.astype(np.float32), noise
@@ -244,49 +277,124 @@ def _ink(roi: np.ndarray, bg: np.ndarray, ch: int) -> np.ndarray | None:
     return cv2.dilate(ink.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
 
 
-def _fit_gaussian(
-    raw: np.ndarray,
-    bg: np.ndarray,
+def _linear(x: np.ndarray, full: float, gamma: float) -> np.ndarray:
+    """Encoded DN -> linear DN (same full scale)."""
+    return full * np.clip(x / full, 0, None) ** gamma
+
+
+def _fit_profile(
+    d: np.ndarray,
     valid: np.ndarray,
+    clipped: np.ndarray,
+    ceiling: np.ndarray,
     start: tuple[float, float],
     r_eq: float,
-    full: float,
-    gamma: float,
+    noise: float,
 ) -> tuple[float, float, float, float] | None:
-    """Elliptical Gaussian fitted in linear intensity to the ``valid`` pixels.
+    """Elliptical spot profile fitted in linear intensity; clipped pixels only bound it from below.
+
+    A clipped pixel says only that the light there reached the clipping level, so it adds a
+    residual only where the model falls short of that level (a censored fit): the centre
+    comes from where the plateau ends and from the unclipped flanks, not from the flat top.
+    With clipped pixels the profile is ``A exp(-q**b / 2)`` (``b`` free: blooming and the
+    tone curve flatten the flanks), else a Gaussian (``b = 1``); plus a constant offset.
 
     Parameters
     ----------
-    raw : (h, w) array, the laser's channel as recorded, DN
-    bg : (h, w) array, its paper background, DN
-    valid : (h, w) bool array, pixels to fit (not ink, not clipped)
+    d : (h, w) array, linear signal over the paper background, DN
+    valid : (h, w) bool array, pixels to fit (in the window, off ink and other spots)
+    clipped : (h, w) bool array, pixels at the clipping level
+    ceiling : (h, w) array, the clipping level over the background, linear DN
     start : (u, v), first guess of the centre, px
     r_eq : float, radius of the spot's blob, px
-    full : float, full scale, DN
-    gamma : float, encoding gamma of the photo
+    noise : float, the background's noise in ``d``, linear DN (a floor of the fit's error model)
 
     Returns
     -------
-    (u, v, sigma_u, sigma_v) px, or None when too few pixels are left to fit
+    (u, v, sigma_u, sigma_v) px, or None when too few pixels are left or the fit wanders off.
+    The sigmas propagate the spot's asymmetry about the centre through the fit (see below).
     """
     yy, xx = np.nonzero(valid)
     if len(xx) < 12:
         return None
-    d = full * (np.clip(raw[yy, xx] / full, 0, None) ** gamma - np.clip(bg[yy, xx] / full, 0, None) ** gamma)
+    cl = clipped[yy, xx]
+    data = np.where(cl, ceiling[yy, xx], d[yy, xx])
+    flat = bool(cl.any())
 
-    def resid(p):
+    def model(p):
         dx, dy = xx - p[0], yy - p[1]
-        l11, l22 = np.exp(p[3]), np.exp(p[4])
-        return p[2] * np.exp(-0.5 * ((l11 * dx) ** 2 + (p[5] * dx + l22 * dy) ** 2)) - d
+        q = (np.exp(p[3]) * dx) ** 2 + (p[5] * dx + np.exp(p[4]) * dy) ** 2
+        if flat:
+            q = q ** np.exp(np.clip(p[7], -1.2, 1.1))  # the flanks' shape, exponent 0.3..3
+        return p[6] + p[2] * np.exp(-0.5 * q)
 
-    s0 = -np.log(max(r_eq / 2, 0.7))
-    p0 = np.array([start[0], start[1], max(d.max(), 1.0) * 2, s0, s0, 0.0])
-    res = least_squares(resid, p0, loss="soft_l1", f_scale=max(np.std(d) / 4, 1.0), x_scale="jac")
-    if not res.success or np.hypot(res.x[0] - start[0], res.x[1] - start[1]) > 2 * r_eq + 2:
+    def resid(p, weight=1.0):
+        r = model(p) - data
+        return np.where(cl, np.minimum(r, 0), r) * weight
+
+    s0 = -np.log(max(r_eq / (2.5 if flat else 2.0), 0.7))
+    amp = max(data.max(), 1.0) * (2.0 if flat else 1.0)
+    p0 = np.array([start[0], start[1], amp, s0, s0, 0.0, 0.0, 0.0])
+    res = least_squares(resid, p0 if flat else p0[:7], method="lm", x_scale="jac", max_nfev=400)
+    # Speckle makes the error grow with the light (multiplicative), noise does not: model the
+    # residuals' variance as a + b m**2 and fit again with those weights (the likelihood's fit).
+    # (Weights fixed from the first fit: weights that follow the model would bias it upwards.)
+    used = np.abs(res.jac).sum(1) > 0  # censored pixels above the clipping level carry no information
+    m = np.maximum(model(res.x), 0)
+    A = np.column_stack([np.ones(used.sum()), m[used] ** 2])
+    var = np.maximum(np.linalg.lstsq(A, res.fun[used] ** 2, rcond=None)[0], 0)
+    sd = np.sqrt(max(var[0], noise**2, 1e-9) + var[1] * m * m)
+    res = least_squares(resid, res.x, method="lm", x_scale="jac", max_nfev=400, kwargs={"weight": 1 / sd})
+    if not res.success or np.hypot(res.x[0] - start[0], res.x[1] - start[1]) > r_eq + 2:
         return None
-    dof = max(len(d) - 6, 1)
-    cov = np.linalg.pinv(res.jac.T @ res.jac) * (res.fun @ res.fun / dof)
-    return float(res.x[0]), float(res.x[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
+    u, v = float(res.x[0]), float(res.x[1])
+    # The error of the centre comes from what is asymmetric about it: the odd part of the data
+    # under point reflection through the centre (noise, speckle, the uneven bloom of a speckled
+    # core, a ragged plateau edge) - residuals miss what the symmetric model's shape absorbs.
+    # A pixel minus its mirror image, over sqrt(2), stands for the pixel's error; errors are
+    # propagated through the fit's influence on (u, v), inflated for the correlation of neighbours.
+    h, w = d.shape
+    full_d = np.where(clipped, ceiling, d).astype(np.float32)
+    mx, my = (2 * u - xx).astype(np.float32), (2 * v - yy).astype(np.float32)
+    mirror = cv2.remap(full_d, mx.reshape(1, -1), my.reshape(1, -1), cv2.INTER_LINEAR)[0]
+    inside = (mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)
+    err = np.where(inside, (data - mirror) / (np.sqrt(2) * sd), 0)
+    gain = (np.linalg.pinv(res.jac.T @ res.jac) @ res.jac.T)[:2]  # d(u, v) / d(weighted data)
+    field = np.zeros(valid.shape)
+    field[yy, xx] = err
+    kappa = _correlation_sum(field, int(np.clip(round(1.5 * r_eq), 3, 16)))
+    su, sv = np.sqrt(kappa * (gain**2 @ err**2))
+    return u, v, float(su), float(sv)
+
+
+def _correlation_sum(res: np.ndarray, reach: int) -> float:
+    """How many pixels one independent error spans: the sum of the errors' autocorrelation.
+
+    Demosaicing, JPEG blocks and speckle grains make neighbouring errors alike; the variance
+    of a fitted centre grows by the sum of their normalised autocorrelation over lags up to
+    ``reach`` px (a stationary-noise sandwich estimate). Errors that shift a spot are those
+    correlated over its own size, so the reach is ~1.5 spot radii.
+
+    Parameters
+    ----------
+    res : (h, w) array, errors, 0 outside the fitted pixels
+    reach : int, largest lag, px
+
+    Returns
+    -------
+    float >= 1
+    """
+    ys, xs = np.nonzero(res)
+    if len(ys) == 0:
+        return 1.0
+    res = res[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    h, w = res.shape
+    r0 = float((res * res).sum())
+    f = np.fft.rfft2(res, (2 * h, 2 * w))  # zero-padded: no wrap-around
+    ac = np.fft.irfft2(f * np.conj(f), (2 * h, 2 * w))
+    dy, dx = np.fft.fftfreq(2 * h, 1 / (2 * h)), np.fft.fftfreq(2 * w, 1 / (2 * w))  # signed lags, px
+    near = (np.abs(dy)[:, None] <= reach) & (np.abs(dx)[None, :] <= reach)
+    return max(float(ac[near].sum()) / r0, 1.0)
 
 
 def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tuple[float, float]:
@@ -355,51 +463,61 @@ def measure_spot(
         delta = roi - bg
         sig = delta[..., ch]
         peak_d = float(sig.max())
-        edge = max(sig[0].max(), sig[-1].max(), sig[:, 0].max(), sig[:, -1].max())
-        if edge < 0.05 * peak_d or (x0, y0, x1, y1) == (0, 0, w, h) or attempt == 3:
+        sm = cv2.GaussianBlur(sig, (0, 0), 1.0)  # single noisy border pixels are no reason to grow
+        edge = max(sm[0].max(), sm[-1].max(), sm[:, 0].max(), sm[:, -1].max())
+        if edge < max(0.05 * peak_d, 3 * noise[ch]) or (x0, y0, x1, y1) == (0, 0, w, h) or attempt == 3:
             break
         gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
         x0, y0, x1, y1 = max(x0 - gx, 0), max(y0 - gy, 0), min(x1 + gx, w), min(y1 + gy, h)
     # Not brighter than the paper: ink or a JPEG fringe, not light. A reference photo
     # removes ink and fringes, so fainter spots are believed then.
     contrast = (0.05 if reference is not None else 0.08) * full
-    if peak_d < max(8 * noise[ch], contrast):
-        return Rejection("dim", cand.u, cand.v)
-    thr = max(4 * noise[ch], 0.15 * peak_d)
     smooth = cv2.GaussianBlur(sig, (0, 0), 1.0)  # speckle would split a spot into several blobs
-    bright = (smooth > thr).astype(np.uint8)
     plain = img[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)  # the photo itself, not a difference
-    plain_bg = bg if reference is None else _plane_background(plain)[0]
-    ink = _ink(plain, plain_bg, ch) if img.ndim == 3 else None
+    base = plain - delta  # what the photo would show without the laser (paper, or reference + paper)
+    need = max(8 * noise[ch], contrast)
+    thr = max(4 * noise[ch], 0.15 * peak_d)
+    bright = (smooth > thr).astype(np.uint8)
+    ink = _ink(plain, base, ch) if img.ndim == 3 else None
     if ink is not None:
         # A printed cross under the spot cuts it into pieces: bridge them over the ink.
         bright |= (ink & cv2.dilate(bright, np.ones((7, 7), np.uint8)).astype(bool)).astype(np.uint8)
     n, labels = cv2.connectedComponents(bright, connectivity=8)
     if n <= 1:
-        return Rejection("dim", cand.u, cand.v)
+        return Rejection(
+            "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour)
+        )
     iy, ix = np.unravel_index(np.argmax(np.where(labels > 0, smooth, -np.inf)), sig.shape)
     blob = labels == labels[iy, ix]
-    if blob.sum() < 4:
-        return Rejection("dim", cand.u, cand.v)  # a lone bright pixel: JPEG ringing or noise, not a spot
-    if img.ndim == 3 and reference is None and peak_d < 0.15 * full:
+    raw = plain[..., ch]
+    clipped = raw >= CLIP * full
+    if clipped[blob].any():
+        # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped
+        # and 8 sigma brighter than the paper is bright enough.
+        need = max(8 * noise[ch], min(contrast, 0.5 * (full - float(np.median(base[..., ch])))))
+    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
+    # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
+    if peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < 4:
+        return Rejection("dim", cand.u, cand.v, ev)
+    # A JPEG fringe is colour without light: its luma, kept at full resolution, barely rises.
+    faint = ev.clipped_px == 0 and ev.light * full < 2 * _light_need(noise, full)
+    if img.ndim == 3 and reference is None and peak_d < 0.15 * full and faint:
         # JPEG's coarse colour planes leave a faint laser-coloured fringe beside ink: a
         # weak blob next to pixels darker than the paper in the other channels is one.
         around = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
         if np.max(np.delete(delta, ch, axis=2), axis=2)[around].min() < -0.15 * full:
-            return Rejection("dim", cand.u, cand.v)
-    raw = plain[..., ch]
-    clipped = raw >= 0.985 * full
+            return Rejection("fringe", cand.u, cand.v, ev)
     if img.ndim == 3:
-        # Colour test on unsaturated pixels near the blob: a white reflection has as
-        # much excess in the other channels as in the laser's.
-        near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~clipped
-        near &= sig > thr / 2
+        # A white reflection (clipped or not) is as bright in the other channels as in the laser's;
+        # laser light keeps its colour in a halo around a clipped white core.
+        if ev.halo_ratio is None or ev.halo_ratio < HALO_MIN:
+            return Rejection("white", cand.u, cand.v, ev)
+        # JPEG ringing beside black ink is faintly coloured; laser light is strongly so, except in
+        # the thin halo of a clipped core (ringing never clips).
         colour_ex = cv2.blur(sig - np.max(np.delete(delta, ch, axis=2), axis=2), (3, 3))
-        if near.sum() >= 3 and colour_ex[near].sum() < 0.3 * sig[near].sum():
-            return Rejection("white", cand.u, cand.v)
-        # JPEG ringing beside black ink is faintly coloured; laser light is strongly so.
-        if colour_ex[near | blob].max(initial=0) < max(6 * noise[ch], contrast / 2):
-            return Rejection("white", cand.u, cand.v)
+        halo = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+        if ev.clipped_px == 0 and colour_ex[halo].max(initial=0) < max(6 * noise[ch], contrast / 2):
+            return Rejection("white", cand.u, cand.v, ev)
     exclude = np.zeros(sig.shape, bool)
     for o in others:
         ox, oy = int(round(o.u)) - x0, int(round(o.v)) - y0
@@ -408,26 +526,122 @@ def measure_spot(
     r_eq = np.sqrt(blob.sum() / np.pi)
     m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
     start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
-    cen = delta @ LUMA if luma and img.ndim == 3 else sig
+    use_luma = luma and img.ndim == 3
+    cen = delta @ LUMA if use_luma else sig
     u, v, wgt = _weighted_centroid(cen, start, 1.1 * r_eq + 1, exclude)
     # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
-    if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max() and ink is None:
-        return Rejection("dim", cand.u, cand.v)
+    if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max() and ink is None and faint:
+        return Rejection("fringe", cand.u, cand.v, ev)
     Y, X = np.mgrid[: sig.shape[0], : sig.shape[1]]
-    window = np.hypot(X - u, Y - v) <= 1.5 * r_eq + 2
-    on_ink = ink is not None and bool((ink & window).any())
+    on_ink = ink is not None and bool(((np.hypot(X - u, Y - v) <= 1.5 * r_eq + 2) & ink).any())
     saturated = bool(clipped[blob].any())
-    if on_ink and not saturated:
-        # Printed ink under the spot swallows laser light on one side: fit the spot's
-        # shape to the pixels off the ink instead. (Clipped, blooming spots are not
-        # Gaussian enough for this; they keep the centroid, and a warning.)
-        fit = _fit_gaussian(raw, plain_bg[..., ch], window & ~ink & ~exclude, (u, v), r_eq, full, gamma)
-        if fit is None:
-            return Rejection("dim", cand.u, cand.v)
+    # Fit the profile in linear light over the spot and its flanks; clipped pixels bound it
+    # from below, ink and other spots are left out.
+    rec, under = (plain @ LUMA, base @ LUMA) if use_luma else (raw, base[..., ch])
+    top = (LUMA_CLIP if use_luma else CLIP) * full
+    lin_base = _linear(under, full, gamma)
+    window = (np.hypot(X - u, Y - v) <= 2 * r_eq + 3) & ~exclude
+    if ink is not None:
+        window &= ~ink
+    # The background's noise in linear units: the encoding's slope at the paper level.
+    slope = gamma * float(np.median(np.clip(under[window] / full, 1e-3, 1))) ** (gamma - 1)
+    n_rec = float(noise @ LUMA) if use_luma else float(noise[ch])
+    fit = _fit_profile(
+        _linear(rec, full, gamma) - lin_base,
+        window,
+        rec >= top,
+        _linear(np.full_like(rec, top), full, gamma) - lin_base,
+        (u, v),
+        r_eq,
+        n_rec * slope,
+    )
+    # A fit that strays over a pixel from the windowed centroid fell for clutter in its wider
+    # window (JPEG fringes of nearby ink): keep the centroid then.
+    if fit is not None and (on_ink or np.hypot(fit[0] - u, fit[1] - v) <= FIT_STRAY):
         u, v, su, sv = fit
+    elif on_ink:
+        return Rejection("dim", cand.u, cand.v, ev)
     else:
         su, sv = _centroid_sigma(cen, wgt, u, v)
-    return Spot(u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink)
+    return Spot(
+        u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink, evidence=ev
+    )
+
+
+def _evidence(
+    plain: np.ndarray,
+    delta: np.ndarray,
+    blob: np.ndarray | None,
+    ch: int,
+    full: float,
+    noise: np.ndarray,
+    peak_d: float,
+    need: float,
+    colour: str,
+) -> Evidence:
+    """Measure what a candidate looks like (see :class:`Evidence`).
+
+    Parameters
+    ----------
+    plain : (h, w, c) array, the photo in the candidate's box, DN
+    delta : (h, w, c) array, its excess over the local background, DN
+    blob : (h, w) bool array, the spot's pixels, or None when nothing stood out
+    ch : int, the laser's channel; full : float, full scale, DN
+    noise : (c,) array, the background's noise per channel, DN
+    peak_d : float, peak excess of the laser's channel, DN
+    need : float, the excess a spot needs, DN
+    colour : str, the laser colour tried
+    """
+    area = 0 if blob is None else int(blob.sum())
+    grey = plain.shape[2] == 1
+    clipped = white = 0
+    halo = None
+    light = peak_d
+    level = 0.0 if blob is None else float(plain[..., ch][blob].max()) / full
+    if blob is not None:
+        clipped = int((plain[..., ch][blob] >= CLIP * full).sum())
+        white_px = (plain >= LUMA_CLIP * full).all(axis=2)
+        white = int(white_px[blob].sum())
+        if not grey:
+            luma = cv2.GaussianBlur(delta @ LUMA, (0, 0), 1.0)
+            light = float(luma[blob].max())
+            # The halo: pixels of the spot and just around it not clipped in all channels, with a
+            # clear excess. Summed over the halo: a clipped spot's colour may survive in a rim only
+            # one or two pixels wide, which JPEG's half-resolution colour dilutes further.
+            lase, other = delta[..., ch], np.max(np.delete(delta, ch, axis=2), axis=2)
+            ring = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~white_px
+            ring &= lase > max(0.1 * peak_d, 4 * noise[ch])
+            if ring.sum() >= 3:
+                total = float(lase[ring].sum())
+                halo = total / max(float(np.maximum(other[ring], 0).sum()), total / HALO_CAP)
+            else:
+                halo = 1.0  # all white: nothing says laser
+    s_excess = _score(np.log(max(peak_d, 1e-6) / need), 0.25)
+    s_halo = 1.0 if halo is None else _score(np.log(halo / HALO_MIN), 0.02)
+    s_light = _score(np.log(max(light, 1e-6) / _light_need(noise, full)), 0.25)
+    return Evidence(
+        None if grey else colour,
+        peak_d / full,
+        peak_d / float(noise[ch]),
+        level,
+        light / full,
+        halo,
+        clipped,
+        white,
+        area,
+        float(min(s_excess, s_halo, s_light)),
+    )
+
+
+def _light_need(noise: np.ndarray, full: float) -> float:
+    """The rise of the luma a spot needs, DN: 4 sigma of the paper's luma noise, at least 1.5 % of
+    full scale (colour correction leaves a dim red spot only ~1/3 of its red rise in the luma)."""
+    return max(4 * float(noise @ LUMA) if noise.size == 3 else 4 * float(noise[0]), 0.015 * full)
+
+
+def _score(x: float, scale: float) -> float:
+    """Logistic score of a margin ``x`` over a threshold: 0.5 at it, -> 1 far above."""
+    return float(1 / (1 + np.exp(-np.clip(x / scale, -50, 50))))
 
 
 def _dedupe(spots: list[Spot]) -> list[Spot]:
@@ -458,7 +672,7 @@ def detect_spots(
     ----------
     img : (h, w, 3) BGR or (h, w) grey array, uint8 or uint16
     name : str, the photo's name for messages
-    colour : "red" or "green"
+    colour : "red", "green" or "auto" (try both; the colour taken is each spot's ``evidence.colour``)
     reference : laser-off photo of the same view and size, or None
     expect : int or None, the number of spots expected; None accepts any number
     method : "precise" or "imagej"
@@ -483,33 +697,32 @@ def detect_spots(
             f"{name}: the reference photo is {reference.shape[1]}x{reference.shape[0]} px, "
             f"the photo {img.shape[1]}x{img.shape[0]} px"
         )
-    cands = find_candidates(img, colour, reference)
-    found, rejected = [], []
-    for c in cands:
-        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c], gamma, luma)
-        (rejected if isinstance(r, Rejection) else found).append(r)
-    spots = _dedupe(found)
     warnings = []
+    if colour == "auto":
+        colour, spots, rejected, note = _auto_colour(img, reference, gamma, luma)
+        if note:
+            warnings.append(note)
+    elif colour in CHANNEL:
+        spots, rejected = _find(img, colour, reference, gamma, luma)
+    else:
+        raise VisionError(f"unknown laser colour '{colour}' (red, green or auto)")
     if img.ndim == 2:
         warnings.append("grey photo: white reflections cannot be told from laser light")
     if not spots:
-        why = {
-            "dim": "not brighter than the paper (printed marks?)",
-            "white": "white, not laser-coloured (reflections?)",
-        }
-        kinds = [k for k in why if any(r.kind == k for r in rejected)]
-        detail = (
-            "; rejected: " + ", ".join(f"{sum(r.kind == k for r in rejected)} {why[k]}" for k in kinds)
-            if kinds
-            else ""
-        )
-        raise NoSpotError(f"{name}: no {colour} laser spot found{detail}")
+        kinds = [k for k in REASONS if any(r.kind == k for r in rejected)]
+        counts = ", ".join(f"{sum(r.kind == k for r in rejected)} {REASONS[k]}" for k in kinds)
+        detail = f"; rejected: {counts}" if kinds else ""
+        if rejected:  # the strongest candidate's evidence says how close it came
+            best = max(rejected, key=lambda r: -1 if r.evidence is None else r.evidence.confidence)
+            detail += f"; best candidate {best.describe()}"
+        raise NoSpotError(f"{name}: no {colour} laser spot found{detail}{_white_blobs(img)}")
     if expect is not None and len(spots) > expect:
         where = ", ".join(f"({s.u:.1f}, {s.v:.1f})" for s in spots[:6])
         raise SpotCountError(
             f"{name}: {len(spots)} spots found where {expect} "
             f"{'is' if expect == 1 else 'are'} expected, at px {where}"
-            f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several spots)"
+            f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several "
+            "spots)"
         )
     for sp in spots:
         if sp.on_ink:
@@ -533,6 +746,64 @@ def detect_spots(
     elif method != "precise":
         raise VisionError(f"unknown centroid method '{method}' (precise or imagej)")
     return sorted(spots, key=lambda s: (round(s.v), s.u)), warnings
+
+
+def _white_blobs(img: np.ndarray, min_px: int = 20) -> str:
+    """A note on clipped white blobs, for a photo without a spot: a laser spot exposed far beyond
+    clipping can lose the last of its colour and look like a reflection."""
+    if img.ndim == 2:
+        return ""
+    white = (img >= LUMA_CLIP * full_scale(img)).all(axis=2).astype(np.uint8)
+    n, _, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
+    big = [i for i in range(1, n) if stats[i, 4] >= min_px]
+    if not big:
+        return ""
+    i = max(big, key=lambda i: stats[i, 4])
+    return (
+        f"; {len(big)} white clipped blob{'s' * (len(big) > 1)} without laser colour, the largest "
+        f"{stats[i, 4]} px at ({cents[i, 0]:.0f}, {cents[i, 1]:.0f}) px: a reflection, or a laser spot "
+        "so overexposed that its colour is gone (lower the exposure, or use a laser-off reference)"
+    )
+
+
+def _find(
+    img: np.ndarray, colour: str, reference: np.ndarray | None, gamma: float, luma: bool
+) -> tuple[list[Spot], list[Rejection]]:
+    """Spots of one laser colour, and the candidates rejected."""
+    cands = find_candidates(img, colour, reference)
+    found, rejected = [], []
+    for c in cands:
+        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c], gamma, luma)
+        (rejected if isinstance(r, Rejection) else found).append(r)
+    return _dedupe(found), rejected
+
+
+def _auto_colour(
+    img: np.ndarray, reference: np.ndarray | None, gamma: float, luma: bool
+) -> tuple[str, list[Spot], list[Rejection], str | None]:
+    """Decide the laser's colour from the photo: the colour whose spots are the more convincing.
+
+    Returns
+    -------
+    colour : "red" or "green" ("red or green" when neither has a spot)
+    spots, rejected : of that colour (rejected: of both when neither has a spot)
+    note : str or None, a warning when both colours show spots
+    """
+    if img.ndim == 2:
+        return "red", *_find(img, "red", reference, gamma, luma), None  # one channel: colour is moot
+    tries = {c: _find(img, c, reference, gamma, luma) for c in CHANNEL}
+    score = {c: sum(s.evidence.confidence for s in spots) for c, (spots, _) in tries.items()}
+    best = max(score, key=score.get)
+    if score[best] == 0:
+        return "red or green", [], tries["red"][1] + tries["green"][1], None
+    other = next(c for c in CHANNEL if c != best)
+    note = None
+    if tries[other][0]:
+        note = (
+            f"both red and green spots found: measured {best} (confidence {score[best]:.2f} against "
+            f"{score[other]:.2f}); give --color to choose"
+        )
+    return best, *tries[best], note
 
 
 def _imagej_box(shape, spot: Spot, side: int) -> tuple[int, int, int, int]:

@@ -8,12 +8,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from lasercal.vision.camera import Camera
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
-from lasercal.vision.images import read_image, to_gray
+from lasercal.vision.exposure import Exposure, exposure_advice
+from lasercal.vision.images import chroma_subsampled, full_scale, read_image, to_gray
 from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane
 from lasercal.vision.spot import Spot, with_plane
 
@@ -26,7 +28,7 @@ class Options:
     imagej_mode: str = "centroid"  # centroid | com
     imagej_threshold: str = "default"  # default | otsu
     imagej_box: int = 64  # side of the box drawn around a spot, px; 0: the whole photo
-    colour: str = "red"
+    colour: str = "auto"  # red | green | auto (decided per photo from the photo)
     expect: int | None = 1  # None: any number of spots
     gamma: float = 2.2  # the photos' encoding gamma, for marker corners and spots on ink
     channel: str = "auto"  # precise centroid on: laser | luma | auto (luma for chroma-subsampled JPEGs)
@@ -34,12 +36,55 @@ class Options:
 
 @dataclass(frozen=True)
 class PhotoResult:
-    """Spots of one photo, with the warnings and the plane map (None without markers)."""
+    """Spots of one photo, with the warnings and the plane map (None without markers).
+
+    Attributes
+    ----------
+    name : str
+    spots : list of Spot; each spot's ``evidence`` says why it was taken for laser light
+    warnings : list of str (the exposure advice among them)
+    plane : PlaneMap or None
+    colour : str or None, the laser colour measured ("red" or "green"; with ``--color auto``
+        decided from the photo), None when the photo was lost
+    exposure : Exposure or None, clipping, contrast and one line of advice for the operator
+    error : str or None, one line saying why the photo was lost (then there are no spots)
+    """
 
     name: str
     spots: list
     warnings: list
     plane: PlaneMap | None
+    colour: str | None = None
+    exposure: Exposure | None = None
+    error: str | None = None
+
+    def to_dict(self, method: str, convention: str = "opencv", plane_z: float | None = None) -> dict:
+        """The photo's JSON entry (``lasercal spots --json``): spots in ``convention``, the plane fit."""
+        pm = self.plane
+        plane = None
+        if pm is not None:
+            plane = {
+                "markers": list(pm.fiducials.marker_ids),
+                "charuco_corners": pm.fiducials.charuco,
+                "rms_mm": round(pm.rms_mm, 4),
+                "max_mm": round(pm.max_mm, 4),
+                "outliers": int((~pm.inliers).sum()),
+                "mm_per_px": round(pm.mm_per_px, 5),
+                "z_mm": plane_z,
+            }
+        entry = {
+            "image": self.name,
+            "spots": spot_dicts(self.spots, convention),
+            "warnings": list(self.warnings),
+            "error": self.error,
+            "plane": plane,
+            "method": method,
+            "convention": convention,
+        }
+        if self.error is None:
+            entry["colour"] = self.colour
+            entry["exposure"] = self.exposure.to_dict() if self.exposure else None
+        return entry
 
 
 def measure_photo(
@@ -66,8 +111,10 @@ def measure_photo(
     Raises
     ------
     VisionError
-        No spot, too many spots, too few markers, wrong image size: the photo is lost.
+        No spot, too many spots, too few markers, wrong image size, a blank or tiny photo:
+        the photo is lost.
     """
+    check_photo(img, name)
     size = (img.shape[1], img.shape[0])
     if camera is not None:
         camera.check_size(size, name)
@@ -84,6 +131,12 @@ def measure_photo(
         opts.imagej_box,
         opts.gamma,
         luma,
+    )
+    exposure = exposure_advice(spots, reference is not None) if opts.method == "precise" else None
+    if exposure is not None and exposure.advice:
+        warnings.append(exposure.advice)
+    colour = next(
+        (s.evidence.colour for s in spots if s.evidence is not None and s.evidence.colour), opts.colour
     )
     plane = None
     if layout is not None:
@@ -110,7 +163,73 @@ def measure_photo(
             warnings.append(
                 f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated"
             )
-    return PhotoResult(name, spots, warnings, plane)
+    return PhotoResult(name, spots, warnings, plane, colour, exposure)
+
+
+MIN_SIDE = 16  # px: a smaller photo cannot hold a spot and the paper around it
+
+
+def check_photo(img: np.ndarray, name: str) -> None:
+    """Refuse photos that cannot hold a measurable spot, with a one-line reason.
+
+    Raises
+    ------
+    VisionError
+        Smaller than 16 px on a side, or blank: all black or all white (clipped).
+    """
+    h, w = img.shape[:2]
+    if min(h, w) < MIN_SIDE:
+        raise VisionError(
+            f"{name}: image is {w}x{h} px, too small to hold a laser spot and the paper around it"
+        )
+    lo, hi = cv2.minMaxLoc(img.reshape(h, -1))[:2]
+    full = full_scale(img)
+    if hi <= 0.02 * full:
+        raise VisionError(f"{name}: the photo is black (lens covered, or far too dark: raise the exposure)")
+    if lo >= 0.98 * full:
+        raise VisionError(f"{name}: the photo is white, clipped everywhere (lower the exposure)")
+
+
+def measure_file(
+    path,
+    opts: Options = Options(),
+    layout: MarkerLayout | None = None,
+    camera: Camera | None = None,
+    reference: np.ndarray | None = None,
+) -> PhotoResult:
+    """Read and measure one photo; never raises on a bad photo.
+
+    Parameters
+    ----------
+    path : str or Path
+    opts, layout, camera, reference : as for :func:`measure_photo`
+
+    Returns
+    -------
+    PhotoResult; when the photo is lost, ``error`` says why in one line (also the only warning)
+    and ``spots`` is empty
+    """
+    name = str(path)
+    try:
+        img = read_image(path)
+        return measure_photo(img, name, opts, layout, camera, reference, chroma_subsampled(path))
+    except VisionError as exc:
+        why = str(exc)
+    except (cv2.error, ValueError, ArithmeticError, IndexError) as exc:
+        # A fault of ours, not of the photo: still one line, and the batch goes on.
+        why = f"{name}: could not be measured ({type(exc).__name__}: {str(exc).strip().splitlines()[-1]})"
+    return PhotoResult(name, [], [why], None, error=why)
+
+
+def measure_batch(
+    paths,
+    opts: Options = Options(),
+    layout: MarkerLayout | None = None,
+    camera: Camera | None = None,
+    reference: np.ndarray | None = None,
+) -> list[PhotoResult]:
+    """:func:`measure_file` for each photo, in order; a lost photo does not stop the batch."""
+    return [measure_file(p, opts, layout, camera, reference) for p in paths]
 
 
 def median_reference(paths: list[str]) -> np.ndarray:

@@ -14,6 +14,14 @@ the lens PSF; plus laser light (a Gaussian, optionally elliptical, with speckle)
 and specular glare; plus shot and read noise; excess charge blooms into the
 neighbours; clipped at full scale; then gamma-encoded, quantised to 8 bits and
 optionally JPEG-compressed (with 4:2:0 chroma subsampling, as cameras do).
+
+With ``Photo.camera`` set to a :class:`PhoneCamera`, the last steps follow a phone's
+pipeline instead: auto exposure (a gain that changes from photo to photo), a Bayer
+(RGGB) mosaic with shot and read noise, saturation of the sensor with excess charge
+blooming into the neighbouring photosites (whatever their colour filter), clipping,
+demosaicing, white balance, a colour-correction matrix and a tone curve applied
+after the clipping, and a 4:2:0 JPEG. A laser spot then records as phones record
+it: a white clipped core in a pink (or pale green) halo.
 """
 
 from __future__ import annotations
@@ -202,6 +210,53 @@ LASER_RESPONSE = {  # camera response (B, G, R) to each laser, crosstalk of the 
 }
 
 
+def tilted_spot(
+    u: float, v: float, sigma: float, peak: float, tilt_deg: float, azimuth_deg: float = 0.0, **kw
+) -> LaserSpot:
+    """The spot of a round beam of ``sigma`` px meeting the paper ``tilt_deg`` off the normal.
+
+    The footprint stretches by 1/cos(tilt) along the azimuth (degrees from +u towards
+    +v) and its irradiance drops by cos(tilt); ``kw`` go to :class:`LaserSpot`.
+    """
+    c = np.cos(np.radians(tilt_deg))
+    return LaserSpot(u, v, sigma / c, peak * c, aspect=c, angle_deg=azimuth_deg, **kw)
+
+
+# A phone sensor's colour-correction matrix (camera RGB -> sRGB, rows sum to 1), in BGR order. Its
+# negative terms are what turn a clipped red core with bloomed green/blue neighbours pink, not red.
+PHONE_CCM = np.array([[1.55, -0.50, -0.05], [-0.30, 1.55, -0.25], [-0.05, -0.60, 1.65]], np.float32)
+
+
+@dataclass(frozen=True)
+class PhoneCamera:
+    """A phone camera's processing, applied after the optics (see the module docstring).
+
+    Attributes
+    ----------
+    bloom : float, fraction of a photosite's excess charge (over full well) spilt into
+        its neighbours; 0 for none
+    bloom_sigma : float, reach of the spill, px
+    ccm : (3, 3) array, colour-correction matrix applied to BGR after white balance
+    contrast : float in [0, 1), strength of the tone curve's S shape over the sRGB curve
+    jpeg : int or None, JPEG quality with 4:2:0 chroma subsampling; None: lossless
+    ae_target : float or None, auto exposure meters the scene: its median (green) is brought to
+        this fraction of the clipping level; None: no metering (the light as given)
+    ae_stops : float, and misses by 2**U(-ae_stops, ae_stops), a new draw for each photo
+    """
+
+    bloom: float = 0.4
+    bloom_sigma: float = 1.2
+    ccm: np.ndarray = field(default_factory=lambda: PHONE_CCM.copy())
+    contrast: float = 0.3
+    jpeg: int | None = 88
+    ae_target: float | None = 0.45
+    ae_stops: float = 0.5
+
+    def gain(self, seed: int) -> float:
+        """The auto exposure's miss for the photo rendered with ``seed`` (multiplies all light)."""
+        return float(2.0 ** np.random.default_rng([seed, 7]).uniform(-self.ae_stops, self.ae_stops))
+
+
 @dataclass(frozen=True)
 class Photo:
     """Everything needed to render one photo (see the module docstring for units)."""
@@ -222,6 +277,7 @@ class Photo:
     bloom_sigma: float = 2.0  # px
     gamma: float = 1.0  # 2.2 for an sRGB-like camera JPEG
     jpeg: int | None = None  # JPEG quality, None for lossless
+    camera: PhoneCamera | None = None  # a phone's pipeline; replaces bloom, bloom_sigma, gamma and jpeg
 
     def truth(self) -> np.ndarray:
         """(n, 2) array of the spots' true centres, px."""
@@ -343,6 +399,8 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
         x0, y0, x1, y1 = _spot_box(gl.u, gl.v, r, w, h)
         g = _gaussian(LaserSpot(gl.u, gl.v, gl.sigma), x0, y0, x1 - x0, y1 - y0) * (FULL * gl.peak)
         img[y0:y1, x0:x1] += g[..., None] * np.float32(photo.tint)
+    if photo.camera is not None:
+        return _phone(img, photo, photo.camera, rng, seed)
     img += np.sqrt(photo.read_noise**2 + photo.shot_noise * np.maximum(img, 0)) * rng.standard_normal(
         img.shape, dtype=np.float32
     )
@@ -356,6 +414,50 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
     out = np.round(img).astype(np.uint8)
     if photo.jpeg is not None:
         _, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(photo.jpeg)])
+        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return out
+
+
+def _tone(x: np.ndarray, contrast: float) -> np.ndarray:
+    """Linear [0, 1] -> encoded [0, 1]: the sRGB curve blended with an S curve (monotonic)."""
+    y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(np.maximum(x, 0.0031308), 1 / 2.4) - 0.055)
+    return (1 - contrast) * y + contrast * y * y * (3 - 2 * y)
+
+
+def _phone(img: np.ndarray, photo: Photo, cam: PhoneCamera, rng, seed: int) -> np.ndarray:
+    """The phone pipeline from linear scene light (h, w, 3) DN to an 8-bit BGR photo."""
+    h, w = img.shape[:2]
+    gain = cam.gain(seed)
+    if cam.ae_target is not None:
+        gain *= cam.ae_target * FULL / max(float(np.median(img[::8, ::8, 1])), 1e-3)
+    img *= np.float32(gain)
+    # RGGB mosaic: R on even rows and columns, B on odd ones, G elsewhere (BGR indices).
+    site = np.ones((h, w), np.intp)
+    site[0::2, 0::2], site[1::2, 1::2] = 2, 0
+    raw = np.take_along_axis(img, site[..., None], 2)[..., 0]
+    raw += np.sqrt(photo.read_noise**2 + photo.shot_noise * np.maximum(raw, 0)) * rng.standard_normal(
+        raw.shape, dtype=np.float32
+    )
+    if cam.bloom > 0:
+        excess = np.maximum(raw - FULL, 0)
+        if excess.any():
+            raw += cam.bloom * cv2.GaussianBlur(excess, (0, 0), cam.bloom_sigma)
+    raw16 = np.round(np.clip(raw, 0, FULL) * (65535 / FULL)).astype(np.uint16)
+    rgb = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2BGR).astype(np.float32) / 65535  # OpenCV's name for RGGB
+    # White balance for the room light, scaled so that no gain is below 1: whatever clipped on
+    # the sensor stays clipped (white) instead of turning a tint.
+    wb = 1 / np.float32(photo.tint)
+    rgb = np.minimum(rgb * (wb / wb.min()), 1.0)
+    rgb = np.clip(rgb @ np.asarray(cam.ccm, np.float32).T, 0, 1)
+    out = np.round(255 * _tone(rgb, cam.contrast)).astype(np.uint8)
+    if cam.jpeg is not None:
+        params = [
+            cv2.IMWRITE_JPEG_QUALITY,
+            int(cam.jpeg),
+            cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+            cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420,
+        ]
+        _, buf = cv2.imencode(".jpg", out, params)
         out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     return out
 

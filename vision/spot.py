@@ -1,10 +1,76 @@
-"""The measured laser spot: its centre (px), uncertainty, and position on the plane (mm)."""
+"""The measured laser spot: its centre (px), uncertainty, position on the plane (mm), and the evidence
+that it is laser light."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
 CHANNEL = {"red": 2, "green": 1}  # BGR index of each laser's colour
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What a candidate spot looks like, and so why it was accepted or rejected.
+
+    Attributes
+    ----------
+    colour : "red", "green", or None for a grey photo
+    excess : float, peak of the laser's channel over the local paper level, fraction of full scale
+    snr : float, that excess over the paper's noise in the same channel
+    level : float, highest value of the laser's channel in the spot, fraction of full scale
+    light : float, peak excess of the luma over the local paper level, fraction of full scale: laser
+        light adds light, while red ink, whose red a phone's colour correction lifts above the
+        paper's, takes it away
+    halo_ratio : float or None, colour of the spot's halo: the laser channel's excess over the brighter
+        other channel's, summed over the spot's pixels not clipped in all three channels (<= 1.01 for
+        white light; 1.07 for a laser clipped 30x with a thin halo, ~5-20 for an unclipped one;
+        capped at 20); None for a grey photo
+    clipped_px : int, spot pixels clipped in the laser's channel
+    white_px : int, spot pixels (nearly) clipped in all three channels, >= 97 % of full scale (a white core)
+    area : int, pixels in the spot's blob
+    confidence : float in [0, 1], a score, not a probability: the lower of how far the excess and the
+        halo ratio pass their thresholds (0.5 at a threshold, -> 1 well above it)
+    """
+
+    colour: str | None
+    excess: float
+    snr: float
+    level: float
+    light: float
+    halo_ratio: float | None
+    clipped_px: int
+    white_px: int
+    area: int
+    confidence: float
+
+    @property
+    def clipped_fraction(self) -> float:
+        """Fraction of the spot's pixels clipped in the laser's channel."""
+        return self.clipped_px / max(self.area, 1)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict."""
+        return {
+            "colour": self.colour,
+            "excess": round(self.excess, 4),
+            "snr": round(self.snr, 1),
+            "level": round(self.level, 4),
+            "light": round(self.light, 4),
+            "halo_ratio": None if self.halo_ratio is None else round(self.halo_ratio, 2),
+            "clipped_px": self.clipped_px,
+            "white_px": self.white_px,
+            "clipped_fraction": round(self.clipped_fraction, 3),
+            "confidence": round(self.confidence, 3),
+        }
+
+    def describe(self) -> str:
+        """One line of the evidence, for messages."""
+        halo = "" if self.halo_ratio is None else f"halo colour ratio {self.halo_ratio:.2f}, "
+        return (
+            f"{halo}excess {self.excess:.2f} of full scale ({self.snr:.0f} sigma), "
+            f"luma {self.light:+.2f}, "
+            f"{self.clipped_px} px clipped, confidence {self.confidence:.2f}"
+        )
 
 
 @dataclass(frozen=True)
@@ -23,6 +89,7 @@ class Spot:
     sigma_x_mm, sigma_y_mm : float or None, the centre's uncertainty mapped to mm
     on_ink : bool, printed ink (a mark) lies under the spot: it swallows laser light
         unevenly and may bias the centre by a few tenths of a pixel
+    evidence : Evidence or None, why the spot was taken for laser light (None for ``imagej``)
     """
 
     u: float
@@ -37,6 +104,7 @@ class Spot:
     sigma_x_mm: float | None = None
     sigma_y_mm: float | None = None
     on_ink: bool = False
+    evidence: Evidence | None = None
 
     def to_dict(self, convention: str = "opencv") -> dict:
         """JSON-ready dict; ``convention="imagej"`` adds 0.5 px to u and v."""
@@ -58,6 +126,7 @@ class Spot:
             "saturated": bool(self.saturated),
             "area": int(self.area),
             "on_ink": bool(self.on_ink),
+            "evidence": None if self.evidence is None else self.evidence.to_dict(),
         }
 
 

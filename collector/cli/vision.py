@@ -101,7 +101,13 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
         metavar="N|any",
         help=f"spots expected per photo; more is an error for that photo (default {expect_default})",
     )
-    p.add_argument("--color", dest="colour", choices=("red", "green"), default="red", help="laser colour")
+    p.add_argument(
+        "--color",
+        dest="colour",
+        choices=("auto", "red", "green"),
+        default="auto",
+        help="laser colour (default auto: decided from each photo, reported per spot)",
+    )
     p.add_argument(
         "--gamma",
         type=float,
@@ -190,58 +196,24 @@ def _context(args):
 
 
 def _measure_all(args):
-    """Measure every photo; a photo that fails becomes a warning and an entry with ``error``."""
-    from lasercal.vision.errors import VisionError
-    from lasercal.vision.images import chroma_subsampled, read_image
-    from lasercal.vision.measure import measure_photo, spot_dicts
+    """Measure every photo; a lost photo becomes a warning and an entry with ``error`` (the batch goes on)."""
+    from lasercal.vision.images import read_image
+    from lasercal.vision.measure import measure_file
     from lasercal.vision.overlay import draw, write
 
     layout, camera, reference = _context(args)
     opts = _options(args)
+    how = opts.method if opts.method == "precise" else f"imagej {opts.imagej_threshold} {opts.imagej_mode}"
     results = []
     for path in args.images:
-        entry = {
-            "image": path,
-            "spots": [],
-            "warnings": [],
-            "error": None,
-            "plane": None,
-            "method": opts.method,
-            "convention": args.convention,
-        }
-        try:
-            img = read_image(path)
-            res = measure_photo(img, path, opts, layout, camera, reference, chroma_subsampled(path))
-        except VisionError as exc:
-            entry["error"] = str(exc)
-            entry["warnings"].append(str(exc))
-            _warn(str(exc))
-            results.append((entry, None))
-            continue
-        entry["spots"] = spot_dicts(res.spots, args.convention)
-        entry["warnings"] = res.warnings
+        res = measure_file(path, opts, layout, camera, reference)
         for w in res.warnings:
-            _warn(f"{path}: {w}")
-        if res.plane is not None:
-            pm = res.plane
-            entry["plane"] = {
-                "markers": list(pm.fiducials.marker_ids),
-                "charuco_corners": pm.fiducials.charuco,
-                "rms_mm": round(pm.rms_mm, 4),
-                "max_mm": round(pm.max_mm, 4),
-                "outliers": int((~pm.inliers).sum()),
-                "mm_per_px": round(pm.mm_per_px, 5),
-                "z_mm": layout.plane_z,
-            }
-        if args.overlay:
+            _warn(w if res.error else f"{path}: {w}")
+        if args.overlay and res.error is None:
             name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
-            how = (
-                opts.method
-                if opts.method == "precise"
-                else f"imagej {opts.imagej_threshold} {opts.imagej_mode}"
-            )
-            write(name, draw(img, res.spots, res.plane, f"{path}  [{how}]", args.convention))
-        results.append((entry, res))
+            write(name, draw(read_image(path), res.spots, res.plane, f"{path}  [{how}]", args.convention))
+        entry = res.to_dict(opts.method, args.convention, layout.plane_z if layout else None)
+        results.append((entry, None if res.error else res))
     return results
 
 
