@@ -39,6 +39,12 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "the model",
     )
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    p.add_argument(
+        "--allow-partial",
+        action="store_true",
+        help="write a model even when the data cannot identify every parameter combination it needs "
+        "(marked partial: true, the unidentifiable combinations listed)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
@@ -175,7 +181,7 @@ def cmd_solve(args) -> int:
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import check_data, fit
+    from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
     from lasercal.solver.kinematics.effects import robot_extensions
 
     check_output(args.output, force=args.force)
@@ -199,6 +205,9 @@ def cmd_solve(args) -> int:
         if session.measurement == "point" and args.method != "lm":
             raise IdentificationError("point sessions are identified by --method lm")
         ident = fit(session, method=args.method, robust=robust)
+    missing = unidentifiable(session, ident)
+    if not args.allow_partial:
+        refuse_partial(missing)
     cv = (
         cross_validate(
             session,
@@ -234,6 +243,11 @@ def cmd_solve(args) -> int:
             "std_errors": rep.get("std_errors", {}),
         }
     )
+    rep["partial"] = meta["partial"] = bool(missing)
+    if missing:
+        rep["unidentifiable_combinations"] = meta["unidentifiable_combinations"] = [
+            {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
+        ]
     for k in ("cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
@@ -247,6 +261,8 @@ def cmd_solve(args) -> int:
         print(json.dumps(rep, indent=2))
     else:
         print_report(rep)
+        for d in missing:
+            print(f"PARTIAL: not identified: {d}")
         if diagnosis is not None:
             print("\n" + format_diagnosis(diagnosis))
         print(f"\nwrote {args.output}")
