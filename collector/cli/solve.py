@@ -270,6 +270,7 @@ def cmd_solve(args) -> int:
 
 
 def cmd_predict(args) -> int:
+    import numpy as np
 
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model
@@ -309,9 +310,17 @@ def cmd_predict(args) -> int:
             w.writerow(row + [f"{c:.6f}" for c in p])
         return 0
     spots, length = predict_spots(model, q, z)
-    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length"])
-    for row, s, t in zip(cfg.rows, spots, length):
-        w.writerow(row + [f"{s[0]:.6f}", f"{s[1]:.6f}", f"{t:.6f}"])
+    valid = np.isfinite(length) & (length >= 0)  # a beam away from the plane or along it has no spot
+    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length", "valid"])
+    for row, s, t, ok in zip(cfg.rows, spots, length, valid):
+        xy = [f"{s[0]:.6f}", f"{s[1]:.6f}"] if ok else ["", ""]
+        w.writerow(row + xy + [f"{t:.6f}" if np.isfinite(t) else "", "true" if ok else "false"])
+    if not valid.all():
+        print(
+            f"lasercal: {int((~valid).sum())} of {len(valid)} configurations have no spot: the beam points "
+            f"away from the plane z = {z:g} mm or runs along it (valid = false, spot left empty)",
+            file=sys.stderr,
+        )
     return 0
 
 
