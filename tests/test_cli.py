@@ -69,7 +69,7 @@ def test_simulate_solve_predict_round_trip(session_dir, tmp_path, capsys):
             w.writerow([r["point"]] + [r[f"q{i}"] for i in range(1, 8)])
     assert main(["predict", str(tmp_path / "m.yaml"), str(cfg)]) == 0
     out = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
-    assert list(out[0])[-3:] == ["spot_x", "spot_y", "laser_length"] and out[0]["label"] == "P1"
+    assert list(out[0])[-4:] == ["spot_x", "spot_y", "laser_length", "valid"] and out[0]["label"] == "P1"
     pts = {"P1": (521, 200), "P2": (436, 0), "P3": (521, -200)}
     err = [
         np.hypot(float(o["spot_x"]) - pts[o["label"]][0], float(o["spot_y"]) - pts[o["label"]][1])

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
+import html
 import re
 import shutil
 import subprocess
@@ -11,6 +13,8 @@ from html.parser import HTMLParser
 import cv2
 import numpy as np
 import pytest
+import yaml
+from scipy.spatial.transform import Rotation
 
 from lasercal.collector.cli.diagnose import format_diagnosis
 from lasercal.collector.cli.main import main
@@ -101,7 +105,7 @@ def test_validation_table_is_the_photos(experiment):
         xy = np.array([[float(r["x_mm"]), float(r["y_mm"])] for r in data])
         err = np.hypot(xy[:, 0] - 441, xy[:, 1] - 160)
         radius = np.linalg.norm(xy - xy.mean(axis=0), axis=1)
-        assert row[2] == f"{len(xy)}/{OPTS.n_validation}"
+        assert row[2] == f"{len(xy)} of {OPTS.n_validation}"
         assert row[3:] == [f"{v:.3f}" for v in (radius.mean(), radius.std(ddof=1), err.mean(), err.max())]
     assert rows[3][3:] == ["1.000", "2.000", "3.000", "4.000"]
     assert float(rows[1][5]) > 5 and float(rows[2][5]) < 2  # before: mm off; after: about the aiming noise
@@ -221,6 +225,7 @@ def test_report_renders_with_its_images_in_chromium(experiment, tmp_path):
     ]
     assert sizes == [f"{w}x{h}" for h, w, _ in files]  # every image decoded, at its file's size
     assert "Validation at P4" in dom and "Diagnosis" in dom
+    assert "Simulated data" in dom and "calibrated: " in dom and "Corrections per joint" in dom
     img = cv2.imread(str(shot))
     assert img.shape[:2] == (2400, 1200) and img.std() > 20  # a page was painted, not a blank window
 
@@ -279,3 +284,65 @@ def test_report_input_errors_name_the_file_and_line(experiment, tmp_path, capsys
     (bad / "validation.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(Exception, match="no measured spot"):
         load_validation(bad)
+
+
+def _paragraph(text: str, pid: str) -> str:
+    return html.unescape(re.sub(r"<[^>]+>", "", re.search(rf'<p id="{pid}">(.*?)</p>', text).group(1)))
+
+
+def test_report_says_what_it_is(experiment):
+    root, session, ident, _, validations, index = experiment
+    text = index.read_text()
+    sim = yaml.safe_load((root / "session" / "session.yaml").read_text())["simulated"]  # the demo's capture
+    assert _paragraph(text, "data-kind").startswith(
+        f"Simulated data: the session was simulated (truth {sim['truth']}"
+    )
+    assert all(
+        yaml.safe_load((root / r / "validation.yaml").read_text())["simulated"]
+        for r in ("nominal", "calibrated")
+    )
+    # the verdict from the validation CSVs directly: nominal's mean error -> calibrated's, configurations
+    err = {}
+    for name in ("nominal", "calibrated"):
+        with open(root / name / "validation.csv") as f:
+            data = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
+        err[name] = np.mean([np.hypot(float(r["x_mm"]) - 441, float(r["y_mm"]) - 160) for r in data])
+    n = OPTS.n_validation
+    assert _paragraph(text, "verdict") == (
+        f"calibrated: {err['nominal']:.2g} → {err['calibrated']:.2g} mm at P4, {n} of {n} configurations"
+    )
+    # corrections per joint: angle between axis directions (deg) and distance of the identified axis from the
+    # nominal axis's foot point (mm), recomputed here with scipy's rotation between the two directions
+    rows = Tables(text).tables["corrections"]
+    assert rows[0] == ["joint", "axis direction change (deg)", "axis position change (mm)"]
+    for row, Sn, Si in zip(rows[1:], ident.nominal.screws, ident.model.screws):
+        rot, _ = Rotation.align_vectors(Si[None, :3], Sn[None, :3])
+        foot = np.cross(Sn[:3], Sn[3:])
+        off = foot - np.cross(Si[:3], Si[3:])
+        assert float(row[1]) == pytest.approx(np.degrees(rot.magnitude()), abs=1.5e-3)
+        assert float(row[2]) == pytest.approx(np.linalg.norm(off - (off @ Si[:3]) * Si[:3]), abs=1.5e-3)
+    assert len(rows) == 1 + ident.model.n + 1 and rows[-1][0].startswith("laser")
+    assert max(float(r[2]) for r in rows[1:-1]) > 0.1  # the truth differs from the nominal by mm
+
+
+def test_report_partial_validation_and_partial_fit(experiment, tmp_path):
+    root, session, ident, _, validations, _ = experiment
+    short = tmp_path / "short"
+    shutil.copytree(root / "calibrated", short)
+    lines = (short / "validation.csv").read_text().splitlines(keepends=True)
+    head = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1
+    (short / "validation.csv").write_text("".join(lines[: head + 3]))  # 3 of the 8 photos: a stopped run
+    part = load_validation(short)
+    text = write_report(tmp_path / "o", session, ident, None, [validations[0], part]).read_text()
+    n = OPTS.n_validation
+    assert Tables(text).tables["validation-stats"][2][2] == f"partial: 3 of {n}"
+    assert _paragraph(text, "verdict").endswith(f"mm at P4, partial: 3 of {n} configurations")
+    # a joint that never moves: the fit is partial, the report says so and names the joint
+    q = session.q.copy()
+    q[:, 3] = q[0, 3]
+    still = dataclasses.replace(session, q=q)
+    text = write_report(tmp_path / "p", still, identify(still, "lm")).read_text()
+    assert _paragraph(text, "verdict").startswith("partial calibration")  # (inconsistent data: not converged)
+    assert "not identified: joint 4's axis direction, joint 4's axis position" in _paragraph(text, "verdict")
+    idf = {r[0]: r[1] for r in Tables(text).tables["identifiability"][1:]}
+    assert idf["partial: not identified"].startswith("joint 4's axis")

@@ -39,6 +39,12 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "the model",
     )
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    p.add_argument(
+        "--allow-partial",
+        action="store_true",
+        help="write a model even when the data cannot identify every parameter combination it needs "
+        "(marked partial: true, the unidentifiable combinations listed)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
@@ -175,7 +181,7 @@ def cmd_solve(args) -> int:
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import check_data, fit
+    from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
     from lasercal.solver.kinematics.effects import robot_extensions
 
     check_output(args.output, force=args.force)
@@ -199,6 +205,9 @@ def cmd_solve(args) -> int:
         if session.measurement == "point" and args.method != "lm":
             raise IdentificationError("point sessions are identified by --method lm")
         ident = fit(session, method=args.method, robust=robust)
+    missing = unidentifiable(session, ident)
+    if not args.allow_partial:
+        refuse_partial(missing)
     cv = (
         cross_validate(
             session,
@@ -235,6 +244,11 @@ def cmd_solve(args) -> int:
             "std_errors": rep.get("std_errors", {}),
         }
     )
+    rep["partial"] = meta["partial"] = bool(missing)
+    if missing:
+        rep["unidentifiable_combinations"] = meta["unidentifiable_combinations"] = [
+            {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
+        ]
     for k in ("cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
@@ -248,6 +262,8 @@ def cmd_solve(args) -> int:
         print(json.dumps(rep, indent=2))
     else:
         print_report(rep)
+        for d in missing:
+            print(f"PARTIAL: not identified: {d}")
         if diagnosis is not None:
             print("\n" + format_diagnosis(diagnosis))
         print(f"\nwrote {args.output}")
@@ -255,6 +271,7 @@ def cmd_solve(args) -> int:
 
 
 def cmd_predict(args) -> int:
+    import numpy as np
 
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model
@@ -294,9 +311,17 @@ def cmd_predict(args) -> int:
             w.writerow(row + [f"{c:.6f}" for c in p])
         return 0
     spots, length = predict_spots(model, q, z)
-    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length"])
-    for row, s, t in zip(cfg.rows, spots, length):
-        w.writerow(row + [f"{s[0]:.6f}", f"{s[1]:.6f}", f"{t:.6f}"])
+    valid = np.isfinite(length) & (length >= 0)  # a beam away from the plane or along it has no spot
+    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length", "valid"])
+    for row, s, t, ok in zip(cfg.rows, spots, length, valid):
+        xy = [f"{s[0]:.6f}", f"{s[1]:.6f}"] if ok else ["", ""]
+        w.writerow(row + xy + [f"{t:.6f}" if np.isfinite(t) else "", "true" if ok else "false"])
+    if not valid.all():
+        print(
+            f"lasercal: {int((~valid).sum())} of {len(valid)} configurations have no spot: the beam points "
+            f"away from the plane z = {z:g} mm or runs along it (valid = false, spot left empty)",
+            file=sys.stderr,
+        )
     return 0
 
 

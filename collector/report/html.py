@@ -3,10 +3,13 @@
 The page (``index.html``) and its plots are files in one folder, with relative links and
 no scripts, styles or fonts from elsewhere: copy or zip the folder and it still opens.
 
-Contents, in the thesis's terms (Section 4.3):
+Contents, in the thesis's terms (Section 4.3), after two sentences at the top -- simulated or
+measured data, and the verdict (e.g. "calibrated: 9.2 → 0.54 mm at P4, 60 of 60 configurations";
+"partial" when the data cannot identify every combination, or fewer spots were measured than planned):
 
 * the laser spots at the validation point, before and after calibration (Figure 4.5),
   and their mean and max absolute error (Figure 4.6), from ``lasercal validate`` folders;
+* the corrections per joint in physical units: each axis's change of direction (deg) and position (mm);
 * the parameter table, nominal vs identified with standard errors (Table 4.3): the joint
   screws (omega, v), the laser direction and the aperture, the standard errors propagated
   from the fit's covariance through the minimal-POE parametrisation;
@@ -31,6 +34,7 @@ from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.table import csv_rows
+from lasercal.solver.identify.measurement import unidentifiable
 from lasercal.solver.identify.spot import Identification, spot_residuals
 from lasercal.solver.kinematics.laser import LaserParams
 
@@ -50,6 +54,8 @@ class Validation:
     xyz : (3,) array, its position, mm
     spots : (k, 2) array, the measured spots, mm
     photos : int, rows in validation.csv (measured or not)
+    planned : int, configurations the run planned (validation.yaml ``n``)
+    simulated : bool, a simulated run (the fake backend or camera, or ``simulated`` in validation.yaml)
     """
 
     folder: Path
@@ -59,6 +65,14 @@ class Validation:
     xyz: np.ndarray
     spots: np.ndarray
     photos: int
+    planned: int
+    simulated: bool
+
+    @property
+    def completeness(self) -> str:
+        """'20 of 60', and 'partial: ' before it when fewer spots were measured than planned."""
+        done = f"{len(self.spots)} of {self.planned}"
+        return done if len(self.spots) >= self.planned else f"partial: {done}"
 
     @property
     def stats(self) -> SpotStats:
@@ -122,8 +136,17 @@ def load_validation(folder) -> Validation:
         raise FormatError(
             cpath, "no measured spot (x_mm, y_mm empty): measure the photos first (lasercal spots)"
         )
+    simulated = bool(meta.get("simulated")) or "fake" in (meta.get("backend"), meta.get("camera"))
     return Validation(
-        folder, folder.resolve().name, str(meta.get("model", "?")), point, xyz, np.array(spots), len(rows) - 1
+        folder,
+        folder.resolve().name,
+        str(meta.get("model", "?")),
+        point,
+        xyz,
+        np.array(spots),
+        len(rows) - 1,
+        n,
+        simulated,
     )
 
 
@@ -188,6 +211,87 @@ def parameter_table(ident: Identification) -> list[ParameterRow]:
         ParameterRow("M (aperture)", "mm", nom.aperture, mod.aperture, None if se is None else se[n6 + 3 :])
     )
     return rows
+
+
+def corrections(ident: Identification) -> list[list]:
+    """Per-joint corrections in physical units: how far calibration moved each axis, the beam, the aperture.
+
+    Joint i: the angle between the nominal and identified axis directions, arccos(w_n . w_i) (deg), and
+    the distance of the identified axis from the nominal axis's point nearest the base origin,
+    |(p_n - p_i) x w_i| with p = w x v (mm). Laser: the angle between the beam directions (deg) and the
+    aperture's shift across the identified beam (mm; along the beam it is the gauge, fixed by p_Mz).
+
+    Returns
+    -------
+    list of [name, direction change (deg), position change (mm)]
+    """
+    nom, mod = ident.nominal, ident.model
+
+    def angle(a, b):
+        return float(np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0))))
+
+    rows = []
+    for nm, Sn, Si, pr in zip(nom.joint_names, nom.screws, mod.screws, nom.prismatic):
+        if pr:  # a prismatic joint: its direction only (it has no line)
+            rows.append([nm, angle(Sn[3:], Si[3:]), 0.0])
+            continue
+        pn, pi = np.cross(Sn[:3], Sn[3:]), np.cross(Si[:3], Si[3:])
+        rows.append([nm, angle(Sn[:3], Si[:3]), float(np.linalg.norm(np.cross(pn - pi, Si[:3])))])
+    dM = mod.aperture - nom.aperture
+    across = dM - (dM @ mod.laser_dir) * mod.laser_dir
+    rows.append(
+        ["laser (beam, aperture)", angle(nom.laser_dir, mod.laser_dir), float(np.linalg.norm(across))]
+    )
+    return rows
+
+
+def data_kind(session: Session, validations=()) -> str:
+    """One sentence: simulated or measured data, from session.yaml's ``simulated`` and the validation runs."""
+    sim = session.meta.get("simulated")
+    runs = [v.label for v in validations if v.simulated]
+    if sim:
+        what = ", ".join(f"{k} {v}" for k, v in sim.items() if k in ("truth", "aim_noise_mm", "seed"))
+        return f"Simulated data: the session was simulated ({what}), not measured on a robot."
+    if runs:
+        return f"Measured calibration session; simulated validation run(s): {', '.join(runs)}."
+    backend = (session.meta.get("collector") or {}).get("backend")
+    return f"Measured data: captured on a robot{f' ({backend} backend)' if backend else ''}."
+
+
+def verdict(session: Session, ident: Identification, validations=(), missing=()) -> str:
+    """The report in one sentence, e.g. 'calibrated: 9.2 → 0.54 mm at P4, 60 of 60 configurations'.
+
+    With two or more validation runs: the first run's mean error (e.g. the nominal model's) to the last
+    one's, at the validation point, and how many of the last run's planned configurations were measured;
+    with one: its error; with none: the RMS spot error on the calibration captures, nominal → identified
+    (outliers left out). A
+    rank-deficient fit is 'partial', a fit that did not converge says so.
+    """
+    state = "partial calibration" if missing else "calibrated"
+    if not ident.converged:
+        state += " (NOT converged)"
+    if len(validations) >= 2:
+        a, b = validations[0], validations[-1]
+        text = (
+            f"{state}: {a.stats.error_mean:.2g} → {b.stats.error_mean:.2g} mm at {b.point}, "
+            f"{b.completeness} configurations"
+        )
+    elif validations:
+        b = validations[0]
+        text = (
+            f"{state}: {b.stats.error_mean:.2g} mm at {b.point} ({b.label}), {b.completeness} configurations"
+        )
+    else:
+        used = ident.weights > 0
+        r = spot_residuals(ident.nominal, session.q, session.target)[used]
+        before = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        text = (
+            f"{state}: {before:.2g} → {ident.rms_mm:.2g} mm RMS on the calibration captures, "
+            f"{int(used.sum())} of {session.m} captures (not validated at a point the fit did not see)"
+        )
+    if missing:
+        text += "; not identified: " + ", ".join(d.combination for d in missing)
+    return text
 
 
 # ------------------------------------------------------------------ plots
@@ -356,11 +460,14 @@ def write_report(
     esc = html.escape
     rep = solve_report(session, ident)
     idf = rep["identifiability"]
+    missing = unidentifiable(session, ident)
     title = title or f"lasercal report: {session.path.resolve().name}"
     parts = [
         '<!DOCTYPE html>\n<html lang="en"><head><meta '
         f'charset="utf-8"><title>{esc(title)}</title><style>{_CSS}</style></head><body>',
         f"<h1>{esc(title)}</h1>",
+        f'<p id="data-kind"><b>{esc(data_kind(session, validations))}</b></p>',
+        f'<p id="verdict"><b>{esc(verdict(session, ident, validations, missing))}</b></p>',
         (
             f'<p class="note">Session {esc(str(session.path))}: {session.m} captures at '
             f"{esc(', '.join(dict.fromkeys(session.point)))}, "
@@ -381,8 +488,7 @@ def write_report(
         scatter_plot(validations, out / "validation_spots.png")
         error_bars(validations, reference, out / "validation_errors.png")
         rows = [
-            [v.label, v.model, f"{len(v.spots)}/{v.photos}"]
-            + [f"{v.stats.as_dict()[k]:.3f}" for k in _STAT_KEYS]
+            [v.label, v.model, v.completeness] + [f"{v.stats.as_dict()[k]:.3f}" for k in _STAT_KEYS]
             for v in validations
         ]
         rows += [[lab, "published", ""] + [f"{r[k]:.3f}" for k in _STAT_KEYS] for lab, r in reference.items()]
@@ -425,6 +531,18 @@ def write_report(
         _table("parameters", ["parameter", "nominal", "identified", "standard error"], prow),
     ]
 
+    crows = [[nm, f"{deg:.3f}", f"{mm:.3f}"] for nm, deg, mm in corrections(ident)]
+    parts += [
+        "<h2>Corrections per joint</h2>",
+        (
+            '<p class="note">How far calibration moved each joint axis from the nominal: the angle between '
+            "the axis directions and the distance of the identified axis from the nominal axis's point "
+            "nearest the base origin; for the laser, the beam's angle and the aperture's shift across the "
+            "beam.</p>"
+        ),
+        _table("corrections", ["joint", "axis direction change (deg)", "axis position change (mm)"], crows),
+    ]
+
     prows = []
     for nm, d in rep["points"].items():
         for when in ("before", "after"):
@@ -456,6 +574,7 @@ def write_report(
         ["outliers", ", ".join(f"line {o['line']} ({o['point']})" for o in rep["outliers"]) or "none"],
     ]
     irows += [[f"not identifiable ({k + 1})", u] for k, u in enumerate(idf["unidentifiable"])]
+    irows += [["partial: not identified", str(d)] for d in missing]
     parts += [
         "<h2>Identifiability</h2>",
         '<p class="note">SVD of the column-scaled Jacobian: combinations below the rank are held at their '

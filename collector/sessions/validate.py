@@ -324,6 +324,7 @@ def run_validation(
         "seed": opts.seed,
         "backend": robot.name,
         "camera": camera.name,
+        "simulated": "fake" in (robot.name, camera.name),  # the report says simulated or measured
         "motion": "guided by the operator" if guided else "moved by the backend",
         "units": {"q": "rad", "x_mm": "mm", "y_mm": "mm", "q_dev": "rad"},
         "columns": {

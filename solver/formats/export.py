@@ -48,6 +48,7 @@ FRANKA_VELOCITY = {
 _FRANKA_MATCH = (0.1, 30.0)  # rad, mm: a model whose axes are this close to Franka's is a Panda or an FR3
 _PARALLEL = 1e-9  # |z_i x z_j| below this: parallel axes, the common normal is anywhere along them
 FORMATS = ("urdf", "dh", "yaml")
+EE_LINK = "lasercal_ee"  # the full-pose frame {E} (model.ee_pose) in every URDF lasercal writes
 
 
 def transform(xyz, rpy) -> np.ndarray:
@@ -104,6 +105,15 @@ def _common_normal(p1, w1, p2, w2, near) -> tuple[np.ndarray, np.ndarray | None]
         return f, _unit_normal(p2 - f, w1)
     f = p1 + w1 * (np.cross(p2 - p1, w2) @ n) / (n @ n)
     return f, n / np.linalg.norm(n)
+
+
+def _x_axis(ref: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """A frame's x for the unit z: the reference frame's x made normal to z, or its y when x is along z.
+
+    The reference's x and y are orthogonal, so they cannot both lie along z: any z gets an x.
+    """
+    x = _unit_normal(ref[:3, 0], z)
+    return x if x is not None else _unit_normal(ref[:3, 1], z)
 
 
 def _frame(x: np.ndarray, z: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -168,7 +178,7 @@ def kinematic_frames(model: RobotModel) -> Frames:
             origin = _common_normal(p, w, *axes[i - 1], near=r[:3, 3])[0] if n > 1 else _foot(p, w, r[:3, 3])
             x = None
         if x is None:
-            x = _unit_normal(r[:3, 0], w)
+            x = _x_axis(r, w)
         frames.append(_frame(x if x @ r[:3, 0] >= 0 else -x, w, origin))
     frames = np.array(frames)
     p1, w1 = axes[0]
@@ -179,7 +189,7 @@ def kinematic_frames(model: RobotModel) -> Frames:
         flange[:3, 3] += FRANKA_FLANGE_MM * frames[-1][:3, 2]
     last = flange if flange is not None else frames[-1]
     vp = model.laser_dir
-    laser = _frame(_unit_normal(last[:3, 0], vp), vp, model.aperture)
+    laser = _frame(_x_axis(last, vp), vp, model.aperture)
     return Frames(prefix, base, frames, flange, laser)
 
 
@@ -209,7 +219,8 @@ def to_urdf(model: RobotModel) -> str:
     For the Panda and the FR3 the names are Franka's (``panda_link0..8``, ``panda_joint1..7``,
     the fixed ``panda_joint8`` to the flange) and a fixed ``panda_laser_joint`` puts the
     ``panda_laser`` frame at the aperture with z along the beam; other robots get
-    ``link0..n``, the model's joint names and ``laser``.
+    ``link0..n``, the model's joint names and ``laser``. A full-pose model's end-effector frame
+    {E} (``ee``) is the fixed link ``lasercal_ee`` (joint ``lasercal_ee_joint``) on the same parent.
     """
     F = kinematic_frames(model)
     pre = f"{F.prefix}_" if F.prefix else ""
@@ -255,17 +266,19 @@ def to_urdf(model: RobotModel) -> str:
             "  </joint>",
         ]
         parent, prev = flange, F.flange
-    out += [
-        f'  <link name="{pre}laser"/>',
-        f'  <joint name="{pre}laser_joint" type="fixed">',
-        f'    <parent link="{parent}"/>',
-        f'    <child link="{pre}laser"/>',
-        f"    {_origin(inv_T(prev) @ F.laser)}",
-        "  </joint>",
-        "</robot>",
-        "",
-    ]
-    return "\n".join(out)
+    fixed = {f"{pre}laser": (f"{pre}laser_joint", F.laser)}
+    if model.ee_pose is not None:
+        fixed[EE_LINK] = (f"{EE_LINK}_joint", np.asarray(model.ee_pose))
+    for name, (joint, T) in fixed.items():
+        out += [
+            f'  <link name="{name}"/>',
+            f'  <joint name="{joint}" type="fixed">',
+            f'    <parent link="{parent}"/>',
+            f'    <child link="{name}"/>',
+            f"    {_origin(inv_T(prev) @ T)}",
+            "  </joint>",
+        ]
+    return "\n".join(out + ["</robot>", ""])
 
 
 def dh_parameters(frames: np.ndarray, base: np.ndarray) -> np.ndarray:
@@ -289,11 +302,19 @@ def dh_parameters(frames: np.ndarray, base: np.ndarray) -> np.ndarray:
 def to_dh(model: RobotModel) -> str:
     """The DH-style table (YAML ``lasercal-dh/1``): per joint its screw and modified DH parameters.
 
-    T(q) = base * prod_i Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i) * tool gives the
-    laser frame (origin the aperture, z along the beam), mm and rad.
+    T(q) = base * prod_i Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i) * flange * tool gives the
+    laser frame (origin the aperture, z along the beam), mm and rad. ``flange`` is a fixed DH row
+    from the last joint's frame along its axis: Franka's flange (d = 107 mm) for the Panda and the
+    FR3, else the foot of the aperture on the last axis; ``tool`` is the laser frame in the flange's.
     """
     F = kinematic_frames(model)
     dh = dh_parameters(F.joints, F.base)
+    last = F.joints[-1]
+    flange = F.flange
+    if flange is None:  # no flange of record: the last frame slid along its axis to the aperture's foot
+        flange = last.copy()
+        flange[:3, 3] = _foot(last[:3, 3], last[:3, 2], model.aperture)
+    fl = dh_parameters(flange[None], last)[0]
     r = lambda a: [float(round(float(x), 12)) for x in np.ravel(a)]  # noqa: E731
 
     def pose(T):
@@ -304,8 +325,9 @@ def to_dh(model: RobotModel) -> str:
         "format": "lasercal-dh/1",
         "robot": model.name,
         "units": {"length": "mm", "angle": "rad"},
-        "convention": "T(q) = base * prod_i Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i) * tool "
-        "(modified DH, Craig); "
+        "convention": "T(q) = base * prod_i Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i) * flange * tool "
+        "(modified DH, Craig; flange: the fixed row Rx(alpha) Tx(a) Rz(theta) Tz(d) from the last joint "
+        "to the flange); "
         "rpy: R = Rz(yaw) Ry(pitch) Rx(roll); omega, v: the joint screw in the base frame at q = 0",
         "base": pose(F.base),
         "joints": [
@@ -320,7 +342,11 @@ def to_dh(model: RobotModel) -> str:
             }
             for nm, (al, a, th, dd), S in zip(model.joint_names, dh, model.screws)
         ],
-        "tool": pose(inv_T(F.joints[-1]) @ F.laser),
+        "flange": {
+            "name": f"{F.prefix}_joint{model.n + 1}" if F.prefix else "flange",
+            **{k: float(round(v, 12)) for k, v in zip(("alpha", "a", "theta", "d"), fl)},
+        },
+        "tool": pose(inv_T(flange) @ F.laser),
     }
     if model.extensions:
         d["extensions"] = model.extensions

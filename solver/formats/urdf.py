@@ -18,7 +18,7 @@ movable joints in the original XML (names, limits, inertias, meshes, everything 
 kept): joint i's frame keeps its nominal orientation R_i, its origin moves to the point of
 the calibrated axis nearest the nominal origin, and its axis becomes R_i^T w_i (for a
 prismatic joint R_i^T v_i, origin kept). Fixed links get ``lasercal_<target>`` child links
-of the tip (targets, or the end-effector frame ``lasercal_tool``).
+of the tip (targets, or the end-effector frame {E} as ``lasercal_ee``).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.export import EE_LINK
 from lasercal.solver.kinematics.model import Link, RobotModel, _frozen
 from lasercal.solver.kinematics.poe import inv_T
 
@@ -298,7 +299,7 @@ def calibrated_urdf(model: RobotModel) -> str:
     tools = dict(model.targets) if model.targets else {}
     frames = {f"lasercal_{nm}": _point_frame(p) for nm, p in tools.items()}
     if model.ee_pose is not None and not tools:
-        frames["lasercal_tool"] = np.asarray(model.ee_pose)
+        frames[EE_LINK] = np.asarray(model.ee_pose)
     for nm, F in frames.items():
         ET.SubElement(root, "link", name=nm)
         jt = ET.SubElement(root, "joint", name=f"{nm}_joint", type="fixed")

@@ -46,6 +46,8 @@ class Identifiability:
     condition : float, s_max / s_min over the identifiable subspace
     singular_values : (n_params,) array, of the column-scaled Jacobian
     unidentifiable : list of str, each null-space direction as its largest parameter components
+    null_space : (n_params, n_params - rank) array, the unidentifiable directions in parameter units
+        (columns of V past the rank, unscaled; :mod:`solver.identify.degenerate` names them)
     """
 
     n_params: int
@@ -53,6 +55,7 @@ class Identifiability:
     condition: float
     singular_values: np.ndarray
     unidentifiable: list
+    null_space: np.ndarray
 
 
 def identifiability(
@@ -81,7 +84,9 @@ def identifiability(
     for v in Vt[rank:]:
         top = np.argsort(-np.abs(v))[:3]
         null.append(" ".join(f"{v[k]:+.2f}*{names[k]}" for k in top if abs(v[k]) > 0.05))
-    report = Identifiability(J.shape[1], rank, float(s_full[0] / s_full[rank - 1]), s_full, null)
+    report = Identifiability(
+        J.shape[1], rank, float(s_full[0] / s_full[rank - 1]), s_full, null, Vt[rank:].T / scale[:, None]
+    )
     return report, Vt[:rank].T / scale[:, None]
 
 

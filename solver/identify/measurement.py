@@ -11,6 +11,7 @@ import numpy as np
 
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.degenerate import Deficiency, deficiencies, laser_gauge
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
 from lasercal.solver.identify.spot import Identification, identify, spot_residuals
@@ -84,4 +85,36 @@ def check_data(session) -> None:
         raise IdentificationError(
             f"points {', '.join(names)} are collinear: the base rotation about their line and the offset "
             "across it are unidentifiable (add a point off that line)"
+        )
+
+
+def unidentifiable(session: Session, ident: Identification) -> list[Deficiency]:
+    """What the session's data cannot identify beyond the gauge, named (:mod:`solver.identify.degenerate`).
+
+    Laser sessions hold the aperture's component along the beam (the gauge of spot data); point and
+    position identifications hold their base-frame gauge outside the parameter vector already.
+
+    Returns
+    -------
+    list of Deficiency, empty for a full-rank fit
+    """
+    names = list(ident.param_names)
+    held = laser_gauge(names, ident.model.laser_dir) if session.measurement == "laser" else []
+    return deficiencies(ident.identifiability, names, session.robot.joint_names, session.q, held)
+
+
+def refuse_partial(missing: list[Deficiency]) -> None:
+    """Refuse a rank-deficient fit, naming what is unidentifiable and the data that would fix it.
+
+    Raises
+    ------
+    IdentificationError
+        When ``missing`` is not empty.
+    """
+    if missing:
+        k = sum(d.directions for d in missing)
+        raise IdentificationError(
+            f"the data cannot identify {k} parameter combination{'s' * (k > 1)}: "
+            + "; ".join(map(str, missing))
+            + " (or pass --allow-partial to write a model marked partial)"
         )

@@ -1,0 +1,92 @@
+"""Degenerate fits fail loudly: a still joint is named; --allow-partial writes a model marked partial."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import shutil
+
+import pytest
+import yaml
+
+from lasercal.collector.cli.main import main
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.identify.measurement import fit, unidentifiable
+
+LAYOUT = str(builtin_dir("layouts") / "thesis.yaml")
+
+
+@pytest.fixture(scope="module")
+def session_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("degenerate") / "s"
+    assert main(["simulate", "panda_thesis_identified", "--layout", LAYOUT, "--per-point", "12",
+                 "--aim-noise", "0.3", "--seed", "5", "-o", str(out)]) == 0  # fmt: skip
+    return out
+
+
+def _freeze_joint(src, dst, joint: int) -> None:
+    """A copy of the session in which joint ``joint`` (1-based) stays at its first capture's value."""
+    shutil.copytree(src, dst)
+    path = dst / "captures.csv"
+    rows = list(csv.reader(path.open()))
+    col = rows[0].index(f"q{joint}")
+    for r in rows[2:]:
+        r[col] = rows[1][col]
+    with path.open("w", newline="") as f:
+        csv.writer(f, lineterminator="\n").writerows(rows)
+
+
+def test_full_session_has_no_deficiency(panda_noisy):
+    session = panda_noisy[0]
+    ident = fit(session)
+    assert ident.identifiability.rank == ident.identifiability.n_params - 1  # only the aperture gauge
+    assert unidentifiable(session, ident) == []
+
+
+@pytest.mark.parametrize("joint", [1, 4, 7])
+def test_still_joint_is_named_first(panda_noisy, joint):
+    session = panda_noisy[0]
+    q = session.q.copy()
+    q[:, joint - 1] = q[0, joint - 1]
+    still = dataclasses.replace(session, q=q)
+    ident = fit(still)
+    missing = unidentifiable(still, ident)
+    deficit = ident.identifiability.n_params - 1 - ident.identifiability.rank
+    assert deficit >= 4 and sum(d.directions for d in missing) == deficit  # every direction accounted for
+    assert [d.combination for d in missing[:2]] == [
+        f"joint {joint}'s axis direction",
+        f"joint {joint}'s axis position",
+    ]
+    assert all(d.fix == f"vary joint {joint}: it never moves in this session" for d in missing[:2])
+
+
+def test_solve_refuses_a_still_joint(session_dir, tmp_path, capsys):
+    _freeze_joint(session_dir, tmp_path / "s", 4)
+    capsys.readouterr()
+    assert main(["solve", str(tmp_path / "s"), "-o", str(tmp_path / "m.yaml"), "--folds", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("lasercal: error: the data cannot identify 4 parameter")
+    assert "joint 4's axis direction (vary joint 4: it never moves in this session)" in err[0]
+    assert "--allow-partial" in err[0] and "Traceback" not in err[0]
+    assert not (tmp_path / "m.yaml").exists()
+
+
+def test_allow_partial_writes_a_model_marked_partial(session_dir, tmp_path, capsys):
+    _freeze_joint(session_dir, tmp_path / "s", 4)
+    out = tmp_path / "m.yaml"
+    assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--folds", "0", "--allow-partial"]) == 0
+    assert "PARTIAL: not identified: joint 4's axis direction" in capsys.readouterr().out
+    idn = yaml.safe_load(out.read_text())["identification"]
+    assert idn["partial"] is True
+    assert [c["combination"] for c in idn["unidentifiable_combinations"]] == [
+        "joint 4's axis direction",
+        "joint 4's axis position",
+    ]
+    assert sum(c["directions"] for c in idn["unidentifiable_combinations"]) == 4
+
+
+def test_full_rank_model_is_marked_complete(session_dir, tmp_path):
+    out = tmp_path / "m.yaml"
+    assert main(["solve", str(session_dir), "-o", str(out), "--folds", "0"]) == 0
+    idn = yaml.safe_load(out.read_text())["identification"]
+    assert idn["partial"] is False and "unidentifiable_combinations" not in idn
