@@ -252,7 +252,7 @@ def test_opencv_camera_reads_a_capture_device(tmp_path):
 
 def test_photos_of_a_layout_with_markers_are_measured_through_vision(tmp_path):
     from lasercal.collector.sessions.validate import fake_view, measure_with_markers
-    from lasercal.vision.plane import load_layout as load_markers
+    from lasercal.vision.plane import load_markers
     from lasercal.vision.render import LaserSpot, Photo, aruco_print, render, square_corners
 
     centres = {0: (401, 200), 1: (481, 200), 2: (481, 120), 3: (401, 120)}  # around P4 = (441, 160), mm

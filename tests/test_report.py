@@ -16,10 +16,10 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from lasercal.collector.cli.diagnose import format_diagnosis
 from lasercal.collector.cli.main import main
 from lasercal.collector.demo import TRUTH, DemoOptions, capture_session, thesis_layout, validate_model
 from lasercal.collector.report.html import load_validation, parameter_table, write_report
+from lasercal.collector.report.text import format_diagnosis
 from lasercal.solver.analysis.diagnose import diagnose
 from lasercal.solver.analysis.stats import solve_report
 from lasercal.solver.formats.robots import load_model

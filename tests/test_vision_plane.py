@@ -59,7 +59,7 @@ def scene(seed, size=(1000, 750), dist=(0, 0, 0, 0, 0), n_spots=3):
 
 def test_layout_markers_are_read_and_unknown_sections_ignored(tmp_path):
     markers = {7: square_corners((300, 100), 40), 3: square_corners((600, -100), 40, 30)}
-    lay = P.load_layout(write_layout(tmp_path, markers))
+    lay = P.load_markers(write_layout(tmp_path, markers))
     assert lay.dictionary == "DICT_4X4_50" and set(lay.corners) == {3, 7}
     assert np.allclose(lay.corners[3], markers[3], atol=1e-4)
     assert lay.min_markers == 2 and lay.plane_z == -8 and lay.charuco is None
@@ -68,7 +68,7 @@ def test_layout_markers_are_read_and_unknown_sections_ignored(tmp_path):
 def test_layout_without_markers_gives_none(tmp_path):
     path = tmp_path / "l.yaml"
     path.write_text("format: lasercal-layout/1\npoints: {P1: [1, 2, 3]}\n")
-    assert P.load_layout(path) is None
+    assert P.load_markers(path) is None
 
 
 @pytest.mark.parametrize(
@@ -130,27 +130,27 @@ def test_layout_errors_name_the_file_and_field(tmp_path, markers, field, message
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump({"format": "lasercal-layout/1", "markers": markers}))
     with pytest.raises(LayoutError, match=message) as exc:
-        P.load_layout(path)
+        P.load_markers(path)
     assert str(path) in str(exc.value) and f"field '{field}'" in str(exc.value)
 
 
 def test_layout_file_errors(tmp_path):
     with pytest.raises(LayoutError, match="cannot read layout"):
-        P.load_layout(tmp_path / "missing.yaml")
+        P.load_markers(tmp_path / "missing.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_text("markers: [unclosed\n")
     with pytest.raises(LayoutError, match="not valid YAML"):
-        P.load_layout(bad)
+        P.load_markers(bad)
     bad.write_text("format: lasercal-layout/9\n")
     with pytest.raises(LayoutError, match="format"):
-        P.load_layout(bad)
+        P.load_markers(bad)
 
 
 def test_spot_on_the_plane_within_01_mm_with_four_markers_at_03_mm_per_px(tmp_path):
     errs = []
     for seed in range(4):
         view, markers, xy, img = scene(seed)
-        lay = P.load_layout(write_layout(tmp_path, markers))
+        lay = P.load_markers(write_layout(tmp_path, markers))
         res = measure_photo(img, "p", Options(expect=None), lay)
         assert len(res.spots) == len(xy) and res.plane.mm_per_px == pytest.approx(0.3, abs=0.005)
         assert res.plane.rms_mm < 0.1 and not (~res.plane.inliers).any()
@@ -166,7 +166,7 @@ def test_lens_distortion_needs_the_camera_model(tmp_path):
     with_cam, without = [], []
     for seed in range(3):
         view, markers, xy, img = scene(seed + 10, dist=dist)
-        lay = P.load_layout(write_layout(tmp_path, markers))
+        lay = P.load_markers(write_layout(tmp_path, markers))
         cam = Camera(view.size, view.K, view.dist)
         for camera, out in ((cam, with_cam), (None, without)):
             res = measure_photo(img, "p", Options(expect=None), lay, camera)
@@ -181,7 +181,7 @@ def test_too_few_markers_is_a_clear_error(tmp_path):
     markers = marker_sheet(view, side=24)
     shown = {i: c for i, c in markers.items() if i in (0, 2)}
     img = render(Photo(view, marker_prints(shown), (LaserSpot(320.2, 240.7, 2.0, 3.0),), **PHOTO), 0)
-    lay = P.load_layout(write_layout(tmp_path, markers))
+    lay = P.load_markers(write_layout(tmp_path, markers))
     with pytest.raises(
         MarkerError,
         match=r"p\.jpg: found 2 of the 4 markers of .*layout\.yaml \(ids 0, 2\); "
@@ -194,7 +194,7 @@ def test_a_marker_listed_with_wrong_corners_is_an_outlier(tmp_path):
     view, markers, xy, img = scene(5)
     wrong = dict(markers)
     wrong[1] = np.roll(markers[1], 1, axis=0)  # corner order shifted by one: 40 mm off
-    lay = P.load_layout(write_layout(tmp_path, wrong, min_markers=3))
+    lay = P.load_markers(write_layout(tmp_path, wrong, min_markers=3))
     res = measure_photo(img, "p", Options(expect=None), lay)
     assert (~res.plane.inliers).sum() == 4 and any("disagree with the layout" in w for w in res.warnings)
     got = np.array([[s.x_mm, s.y_mm] for s in res.spots])
@@ -234,7 +234,7 @@ def test_charuco_board_maps_pixels_to_mm(tmp_path):
             }
         )
     )
-    lay = P.load_layout(path)
+    lay = P.load_markers(path)
     fid = P.find_fiducials(to_gray(img), lay)
     assert fid.charuco == (cols - 1) * (rows - 1) and fid.marker_ids == ()
     truth = lay.charuco.to_base(board.getChessboardCorners()[:, :2])
@@ -247,7 +247,7 @@ def test_charuco_board_maps_pixels_to_mm(tmp_path):
 
 def test_opencv_4_and_5_array_shapes_are_both_accepted(tmp_path, monkeypatch):
     view, markers, xy, img = scene(2)
-    lay = P.load_layout(write_layout(tmp_path, markers))
+    lay = P.load_markers(write_layout(tmp_path, markers))
     ref = P.find_fiducials(to_gray(img), lay)
     real = P._detector
 
@@ -266,7 +266,7 @@ def test_opencv_4_and_5_array_shapes_are_both_accepted(tmp_path, monkeypatch):
 
 def test_edge_fitted_marker_corners_beat_opencv_subpix(tmp_path):
     view, markers, xy, img = scene(3, dist=(-0.1, 0.03, 0, 0, 0))
-    lay = P.load_layout(write_layout(tmp_path, markers))
+    lay = P.load_markers(write_layout(tmp_path, markers))
     cam = Camera(view.size, view.K, view.dist)
     rms = {}
     for refine in (False, True):
@@ -277,7 +277,7 @@ def test_edge_fitted_marker_corners_beat_opencv_subpix(tmp_path):
 
 def test_gamma_linearisation_removes_the_edge_bias(tmp_path):
     view, markers, xy, img = scene(3)
-    lay = P.load_layout(write_layout(tmp_path, markers))
+    lay = P.load_markers(write_layout(tmp_path, markers))
     rms = {}
     for g in (1.0, 2.2):
         fid = P.find_fiducials(to_gray(img), lay, gamma=g)

@@ -23,7 +23,7 @@ from lasercal.vision.errors import (
 from lasercal.vision.exposure import Exposure, exposure_advice
 from lasercal.vision.images import read_image
 from lasercal.vision.measure import Options, PhotoResult, measure_batch, measure_file, measure_photo
-from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane, load_layout
+from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane, load_markers
 from lasercal.vision.spot import Evidence, Spot
 
 __all__ = [
@@ -50,7 +50,7 @@ __all__ = [
     "fit_circle",
     "fit_plane",
     "load_camera",
-    "load_layout",
+    "load_markers",
     "measure_batch",
     "measure_file",
     "measure_photo",

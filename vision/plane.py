@@ -155,7 +155,7 @@ def _parse_charuco(c, default_dict, path) -> CharucoLayout:
     )
 
 
-def load_layout(path) -> MarkerLayout | None:
+def load_markers(path) -> MarkerLayout | None:
     """Read the ``markers`` section of a layout YAML; None when it has none.
 
     Raises

@@ -471,7 +471,7 @@ def cmd_validate(args) -> int:
         )
     else:
         camera = OpenCVCamera(int(camera_spec) if camera_spec.isdigit() else camera_spec)
-        from lasercal.vision.plane import load_layout as load_markers
+        from lasercal.vision.plane import load_markers
 
         markers = load_markers(run["layout"])
         if markers is not None:

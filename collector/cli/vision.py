@@ -182,9 +182,9 @@ def _context(args):
     from lasercal.vision.camera import load_camera
     from lasercal.vision.images import read_image
     from lasercal.vision.measure import median_reference
-    from lasercal.vision.plane import load_layout
+    from lasercal.vision.plane import load_markers
 
-    layout = load_layout(args.layout) if args.layout else None
+    layout = load_markers(args.layout) if args.layout else None
     if args.layout and layout is None:
         _warn(f"{args.layout} has no 'markers' section: positions in px only")
     camera = load_camera(args.camera) if args.camera else None

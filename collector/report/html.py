@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.collector.report.plots import diagnosis_plots
+from lasercal.collector.report.plots import diagnosis_plots, pyplot, save
 from lasercal.collector.report.text import format_diagnosis
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
@@ -297,25 +297,13 @@ def verdict(session: Session, ident: Identification, validations=(), missing=())
 # ------------------------------------------------------------------ plots
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    _plt().close(fig)
-    return path
+    return save(fig, path, dpi=100)
 
 
 def scatter_plot(validations, path: Path) -> Path:
     """Figure 4.5: the spots at the validation point, one panel per run (mm from the point)."""
-    plt = _plt()
+    plt = pyplot()
     k = len(validations)
     fig, axs = plt.subplots(1, k, figsize=(3.6 * k, 3.8), squeeze=False)
     for ax, v in zip(axs[0], validations):
@@ -340,7 +328,7 @@ def scatter_plot(validations, path: Path) -> Path:
 
 def error_bars(validations, reference: dict, path: Path) -> Path:
     """Figure 4.6: mean and max absolute error at the validation point per run (and published references)."""
-    plt = _plt()
+    plt = pyplot()
     labels = [v.label for v in validations] + list(reference)
     stats = [v.stats.as_dict() for v in validations] + list(reference.values())
     x = np.arange(len(labels))
@@ -367,7 +355,7 @@ def error_bars(validations, reference: dict, path: Path) -> Path:
 def residual_plots(session: Session, ident: Identification, path: Path) -> Path:
     """Per reference point: the nominal model's spot errors on the captures (top) and the fit's residuals
     (bottom)."""
-    plt = _plt()
+    plt = pyplot()
     names = list(dict.fromkeys(session.point))
     before = spot_residuals(ident.nominal, session.q, session.target)
     fig, axs = plt.subplots(2, len(names), figsize=(3.4 * len(names), 6.6), squeeze=False)

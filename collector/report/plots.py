@@ -7,13 +7,22 @@ from pathlib import Path
 import numpy as np
 
 
-def _plt():
+def pyplot():
+    """matplotlib's pyplot on the headless Agg backend, imported when a plot is made (the one set-up)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def save(fig, path: Path, dpi: int = 110) -> Path:
+    """Lay out, write ``fig`` as a PNG at ``path`` and close it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    pyplot().close(fig)
+    return path
 
 
 def diagnosis_plots(d, out) -> list[Path]:
@@ -28,7 +37,7 @@ def diagnosis_plots(d, out) -> list[Path]:
     -------
     list of written paths
     """
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     s, geo = d.session, d.geometric
@@ -77,10 +86,7 @@ def diagnosis_plots(d, out) -> list[Path]:
         ax.set_xlabel(xlab)
         ax.set_ylabel(f"residual as joint {idx[0] + 1} motion (mrad)")
         ax.set_title(f"geometric-fit residuals vs the {ext.effect} regressor")
-    fig.tight_layout()
-    written.append(out / "residuals_vs_regressor.png")
-    fig.savefig(written[-1], dpi=110)
-    plt.close(fig)
+    written.append(save(fig, out / "residuals_vs_regressor.png"))
 
     b = d.bootstrap
     if b:
@@ -94,10 +100,7 @@ def diagnosis_plots(d, out) -> list[Path]:
         axs[1].set_xlabel("strongest candidate, -log10 p")
         axs[1].set_title(f"bootstrap p = {b['p_value']:.3g}")
         axs[1].legend()
-        fig.tight_layout()
-        written.append(out / "measured_vs_simulated.png")
-        fig.savefig(written[-1], dpi=110)
-        plt.close(fig)
+        written.append(save(fig, out / "measured_vs_simulated.png"))
 
     fig, ax = plt.subplots(figsize=(5, 5))
     for key, c in (("geometric", "tab:red"), ("extended", "tab:blue")):
@@ -108,8 +111,5 @@ def diagnosis_plots(d, out) -> list[Path]:
     ax.set_ylabel("held-out error y (mm)")
     ax.legend()
     ax.set_title("held-out errors, before/after the extension", fontsize=10)
-    fig.tight_layout()
-    written.append(out / "before_after.png")
-    fig.savefig(written[-1], dpi=110)
-    plt.close(fig)
+    written.append(save(fig, out / "before_after.png"))
     return written

@@ -1343,20 +1343,16 @@ def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
     measured_vs_simulated.png
     (per-socket residual RMS against the simulated band), stiffness.png, loto_positions.png (held-out
     spread per position)."""
-    import matplotlib
+    from lasercal.collector.report.plots import pyplot
+    from lasercal.collector.report.plots import save as save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     robots = list(plots)
     n = len(robots)
     written = []
 
     def save(fig, name):
-        fig.tight_layout()
-        written.append(out / name)
-        fig.savefig(written[-1], dpi=110)
-        plt.close(fig)
+        written.append(save_png(fig, out / name))
 
     fig, axs = plt.subplots(1, n, figsize=(4.2 * n, 3.6), squeeze=False)
     for ax, r in zip(axs[0], robots):
