@@ -621,7 +621,10 @@ class Coach:
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         gain = 1.0 - ahead / e if e > 0 else 0.0
         suggestion = polish(post.model, plan.q[:1], plan.target[0])[0]
-        if not (spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6):
+        if not (
+            spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6
+            and post.model.within_limits(suggestion)[0]
+        ):
             suggestion = plan.q[0]
         return Status(
             len(q),
