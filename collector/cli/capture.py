@@ -352,7 +352,9 @@ def cmd_capture(args) -> int:
         if args.no_coach:
             raise LasercalError("--guide move moves the arm to the coach's suggestions: drop --no-coach")
         if not robot.can_move:
-            raise LasercalError(f"--guide move: the {robot.name} backend cannot move the arm (use --guide hand)")
+            raise LasercalError(
+                f"--guide move: the {robot.name} backend cannot move the arm (use --guide hand)"
+            )
         if cfg["backend"] != "fake":
             confirmable(args.yes, what="to the suggested poses ")
     if args.resume:  # devices first, folder last: a device that fails leaves nothing to clean up
@@ -410,9 +412,8 @@ def cmd_capture(args) -> int:
             model = nominal.replace(aperture=np.r_[nominal.aperture[:2], store.meta["laser"]["aperture_z"]])
         coach = Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]), per_point=100)
     try:
-        run_capture(
-            store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint, coach, cfg["backend"] != "fake"
-        )
+        real = cfg["backend"] != "fake"
+        run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint, coach, real)
     finally:
         store.close()
         trigger.close()

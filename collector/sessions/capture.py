@@ -341,7 +341,7 @@ def run_capture(
         return st
 
     def move_to(q: np.ndarray) -> None:
-        """``--guide move``: to the suggested pose in steps of at most ``max_step``, confirmed before the first."""
+        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move."""
         plan = plan_moves(robot.read().q, q[None], nominal, opts.max_step)
         w(preview(plan))
         if not confirmed[0]:
