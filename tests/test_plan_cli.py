@@ -33,7 +33,7 @@ def test_plan_writes_aimed_configurations_and_rejects_bad_input(tmp_path, capsys
         "calibration: [P1]\nvalidation: [P4]\n"
     )
     for bad, words in (
-        (["--next", "0"], "--next must be positive"),
+        (["--next", "0"], "--next: 0 is out of range"),
         (["--workspace", "500", "0", "-8", "400", "100", "-8"], "must be <= max"),
         (["--layout", str(far)], "out of reach"),
     ):
