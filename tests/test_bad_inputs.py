@@ -191,6 +191,9 @@ OPTION_VALUES = {
         "--auto-pace": ["-1", "nan"],
         "--seed": ["-1"],
         "--ros-port": ["0", "70000"],
+        "--until": ["0", "-1", "nan", "inf"],
+        "--max-step": ["0", "-0.5", "nan", "4"],
+        "--guide": ["fly"],
     }),
     "validate": (VALIDATE + ["-o", "{o}"], {
         "--hold": ["-1", "0", "nan"],

@@ -249,6 +249,76 @@ def validate_scenario(workdir: str, host: str) -> dict:
     return report
 
 
+def capture_scenario(workdir: str, host: str) -> dict:
+    """``lasercal capture --guide move`` on franky-sim: refused without confirmation, then --yes: the arm
+    goes to each suggested pose in bounded steps and the captures are taken there."""
+    sys.path.insert(0, str(ROOT))
+    import contextlib
+    import io
+    import re
+
+    from lasercal.collector.cli.main import main
+    from lasercal.collector.hardware.franky import FrankyRobot
+    from lasercal.solver.formats.session import load_session
+
+    report: dict = {}
+    server = subprocess.Popen(
+        [sys.executable, __file__, "serve", host], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    moves: list = []  # (where the arm was, where it was sent)
+    real_move = FrankyRobot.move_to
+
+    def recording_move(self, q):
+        moves.append((self.read().q.tolist(), [float(v) for v in q]))
+        real_move(self, q)
+
+    FrankyRobot.move_to = recording_move
+    try:
+        assert server.stdout.readline().strip() == "READY"
+        probe = FrankyRobot(host)
+        probe.connect()
+        start = probe.read().q
+        probe.close()
+        # --hold 1: the simulator's position control settles within a second of a move
+        common = ["capture", "--backend", "franky", "--host", host, "--layout", "thesis", "--per-point", "1",
+                  "--guide", "move", "--max-step", "0.4", "--dynamics", "0.3",
+                  "--speed-threshold", "0.5", "--hold", "1.0"]  # fmt: skip
+        sys.stdin = open(os.devnull)  # no terminal
+        report["refused_rc"] = main(common + ["-o", str(Path(workdir) / "refused")])
+        report["refused_moves"] = len(moves)
+        report["refused_folder"] = (Path(workdir) / "refused").exists()
+        probe.connect()
+        report["moved_while_refused"] = float(np.abs(probe.read().q - start).max())
+        probe.close()
+        sys.stdin = io.StringIO("\n" * 10)  # the operator presses Enter at each suggested pose
+        screen = io.StringIO()
+        with contextlib.redirect_stdout(screen):
+            report["rc"] = main(common + ["--yes", "-o", str(Path(workdir) / "s")])
+        per_plan = [
+            int(k)
+            for k in re.findall(r"the arm will move to 1 configurations in (\d+) moves", screen.getvalue())
+        ]
+        report["plans"] = per_plan
+        report["moves"] = len(moves)
+        first = np.cumsum([0] + per_plan[:-1])  # each plan's first step starts where the arm was read
+        steps = [
+            np.abs(np.subtract(b, a if k in first else moves[k - 1][1])).max()
+            for k, (a, b) in enumerate(moves)
+        ]
+        report["largest_step"] = float(max(steps))
+        arrivals = np.array([moves[k - 1][1] for k in np.cumsum(per_plan)])
+        session = load_session(Path(workdir) / "s")
+        report["captures"] = int(session.m)
+        report["points"] = list(session.point)
+        report["capture_from_arrival"] = [float(np.abs(q - a).max()) for q, a in zip(session.q, arrivals)]
+    finally:
+        FrankyRobot.move_to = real_move
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    return report
+
+
 def _netns_available() -> bool:
     try:
         return subprocess.run(["unshare", "--net", "true"], capture_output=True, timeout=10).returncode == 0
@@ -313,11 +383,34 @@ def test_validate_on_franky_sim_refuses_without_confirmation_and_moves_in_bounde
     assert r["moves"] > 2  # the aiming configurations are further apart than 0.4 rad: moves were split
 
 
+def test_capture_guide_move_on_franky_sim_refuses_without_confirmation_and_moves_to_suggestions(tmp_path):
+    pytest.importorskip("franky", reason="the [sim] extra is not installed: franky-control missing")
+    pytest.importorskip("franky_sim", reason="the [sim] extra is not installed: franky-sim missing")
+    host = f"127.0.0.{2 + (os.getpid() + 202) % 250}"
+    cmd = [sys.executable, __file__, "capture", str(tmp_path), host]
+    netns = _netns_available()
+    if netns:
+        cmd = ["unshare", "--net", "--"] + cmd + ["--netns"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert run.returncode == 0, run.stderr[-3000:]
+    r = json.loads(run.stdout.strip().splitlines()[-1])
+    print("franky-sim capture --guide move:", r, "netns", netns)
+    # no terminal and no --yes: exit 2 before any move and before the session folder exists
+    assert r["refused_rc"] == 2 and r["refused_moves"] == 0 and not r["refused_folder"]
+    assert r["moved_while_refused"] < 1e-3
+    # with --yes: one suggestion per capture (the first from the prior), each reached in bounded steps
+    assert r["rc"] == 0 and r["captures"] == 3 and sorted(r["points"]) == ["P1", "P2", "P3"]
+    assert len(r["plans"]) == 3 and r["moves"] == sum(r["plans"]) > 3  # split: poses differ by > 0.4 rad
+    assert r["largest_step"] <= 0.4 + 1e-3  # first steps start from a read of the (still) arm
+    # each capture is taken where the arm was sent (the simulator's position-control accuracy)
+    assert max(r["capture_from_arrival"]) < 5e-3
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "serve":
         serve(sys.argv[2])
     else:
         if "--netns" in sys.argv:
             _loopback_up()
-        fn = validate_scenario if sys.argv[1] == "validate" else scenario
+        fn = {"validate": validate_scenario, "capture": capture_scenario}.get(sys.argv[1], scenario)
         print(json.dumps(fn(sys.argv[2], sys.argv[3])))

@@ -144,7 +144,7 @@ def args_capture(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--until",
-        type=float,
+        type=number(0, 1e4, "mm", lo_open=True),
         metavar="MM",
         help="stop once the coach predicts at most this error at the validation points, mm",
     )
@@ -152,6 +152,24 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "--no-coach",
         action="store_true",
         help="no status block, suggested poses or stopping rule after each capture",
+    )
+    p.add_argument(
+        "--guide",
+        choices=("hand", "move"),
+        default="hand",
+        help="hand (default): the operator guides the arm to each suggested pose; move: a backend that "
+        "can move takes the arm there first (preview and confirmation before the first move), the "
+        "operator only refines the aim",
+    )
+    p.add_argument(
+        "--yes", action="store_true", help="with --guide move: confirm the moves in advance (scripts)"
+    )
+    p.add_argument(
+        "--max-step",
+        type=number(0, 3.14159, "rad", lo_open=True),
+        default=MAX_STEP,
+        metavar="RAD",
+        help=f"with --guide move: largest joint change of one commanded move (default {MAX_STEP})",
     )
     _backend_options(p)
 
@@ -309,6 +327,7 @@ def cmd_capture(args) -> int:
     from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
     from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
     from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+    from lasercal.collector.sessions.motion import confirmable
     from lasercal.collector.sessions.store import CaptureStore
     from lasercal.solver.errors import LasercalError
     from lasercal.solver.formats.robots import load_model
@@ -328,6 +347,16 @@ def cmd_capture(args) -> int:
         query = (cfg.get("rangefinder_query") or "").encode().decode("unicode_escape").encode()
         rangefinder = SerialRangefinder.from_url(cfg["rangefinder"], query)
     trigger = AutoTrigger(args.auto_pace or 0.0) if args.auto else make_trigger(cfg["trigger"], robot)
+    move = args.guide == "move"
+    if move:  # refused before the session folder exists
+        if args.no_coach:
+            raise LasercalError("--guide move moves the arm to the coach's suggestions: drop --no-coach")
+        if not robot.can_move:
+            raise LasercalError(
+                f"--guide move: the {robot.name} backend cannot move the arm (use --guide hand)"
+            )
+        if cfg["backend"] != "fake":
+            confirmable(args.yes, what="to the suggested poses ")
     if args.resume:  # devices first, folder last: a device that fails leaves nothing to clean up
         store = CaptureStore.open(args.resume)
         if store.recovered:
@@ -357,12 +386,21 @@ def cmd_capture(args) -> int:
         store = CaptureStore.create(
             args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
         )
-    if args.until is not None and not args.until > 0:
-        raise LasercalError(f"--until must be a positive error in mm, got {args.until:g}")
     opts = CaptureOptions(
-        cfg["per_point"], cfg["speed_threshold"], cfg["hold"], auto_discard=args.auto, until_mm=args.until
+        cfg["per_point"],
+        cfg["speed_threshold"],
+        cfg["hold"],
+        auto_discard=args.auto,
+        until_mm=args.until,
+        move=move,
+        yes=args.yes,
+        max_step=args.max_step,
     )
-    hint = f"lasercal capture --resume {store.folder}" + (" --auto" if args.auto else "")
+    hint = (
+        f"lasercal capture --resume {store.folder}"
+        + (" --auto" if args.auto else "")
+        + (" --guide move" if move else "")
+    )
     coach = None
     if not args.no_coach:
         import numpy as np
@@ -374,7 +412,8 @@ def cmd_capture(args) -> int:
             model = nominal.replace(aperture=np.r_[nominal.aperture[:2], store.meta["laser"]["aperture_z"]])
         coach = Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]), per_point=100)
     try:
-        run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint, coach)
+        real = cfg["backend"] != "fake"
+        run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint, coach, real)
     finally:
         store.close()
         trigger.close()

@@ -21,6 +21,7 @@ import numpy as np
 from lasercal.collector.errors import DeviceError, RobotConnectionError
 from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
+from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.model import RobotModel
@@ -43,6 +44,10 @@ class CaptureOptions:
     auto_discard : bool, discard flagged captures without asking (the simulated operator)
     until_mm : float or None, end the session once the coach predicts at most this error at the
         validation points, mm
+    move : bool, ``--guide move``: the robot moves to each suggested pose (in steps of at most
+        ``max_step``) and the operator only refines the aim by hand
+    yes : bool, the moves are confirmed in advance (``--yes``); otherwise typed ``yes`` on a terminal
+    max_step : float, largest joint change of one commanded move, rad
     """
 
     per_point: int
@@ -56,6 +61,9 @@ class CaptureOptions:
     similar_rad: float = 0.5
     auto_discard: bool = False
     until_mm: float | None = None
+    move: bool = False
+    yes: bool = False
+    max_step: float = MAX_STEP
 
 
 @dataclass(frozen=True)
@@ -217,37 +225,44 @@ JOINT_WORDS = {  # what moving each joint of a Panda-like 7-joint arm looks like
 }
 
 
-def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float) -> list[str]:
-    """The coach's status block after a capture.
+def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: bool = False) -> list[str]:
+    """The coach's status block after a capture (or before the first: the prior's verdict).
 
     Parameters
     ----------
     st : lasercal.solver.analysis.design.Status
     counts : dict point -> captures
-    current : (n,) array, the last captured configuration, rad
+    current : (n,) array, the arm's configuration (the last capture's), rad
     stop_gain : float, the stopping rule's threshold (fraction)
+    done : bool, every requested capture is taken: no next pose is suggested
     """
     per = ", ".join(f"{k} {v}" for k, v in counts.items())
+    # with no captures the prediction is the prior's, which does not depend on the aiming noise
+    spread = f"± {st.uncertainty:.2f} mm" if st.captures else "mm (prior)"
     lines = [
         f"  coach: captures {per}; identifiable {st.rank} of {st.n_identifiable} parameter combinations "
         f"({st.n_params} parameters)",
-        f"  predicted error at {st.region}: {st.predicted:.2f} ± {st.uncertainty:.2f} mm",
+        f"  predicted error at {st.region}: {st.predicted:.2f} {spread}",
     ]
     wk = st.weakest
     weak = f"  weakest: {', '.join(wk.params)} ({wk.share * 100:.0f} % of the predicted error)"
     if wk.joint is not None:
         lo, hi = np.degrees(wk.captured)
-        words = JOINT_WORDS.get(wk.joint, f"move joint {wk.joint}") if len(current) == 7 else "vary it"
+        # the words describe a Panda-like 7-joint arm; any other arm is told the joint's number
+        words = JOINT_WORDS[wk.joint] if len(current) == 7 else f"move joint {wk.joint}"
         span = "barely varied" if hi - lo < 20 else "varied"
         weak += (
             f"; joint {wk.joint} {span} ({lo:.0f}..{hi:.0f} deg), the informative poses have it near "
             f"{np.degrees(wk.wanted):.0f} deg: {words} that way"
         )
     lines.append(weak)
-    dq = np.degrees(st.suggestion - current)
-    order = np.argsort(-np.abs(dq))
-    moves = ", ".join(f"joint {j + 1} {dq[j]:+.0f}" for j in order if abs(dq[j]) >= 1.0) or "none"
-    lines.append(f"  next: {st.plan.point[0]}, from this pose change (deg): {moves}")
+    if done:
+        lines.append("  next: none, every requested capture is taken")
+    else:
+        dq = np.degrees(st.suggestion - current)
+        order = np.argsort(-np.abs(dq))
+        moves = ", ".join(f"joint {j + 1} {dq[j]:+.0f}" for j in order if abs(dq[j]) >= 1.0) or "none"
+        lines.append(f"  next: {st.plan.point[0]}, from this pose change (deg): {moves}")
     if st.stop:
         lines.append(
             f"  expected error at {st.region} {st.predicted:.2f} ± {st.uncertainty:.2f} mm; "
@@ -267,6 +282,7 @@ def run_capture(
     rangefinder=None,
     resume_hint: str = "",
     coach=None,
+    confirm_moves: bool = True,
 ) -> CaptureResult:
     """Run (or continue) a capture session until every requested point has its captures.
 
@@ -280,9 +296,14 @@ def run_capture(
     out : text stream, the operator's screen
     rangefinder : object with ``measure() -> mm`` or None
     resume_hint : str, the command that resumes this session (said when it stops early)
-    coach : lasercal.solver.analysis.design.Coach or None: after every capture a status block, the
-        next point and pose it suggests (the robot adapter is told; real arms are not moved), and
-        the stopping rule
+    coach : lasercal.solver.analysis.design.Coach or None: before the first capture and after every
+        one a status block, the next point and pose it suggests (the robot adapter is told; with
+        ``opts.move`` the arm is moved there), and the stopping rule
+    confirm_moves : bool, with ``opts.move``: preview and ask (:func:`collector.sessions.motion.confirm`)
+        before the first move; off only for the simulated robot
+
+    A Ctrl-C or a lost link stops the arm (:meth:`RobotAdapter.stop`); every capture taken is on
+    disk (appended durably one by one) and ``resume_hint`` continues the session.
 
     Returns
     -------
@@ -292,6 +313,8 @@ def run_capture(
     ------
     RobotConnectionError
         The robot cannot be reached or stopped answering; the message says how to resume.
+    MotionRefused
+        ``opts.move`` and the moves were not confirmed: the arm did not move.
     """
     meta = store.meta
     points = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
@@ -299,6 +322,7 @@ def run_capture(
     counts = store.counts(requested)
     w = out.write
     captured = discarded = 0
+    confirmed = [not confirm_moves]
 
     def saved() -> str:
         k = len(store.point)
@@ -306,13 +330,26 @@ def run_capture(
         return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
 
     def coach_status():
-        """Refit the coach on every capture so far and print its status block."""
+        """Refit the coach on every capture so far and print its status block (the prior's with none)."""
         todo = [nm for nm in requested if counts[nm] < opts.per_point]
-        q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), -1)
-        coach.update(q_all, np.array([points[p] for p in store.point]))
+        q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
+        if len(q_all):
+            coach.update(q_all, np.array([points[p] for p in store.point]))
         st = coach.status(q_all, allowed=todo or None)
-        w("\n".join(coach_lines(st, counts, q_all[-1], coach.stop_gain)) + "\n")
+        current = q_all[-1] if len(q_all) else robot.read().q
+        w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
         return st
+
+    def move_to(q: np.ndarray) -> None:
+        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move."""
+        plan = plan_moves(robot.read().q, q[None], nominal, opts.max_step)
+        w(preview(plan))
+        if not confirmed[0]:
+            confirm(plan, opts.yes, out=out)
+            confirmed[0] = True
+        for step in plan.steps:
+            robot.move_to(step)
+        w("  at the suggested pose: refine the aim by hand, then trigger\n")
 
     try:
         robot.connect()
@@ -321,11 +358,11 @@ def run_capture(
         t_run = robot.clock.now()
         t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
         status = None
-        if coach is not None and store.point:
+        if coach is not None:
             # a resumed session: the coach goes through the fits (each warm-started from the one before)
             # that the uninterrupted session made, so its suggestions are the same to the last bit
-            q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), -1)
-            aimed = np.array([points[p] for p in store.point])
+            q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
+            aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)
             for k in range(1, len(q_all)):
                 coach.update(q_all[:k], aimed[:k])
             status = coach_status()
@@ -336,6 +373,8 @@ def run_capture(
             name = todo[0]
             if status is not None and status.plan.point[0] in todo:
                 name = str(status.plan.point[0])
+                if opts.move:
+                    move_to(status.suggestion)
                 robot.suggest_pose(status.suggestion)
             robot.prompt_point(name, points[name], counts[name])
             x, y, z = points[name]
@@ -384,7 +423,7 @@ def run_capture(
                 discarded += 1
                 w("discarded it (the simulated operator heeds the warning)\n")
                 continue
-            if coach is not None and store.point:
+            if coach is not None:
                 status = coach_status()
                 if opts.until_mm is not None and status.predicted <= opts.until_mm:
                     w(
@@ -393,7 +432,14 @@ def run_capture(
                     )
                     w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
                     return CaptureResult(True, counts, captured, discarded)
+    except KeyboardInterrupt:
+        robot.stop()
+        w(f"\ninterrupted: the arm was stopped; {saved()}\n")
+        raise
+    except MotionRefused as e:
+        raise MotionRefused(f"{e}; {saved()}") from None
     except RobotConnectionError as e:
+        robot.stop()
         raise RobotConnectionError(f"{e}; {saved()}") from None
     except DeviceError as e:
         raise DeviceError(f"{e}; {saved()}") from None

@@ -153,6 +153,24 @@ def preview(plan: MovePlan) -> str:
     )
 
 
+def confirmable(yes: bool = False, stdin=None, what: str = "") -> None:
+    """Refuse at once when moves could not be confirmed: no ``--yes`` and no terminal to ask.
+
+    Lets a command refuse before it creates anything (``capture --guide move`` plans its moves
+    only as the session goes).
+
+    Raises
+    ------
+    MotionRefused
+    """
+    stdin = sys.stdin if stdin is None else stdin
+    if not yes and not (hasattr(stdin, "isatty") and stdin.isatty()):
+        raise MotionRefused(
+            f"refusing to move the arm {what}without confirmation: no terminal to ask; "
+            "pass --yes to confirm from a script"
+        )
+
+
 def confirm(plan: MovePlan, yes: bool = False, stdin=None, out=None) -> None:
     """Ask for ``yes`` before the first move; ``yes=True`` (``--yes``) confirms for scripts.
 
@@ -165,11 +183,7 @@ def confirm(plan: MovePlan, yes: bool = False, stdin=None, out=None) -> None:
     out = sys.stdout if out is None else out
     if yes:
         return
-    if not (hasattr(stdin, "isatty") and stdin.isatty()):
-        raise MotionRefused(
-            f"refusing to move the arm ({len(plan.steps)} moves) without confirmation: no terminal to ask; "
-            "pass --yes to confirm from a script"
-        )
+    confirmable(yes, stdin, f"({len(plan.steps)} moves) ")
     out.write("type yes to start moving the arm: ")
     out.flush()
     answer = stdin.readline().strip().lower()

@@ -11,10 +11,10 @@ x (:class:`~lasercal.solver.kinematics.laser.LaserParams` about the nominal mode
 * aiming noise (eq. D3): sigma^2 = (nu0 sigma0^2 + RSS) / (nu0 + dof), a scaled-inverse-chi^2
   posterior with nu0 pseudo-observations at the operator's nominal aiming noise sigma0, and
   dof = 2 m - tr(H), tr(H) = p - tr(Lambda0 C) the effective number of fitted parameters.
-* covariance (eq. D4): C = (J^T J / sigma^2 + Lambda0)^-1, computed by
-  :func:`~lasercal.solver.identify.lsq.covariance` from the SVD of the stacked rows
-  [J / sigma; diag(1 / s)], which have full column rank because of the prior; directions the
-  data cannot see keep their prior variance.
+* covariance (eq. D4): C = (J^T J / sigma^2 + Lambda0)^-1 = diag(s) V diag(sigma^2 / (S^2 + sigma^2))
+  V^T diag(s) from one SVD J diag(s) = U S V^T (V completed to p x p), so one decomposition serves
+  every sigma; it has full rank because of the prior, and directions the data cannot see keep
+  their prior variance.
 
 Predicted held-out error where the robot is used (eq. D5): for configurations q_k aiming at the
 use points (the layout's validation points, or a workspace box), the in-plane spot error of the
@@ -48,7 +48,7 @@ import numpy as np
 
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
-from lasercal.solver.identify.lsq import covariance, fit_subspace, identifiability
+from lasercal.solver.identify.lsq import fit_subspace, identifiability
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
 from lasercal.solver.kinematics.model import RobotModel
@@ -307,9 +307,62 @@ class Posterior:
     prior_std: np.ndarray
 
 
+class SpotJacobians:
+    """The in-plane spot Jacobians dspot_i/dx (m, 2, p) of captures q_i (eq. D2's LM), remembered.
+
+    The fit evaluates the Jacobian at the same parameters several times (its start, the outlier
+    test, the covariance, eq. D4), and a session refits warm-started at the previous estimate,
+    where the Jacobians of every earlier capture are already known: each capture's rows depend
+    only on its own configuration, so only the new captures' rows are computed. The result equals
+    a full evaluation to round-off.
+
+    Parameters
+    ----------
+    params : LaserParams
+    keep : int, parameter vectors remembered (the most recent)
+    """
+
+    def __init__(self, params: LaserParams, keep: int = 8):
+        self.params, self.keep = params, keep
+        self._memo: dict = {}  # v bytes -> (q (k, n), z (k,), J (k, 2, p))
+
+    def __call__(self, v: np.ndarray, q: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(m, 2, p) Jacobian at parameters v (p,) of configurations q (m, n) aimed at planes z (m,) mm."""
+        key = np.asarray(v, dtype=float).tobytes()
+        q0, z0, J0 = self._memo.pop(key, (q[:0], z[:0], None))
+        k = len(q0)
+        if J0 is None or k > len(q) or not (np.array_equal(q0, q[:k]) and np.array_equal(z0, z[:k])):
+            k, J0 = 0, np.empty((0, 2, self.params.size))
+        J = J0 if k == len(q) else np.concatenate([J0, self.params.spot_jacobian(v, q[k:], z[k:])[2]])
+        self._memo[key] = (q.copy(), z.copy(), J)
+        while len(self._memo) > self.keep:
+            self._memo.pop(next(iter(self._memo)))
+        return J
+
+
+def _posterior_covs(J: np.ndarray, s: np.ndarray):
+    """sigma -> C = (J^T J / sigma^2 + diag(1 / s^2))^-1 (eq. D4), J (rows, p), from one SVD.
+
+    With J diag(s) = U S V^T (V complete, p x p; S padded with zeros):
+    C = diag(s) V diag(sigma^2 / (S^2 + sigma^2)) V^T diag(s). One SVD serves every sigma of the
+    noise fixed point (eq. D3) and of the prediction's uncertainty (eq. D5); no difference of
+    nearly equal terms, so small variances keep their relative precision.
+    """
+    A = J * s
+    _, S, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])  # never the big U of a tall J
+    S2 = np.zeros(len(s))
+    S2[: len(S)] = S**2
+
+    def cov(sigma: float) -> np.ndarray:
+        V = Vt.T * s[:, None]
+        return (V * (sigma**2 / (S2 + sigma**2))) @ V.T
+
+    return cov
+
+
 def _posterior_cov(J: np.ndarray, s: np.ndarray, sigma: float) -> np.ndarray:
-    """C = (J^T J / sigma^2 + diag(1 / s^2))^-1 from the SVD of the stacked rows (eq. D4), J (rows, p)."""
-    return covariance(np.vstack([J / sigma, np.diag(1.0 / s)]), 1.0)
+    """C = (J^T J / sigma^2 + diag(1 / s^2))^-1 (eq. D4), J (rows, p)."""
+    return _posterior_covs(J, s)(sigma)
 
 
 def posterior(
@@ -318,6 +371,7 @@ def posterior(
     target: np.ndarray,
     prior: Prior = Prior(),
     start: np.ndarray | None = None,
+    jacobians: SpotJacobians | None = None,
 ) -> Posterior:
     """The posterior after captures q aimed at target (eqs. D1-D4); none at all is fine.
 
@@ -328,6 +382,8 @@ def posterior(
     target : (m, 3) array, the reference point of each capture, mm
     prior : Prior
     start : (p,) array, where the fit starts (e.g. the previous estimate: a warm start)
+    jacobians : SpotJacobians of the same nominal model, kept between calls (a session's refits reuse
+        the Jacobians of earlier captures at the warm start)
 
     Returns
     -------
@@ -344,8 +400,10 @@ def posterior(
         def residual(v):
             return P.spots(v, q, target[:, 2])[0][:, :2] - target[:, :2]
 
+        jac = jacobians or SpotJacobians(P)
+
         def jacobian(v):
-            return P.spot_jacobian(v, q, target[:, 2])[2]
+            return jac(v, q, target[:, 2])
 
         def prior_rows(v):  # eq. D2: prior residuals in units of the aiming noise
             return s0 * (v - x0) / s, np.diag(s0 / s)
@@ -360,11 +418,12 @@ def posterior(
     else:
         v, w, J, rss, rank = x0, np.ones(0), np.zeros((0, P.size)), 0.0, 0
     sigma, dof = s0, 0.0
+    cov = _posterior_covs(J, s)
     for _ in range(3):  # eq. D3 with tr(H) from the current C (a fixed point reached in a few steps)
-        C = _posterior_cov(J, s, sigma)
+        C = cov(sigma)
         dof = max(len(J) - (P.size - float(np.sum(np.diag(C) / s**2))), 0.0)
         sigma = float(np.sqrt((prior.aim_dof * s0**2 + rss) / (prior.aim_dof + dof)))
-    C = _posterior_cov(J, s, sigma)
+    C = cov(sigma)
     return Posterior(
         P,
         v,
@@ -393,8 +452,9 @@ def predicted_error(post: Posterior, W: np.ndarray) -> tuple[float, float]:
     deviation either way (eq. D3).
     """
     e = float(np.sqrt(max(np.sum(W * post.cov), 0.0)))
+    cov = _posterior_covs(post.rows, post.prior_std)
     lo, hi = (
-        float(np.sqrt(max(np.sum(W * _posterior_cov(post.rows, post.prior_std, post.sigma * f)), 0.0)))
+        float(np.sqrt(max(np.sum(W * cov(post.sigma * f)), 0.0)))
         for f in (1 - post.sigma_rel, 1 + post.sigma_rel)
     )
     return e, (hi - lo) / 2
@@ -422,7 +482,14 @@ class Plan:
     history: tuple = field(default_factory=tuple)
 
 
-def select(post: Posterior, W: np.ndarray, cand: Candidates, k: int, allowed=None) -> Plan:
+def candidate_jacobian(post: Posterior, cand: Candidates) -> np.ndarray:
+    """The candidates' spot Jacobians J_c (N, 2, p) at the posterior's estimate (eq. D6)."""
+    return post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]
+
+
+def select(
+    post: Posterior, W: np.ndarray, cand: Candidates, k: int, allowed=None, Jc: np.ndarray | None = None
+) -> Plan:
     """Greedy sequential I-optimal selection of k candidates (eq. D6), vectorised over candidates.
 
     Parameters
@@ -432,6 +499,7 @@ def select(post: Posterior, W: np.ndarray, cand: Candidates, k: int, allowed=Non
     cand : Candidates
     k : int, captures to choose (each at most once)
     allowed : iterable of point names, or None: only candidates at these points
+    Jc : (N, 2, p) array, :func:`candidate_jacobian` (computed when not given)
 
     Returns
     -------
@@ -447,7 +515,7 @@ def select(post: Posterior, W: np.ndarray, cand: Candidates, k: int, allowed=Non
     avail = np.ones(len(cand.q), bool) if allowed is None else np.isin(cand.point, list(allowed))
     if avail.sum() < k:
         raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
-    Jc = post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]  # (N, 2, p)
+    Jc = candidate_jacobian(post, cand) if Jc is None else Jc
     C = post.cov.copy()
     s2 = post.sigma**2 * np.eye(2)
     now = float(np.sqrt(max(np.sum(W * C), 0.0)))
@@ -490,7 +558,9 @@ class Weakest:
     wanted: float | None
 
 
-def weakest(post: Posterior, W: np.ndarray, cand: Candidates, q: np.ndarray) -> Weakest:
+def weakest(
+    post: Posterior, W: np.ndarray, cand: Candidates, q: np.ndarray, Jc: np.ndarray | None = None
+) -> Weakest:
     """The dominant eigen-direction of tr(W C) and the joint change that would see it best.
 
     With C = L L^T (Cholesky), tr(W C) = sum of the eigenvalues of L^T W L; the top eigenvector y
@@ -504,6 +574,7 @@ def weakest(post: Posterior, W: np.ndarray, cand: Candidates, q: np.ndarray) -> 
     W : (p, p) array
     cand : Candidates
     q : (m, n) array, the captures so far, rad
+    Jc : (N, 2, p) array, :func:`candidate_jacobian` (computed when not given)
     """
     L = np.linalg.cholesky(post.cov + 1e-18 * np.eye(len(post.cov)))
     lam, Y = np.linalg.eigh(L.T @ W @ L)
@@ -514,7 +585,7 @@ def weakest(post: Posterior, W: np.ndarray, cand: Candidates, q: np.ndarray) -> 
     names = tuple(post.params.names[i] for i in top if rel[i] >= 0.3 * rel[top[0]])
     if not len(q):
         return Weakest(names, share, None, None, None)
-    Jc = post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]
+    Jc = candidate_jacobian(post, cand) if Jc is None else Jc
     info = np.sum((Jc @ u) ** 2, axis=1)
     best = cand.q[info >= np.quantile(info, 0.9)]
     spread = np.maximum(np.ptp(cand.q, axis=0), 1e-9)
@@ -522,9 +593,10 @@ def weakest(post: Posterior, W: np.ndarray, cand: Candidates, q: np.ndarray) -> 
     return Weakest(names, share, j + 1, np.array([q[:, j].min(), q[:, j].max()]), float(best[:, j].mean()))
 
 
-def identifiable(post: Posterior, cand: Candidates) -> int:
-    """Parameter combinations spot data can identify at all: the SVD rank with every candidate added."""
-    Jc = post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2].reshape(-1, post.params.size)
+def identifiable(post: Posterior, cand: Candidates, Jc: np.ndarray | None = None) -> int:
+    """Parameter combinations spot data can identify at all: the SVD rank with every candidate added
+    (``Jc``: :func:`candidate_jacobian`, computed when not given)."""
+    Jc = (candidate_jacobian(post, cand) if Jc is None else Jc).reshape(-1, post.params.size)
     return identifiability(np.vstack([post.rows, Jc]), post.params.names)[0].rank
 
 
@@ -599,10 +671,13 @@ class Coach:
         self.region = use_region(aimer, layout, rng, workspace, constraints=con)
         self.cand = candidates(aimer, layout, rng, per_point, con)
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), prior)
+        self.jacobians = SpotJacobians(self.post.params)
 
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
         """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
-        self.post = posterior(self.nominal, q, target, self.prior, start=self.post.estimate)
+        self.post = posterior(
+            self.nominal, q, target, self.prior, start=self.post.estimate, jacobians=self.jacobians
+        )
         return self.post
 
     def status(self, q: np.ndarray, allowed=None, k: int | None = None) -> Status:
@@ -617,21 +692,25 @@ class Coach:
         post = self.post
         W = use_weight(post, self.region)
         e, de = predicted_error(post, W)
-        plan = select(post, W, self.cand, k or self.lookahead, allowed)
+        Jc = candidate_jacobian(post, self.cand)
+        plan = select(post, W, self.cand, k or self.lookahead, allowed, Jc)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         gain = 1.0 - ahead / e if e > 0 else 0.0
         suggestion = polish(post.model, plan.q[:1], plan.target[0])[0]
-        if not (spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6):
+        if not (
+            spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6
+            and post.model.within_limits(suggestion)[0]
+        ):
             suggestion = plan.q[0]
         return Status(
             len(q),
             post.rank,
-            identifiable(post, self.cand),
+            identifiable(post, self.cand, Jc),
             post.params.size,
             e,
             de,
             self.region.label,
-            weakest(post, W, self.cand, np.asarray(q).reshape(-1, self.nominal.n)),
+            weakest(post, W, self.cand, np.asarray(q).reshape(-1, self.nominal.n), Jc),
             plan,
             suggestion,
             float(gain),

@@ -284,6 +284,9 @@ def fit_subspace(
     sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
     r = basis.shape[1]
     if robust:
+        # flags can cycle (few captures: a capture is an outlier only while another one is fitted);
+        # a weight pattern fitted before is not refitted: its fit is the same up to the LM tolerance
+        fits = {w.tobytes(): (sol, res, history[-1])}
         for _ in range(8):
             v = v0 + basis @ sol.x
             sw = np.sqrt(w)
@@ -291,7 +294,12 @@ def fit_subspace(
             if np.array_equal(flags, w == 0):
                 break
             w = np.where(flags, 0.0, 1.0)
-            sol, res = run(v0, basis, sol.x, w)
+            if w.tobytes() in fits:
+                sol, res, h = fits[w.tobytes()]
+                history.append({**h, "pass": len(history) + 1, "iterations": 0})
+            else:
+                sol, res = run(v0, basis, sol.x, w)
+                fits[w.tobytes()] = (sol, res, history[-1])
     v = v0 + basis @ sol.x
     used = w > 0
     dof = d * used.sum() - r + (0 if constraints is None else len(constraints(v)[0]))
