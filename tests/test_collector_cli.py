@@ -273,4 +273,21 @@ def test_photos_of_a_layout_with_markers_are_measured_through_vision(tmp_path):
     u, v = view.project(spot)[0]
     prints = tuple(aruco_print("DICT_4X4_50", i, c) for i, c in corners.items())
     img = render(Photo(view, prints, (LaserSpot(u, v, 2.5, 0.8, 0.2),)), seed=3)
-    assert np.abs(measure_with_markers(img, "photo", load_markers(layout)) - spot).max() < 0.05
+    xy, _ = measure_with_markers(img, "photo", load_markers(layout))
+    assert np.abs(xy - spot).max() < 0.05
+
+
+def test_validation_photos_carry_the_exposure_advice_while_they_are_taken():
+    """Issue 13: an overexposed phone photo is measured and its one-line advice reaches the operator."""
+    from lasercal.collector.sessions.validate import measure_known_view
+    from lasercal.vision.render import PhoneCamera, Photo, look_down, render, tilted_spot
+
+    view = look_down((200, 160), 0.3, centre=(450.0, 0.0))
+    truth = view.unproject(np.array([[100.3, 80.6]]))[0]
+    over = render(Photo(view, spots=(tilted_spot(100.3, 80.6, 4.0, 30.0, 0, 0, speckle=0),),
+                        camera=PhoneCamera()), 0)  # fmt: skip
+    xy, advice = measure_known_view(over, "over.png", view)
+    assert np.hypot(*(xy - truth)) < 0.3 and advice and "clipped" in advice and "exposure" in advice
+    fine = render(Photo(view, spots=(tilted_spot(100.3, 80.6, 2.0, 0.8, 0, 0, speckle=0),),
+                        camera=PhoneCamera()), 0)  # fmt: skip
+    assert measure_known_view(fine, "fine.png", view)[1] is None

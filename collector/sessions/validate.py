@@ -34,6 +34,7 @@ from lasercal.solver.kinematics.aim import aim
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
+from lasercal.vision.exposure import exposure_advice
 from lasercal.vision.render import LaserSpot, Photo, View, look_down, render
 
 VALIDATION_FORMAT = "lasercal-validation/1"
@@ -120,18 +121,22 @@ class FakeCamera:
         """Nothing to release."""
 
 
-def measure_known_view(img: np.ndarray, name: str, view: View) -> np.ndarray:
-    """The spot of a photo taken through a known view, on the plane, (2,) mm."""
+def measure_known_view(img: np.ndarray, name: str, view: View) -> tuple[np.ndarray, str | None]:
+    """The spot of a photo taken through a known view, on the plane, (2,) mm, and the photo's
+    exposure advice (one line, or None when the exposure is fine)."""
     spots, _ = detect_spots(img, name)
-    return view.unproject(np.array([[spots[0].u, spots[0].v]]))[0]
+    exposure = exposure_advice(spots)
+    return view.unproject(np.array([[spots[0].u, spots[0].v]]))[0], exposure and exposure.advice
 
 
-def measure_with_markers(img: np.ndarray, name: str, markers) -> np.ndarray:
-    """The spot of a photo on the plane through the layout's fiducial markers (vision), (2,) mm."""
+def measure_with_markers(img: np.ndarray, name: str, markers) -> tuple[np.ndarray, str | None]:
+    """The spot of a photo on the plane through the layout's fiducial markers (vision), (2,) mm, and the
+    photo's exposure advice (one line, or None)."""
     from lasercal.vision.measure import measure_photo  # imported here: only layouts with markers need it
 
-    s = measure_photo(img, name, layout=markers).spots[0]
-    return np.array([s.x_mm, s.y_mm])
+    res = measure_photo(img, name, layout=markers)
+    s = res.spots[0]
+    return np.array([s.x_mm, s.y_mm]), res.exposure and res.exposure.advice
 
 
 def validation_point(layout: Layout, point: str | None) -> str:
@@ -289,7 +294,7 @@ def run_validation(
     camera : OpenCVCamera or FakeCamera
     opts : ValidateOptions
     trigger : Trigger, needed when the operator guides the arm
-    measure : callable(img, name) -> (2,) mm, or None to leave x_mm, y_mm empty
+    measure : callable(img, name) -> ((2,) mm, exposure advice or None), or None to leave x_mm, y_mm empty
     out : text stream
     meta_extra : dict, more keys for validation.yaml (the CLI stores what ``--resume`` needs)
     resume : bool, continue the run in ``folder``: configurations already photographed are skipped
@@ -406,13 +411,15 @@ def run_validation(
             msg = f"photo {i + 1}/{opts.n}: {name}"
             if measure is not None:
                 try:
-                    xy = measure(img, name)
+                    xy, advice = measure(img, name)
                 except VisionError as e:  # one unreadable photo must not end the run: it stays on disk
                     msg += f", not measured ({e})"
                 else:
                     row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
                     spots.append(xy)
                     msg += f", spot {np.hypot(*(xy - p[:2])):.2f} mm from {point}"
+                    if advice:  # said while the photos are taken, so the next ones can be better
+                        msg += f"; exposure: {advice}"
             log.append(row)
             photos += 1
             w(msg + "\n")

@@ -170,7 +170,8 @@ def studentised_outliers(
         if dof - d < 1 or rss <= 0:
             continue
         s2 = np.where(fitted[sel], (rss - qi[sel]) / (dof - d), rss / dof)
-        T = qi[sel] / (d * np.maximum(s2, 1e-300))
+        with np.errstate(over="ignore"):  # a residual far beyond a near-zero scale: T = inf, p = 0
+            T = qi[sel] / (d * np.maximum(s2, 1e-300))
         p = np.where(fitted[sel], fdtrc(d, dof - d, T), fdtrc(d, dof, T))
         flags[sel] = (p * m < alpha) & (np.sqrt(qi[sel]) > 1e-4)  # 0.1 um floor: round-off is no outlier
     return flags
