@@ -8,7 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from lasercal.collector.cli.options import SEED, count
-from lasercal.collector.studies.mukca import QUICK, ROBOTS, StudyOptions
+from lasercal.collector.studies.options import QUICK, ROBOTS, StudyOptions
 
 
 def args_import_mukca(p: argparse.ArgumentParser) -> None:

@@ -48,7 +48,8 @@ import numpy as np
 from scipy.special import stdtrit  # quantile of Student's t (scipy.stats.t.ppf)
 
 from lasercal.collector.studies.mukca_import import import_mukca, positions
-from lasercal.solver.analysis.diagnose import ALPHA, Diagnosis, Tester, diagnose, session_torques
+from lasercal.collector.studies.options import ROBOTS, StudyOptions
+from lasercal.solver.analysis.diagnose import Diagnosis, Tester, diagnose, session_torques
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Session, load_session
 from lasercal.solver.identify.measurement import fit
@@ -57,9 +58,6 @@ from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.effects import Extension, candidates
 from lasercal.solver.kinematics.model import RobotModel
 
-# Franka hand (0.73 kg) plus ball tool (~0.1 kg); centre of mass ~60 mm below the flange at q = 0 (mm).
-PAYLOAD = (0.83, np.array([88.0, 0.0, 866.0]))
-ROBOTS = ("panda_1", "panda_2", "panda_3", "panda_4")
 LOADED_NM = 10.0  # a joint gets a compliance estimate when its gravity torque spans this much in every robot
 PUBLISHED = {
     "robot": "panda_1",
@@ -72,29 +70,6 @@ PUBLISHED = {
 }
 MODELS = ("nominal", "plain", "geometric", "nested", "nested_plain", "fixed", "compliance")  # see loto()
 PLAIN_TOLERANCE = 0.02  # the robust fit's held-out spread may exceed plain least squares' by this share
-
-
-@dataclass(frozen=True)
-class StudyOptions:
-    """Study settings.
-
-    Attributes
-    ----------
-    bootstrap : int, first-order simulated replicates (diagnosis bootstrap and simulation check)
-    refits : int, full nonlinear re-simulations with refits (residual RMS the experiment should show)
-    alpha : float, family-wise significance level
-    seed : int
-    payload : (kg, (3,) mm at q = 0), hand and tool for the gravity model
-    """
-
-    bootstrap: int = 2000
-    refits: int = 5
-    alpha: float = ALPHA
-    seed: int = 0
-    payload: tuple = PAYLOAD
-
-
-QUICK = StudyOptions(bootstrap=200, refits=2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -799,7 +774,7 @@ def agreement(studies: dict) -> dict | None:
     return out
 
 
-def run_study(data_dir, out, robots=ROBOTS, opts: StudyOptions = StudyOptions()) -> dict:
+def run_study(data_dir, out, robots=ROBOTS, opts: StudyOptions | None = None) -> dict:
     """The whole study: every robot, the agreement test, report files and plots.
 
     Parameters
@@ -813,6 +788,7 @@ def run_study(data_dir, out, robots=ROBOTS, opts: StudyOptions = StudyOptions())
     -------
     the report dict (as written to report.json)
     """
+    opts = opts or StudyOptions()
     t0 = time.perf_counter()
     data_dir, out = Path(data_dir), Path(out)
     out.mkdir(parents=True, exist_ok=True)
