@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import datetime
-import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -42,9 +40,7 @@ SETTINGS = FIXED + (
 )
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
-    from lasercal.collector.hardware.base import RobotAdapter
     from lasercal.solver.formats.session import Layout
-    from lasercal.solver.kinematics.model import RobotModel
 
 
 def _backend_options(p: argparse.ArgumentParser) -> None:
@@ -215,75 +211,13 @@ def _settings(args) -> dict:
     return {k: getattr(args, k) for k in SETTINGS if getattr(args, k, None) is not None}
 
 
-def _desk(cfg: dict):
-    if not cfg.get("desk_user"):
-        return None
-    return cfg["desk_user"], os.environ.get("LASERCAL_DESK_PASSWORD", "")
-
-
-def make_robot(cfg: dict, nominal: RobotModel, layout: Layout, per_point: int = 0) -> RobotAdapter:
-    """The robot adapter a settings mapping asks for (keys as in SETTINGS, defaults applied)."""
-    from lasercal.solver.errors import LasercalError
-    from lasercal.solver.formats.robots import load_model
-
-    backend = cfg["backend"]
-    if backend == "fake":
-        from lasercal.collector.hardware.base import FakeClock
-        from lasercal.collector.hardware.fake import FakeOperator, FakeRobot, perturbed_model
-
-        truth = (
-            perturbed_model(nominal, cfg["perturb_seed"])
-            if cfg.get("perturb_seed") is not None
-            else load_model(cfg["truth"])
-        )
-        pts = {k: layout.points[k] for k in layout.calibration}
-        operator = (
-            FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())
-            if per_point
-            else None
-        )
-        return FakeRobot(truth, FakeClock(), operator, seed=cfg["seed"])
-    if not cfg.get("host"):
-        raise LasercalError(f"--backend {backend} needs --host (the robot's or rosbridge's address)")
-    if backend == "franky":
-        from lasercal.collector.hardware.franky import FrankyRobot
-
-        return FrankyRobot(cfg["host"], cfg["dynamics"], _desk(cfg))
-    if backend == "panda-py":
-        from lasercal.collector.hardware.pandapy import PandaPyRobot
-
-        return PandaPyRobot(cfg["host"], cfg["dynamics"], _desk(cfg))
-    from lasercal.collector.hardware.ros import RosRobot
-
-    joints = cfg["ros_joints"].split(",") if cfg.get("ros_joints") else None
-    return RosRobot(cfg["host"], cfg["ros_port"], nominal.n, joints)
-
-
-def _layout_of(meta: dict, folder: Path) -> Layout:
-    """The layout a session was started with, from its session.yaml (the folder is self-contained)."""
-    import numpy as np
-
-    from lasercal.solver.formats.session import Layout
-
-    c = meta.get("collector") or {}
-    pts = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
-    return Layout(
-        str(folder / "session.yaml"),
-        float(meta["plane"]["z"]),
-        pts,
-        tuple(meta["requested"]),
-        tuple(meta.get("validation") or ()),
-        dict(c.get("aiming") or {}),
-    )
-
-
 def _capture_settings(args) -> tuple[dict, Layout]:
     """The settings and layout of a new session (command line) or a resumed one (its session.yaml + command
     line)."""
     from lasercal.collector.errors import SessionError
     from lasercal.collector.sessions.store import check_output
     from lasercal.solver.formats.robots import load_yaml
-    from lasercal.solver.formats.session import load_layout
+    from lasercal.solver.formats.session import load_layout, session_layout
 
     given = _settings(args)
     for key in ("per_point", "aim_noise"):
@@ -318,34 +252,25 @@ def _capture_settings(args) -> tuple[dict, Layout]:
             raise SessionError(
                 f"{folder} was started with {k.replace('_', '-')} {stored.get(k)}: it cannot change on resume"
             )
-    return {**DEFAULTS, **stored, **given}, _layout_of(meta, folder)
+    return {**DEFAULTS, **stored, **given}, session_layout(meta, folder / "session.yaml")
 
 
 def cmd_capture(args) -> int:
-    import numpy as np
 
-    from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
+    from lasercal.collector.hardware import make_rangefinder, make_robot
     from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
-    from lasercal.collector.sessions.capture import CaptureOptions, run_capture
+    from lasercal.collector.sessions.capture import CaptureOptions, new_session, run_capture, session_coach
     from lasercal.collector.sessions.motion import confirmable
     from lasercal.collector.sessions.store import CaptureStore
     from lasercal.solver.errors import LasercalError
     from lasercal.solver.formats.robots import load_model
-    from lasercal.solver.formats.session import session_meta
 
     cfg, layout = _capture_settings(args)
     if args.auto and cfg["backend"] != "fake":
         raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
     nominal = load_model(cfg["robot"])
     robot = make_robot(cfg, nominal, layout, cfg["per_point"])
-    rangefinder = None
-    if cfg.get("rangefinder") == "fake":
-        if cfg["backend"] != "fake":
-            raise LasercalError("--rangefinder fake needs --backend fake")
-        rangefinder = FakeRangefinder(robot, layout.plane_z, seed=cfg["seed"])
-    elif cfg.get("rangefinder"):
-        query = (cfg.get("rangefinder_query") or "").encode().decode("unicode_escape").encode()
-        rangefinder = SerialRangefinder.from_url(cfg["rangefinder"], query)
+    rangefinder = make_rangefinder(cfg, robot, layout.plane_z)
     trigger = AutoTrigger(args.auto_pace or 0.0) if args.auto else make_trigger(cfg["trigger"], robot)
     move = args.guide == "move"
     if move:  # refused before the session folder exists
@@ -366,26 +291,7 @@ def cmd_capture(args) -> int:
             )
         print(f"resuming {store.folder}: {len(store.point)} captures on disk")
     else:
-        columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
-        aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if cfg["backend"] == "fake" else None)
-        collector = {
-            **cfg,
-            "aperture_z": aperture,
-            "layout": str(Path(args.layout).resolve()),
-            "aiming": layout.aiming,
-            "extra_columns": columns,
-            "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-        }
-        extra = {"collector": collector}
-        if cfg["backend"] == "fake":
-            extra["simulated"] = {
-                "truth": robot.truth.name,
-                "aim_noise_mm": cfg["aim_noise"],
-                "seed": cfg["seed"],
-            }
-        store = CaptureStore.create(
-            args.output, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
-        )
+        store = new_session(args.output, cfg, layout, Path(args.layout), robot, nominal, rangefinder)
     opts = CaptureOptions(
         cfg["per_point"],
         cfg["speed_threshold"],
@@ -401,16 +307,7 @@ def cmd_capture(args) -> int:
         + (" --auto" if args.auto else "")
         + (" --guide move" if move else "")
     )
-    coach = None
-    if not args.no_coach:
-        import numpy as np
-
-        from lasercal.solver.analysis.design import Coach, Prior
-
-        model = nominal
-        if store.meta.get("laser", {}).get("aperture_z") is not None:
-            model = nominal.replace(aperture=np.r_[nominal.aperture[:2], store.meta["laser"]["aperture_z"]])
-        coach = Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]), per_point=100)
+    coach = None if args.no_coach else session_coach(store, nominal, layout, cfg)
     try:
         real = cfg["backend"] != "fake"
         run_capture(store, robot, trigger, nominal, opts, sys.stdout, rangefinder, hint, coach, real)
@@ -473,20 +370,16 @@ def _validate_settings(args) -> tuple[dict, dict]:
 
 
 def cmd_validate(args) -> int:
+    from lasercal.collector.hardware import make_robot
     from lasercal.collector.hardware.triggers import AutoTrigger, make_trigger
     from lasercal.collector.sessions.validate import (
-        FakeCamera,
-        OpenCVCamera,
         ValidateOptions,
         check_layout,
-        fake_view,
-        measure_known_view,
-        measure_with_markers,
+        make_camera,
         run_validation,
         validation_point,
     )
     from lasercal.solver.analysis.stats import spot_stats
-    from lasercal.solver.errors import LasercalError
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout
 
@@ -496,25 +389,7 @@ def cmd_validate(args) -> int:
     model = load_model(run["model"])
     check_layout(layout, model, run["model"], point)
     robot = make_robot(cfg, load_model(cfg["robot"]), layout)
-    camera_spec = run["camera"] or ("fake" if cfg["backend"] == "fake" else None)
-    measure = None
-    if camera_spec == "fake":
-        if cfg["backend"] != "fake":
-            raise LasercalError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
-        view = fake_view(layout.points[point][:2], layout.plane_z)
-        camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
-        measure = lambda img, name: measure_known_view(img, name, view)  # noqa: E731
-    elif camera_spec is None:
-        raise LasercalError(
-            "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"
-        )
-    else:
-        camera = OpenCVCamera(int(camera_spec) if camera_spec.isdigit() else camera_spec)
-        from lasercal.vision.plane import load_markers
-
-        markers = load_markers(run["layout"])
-        if markers is not None:
-            measure = lambda img, name: measure_with_markers(img, name, markers)  # noqa: E731
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"])
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)

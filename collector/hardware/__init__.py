@@ -1,9 +1,85 @@
 """Robot hardware: backends behind one small interface
-(:class:`~lasercal.collector.hardware.base.RobotAdapter`).
+(:class:`~lasercal.collector.hardware.base.RobotAdapter`), and the factories that build them from settings.
 
 ``fake`` (simulated Panda and operator), ``franky`` (franky-control), ``panda-py``
 (panda-python), ``ros`` (rosbridge /joint_states). Each backend module imports its SDK
 only when used; a missing SDK is a one-line error with the pip command.
 """
 
+from __future__ import annotations
+
+import os
+
 BACKENDS = ("fake", "franky", "panda-py", "ros")
+
+
+def _desk(cfg: dict):
+    """Franka Desk credentials: the user from the settings, the password only from the environment."""
+    if not cfg.get("desk_user"):
+        return None
+    return cfg["desk_user"], os.environ.get("LASERCAL_DESK_PASSWORD", "")
+
+
+def make_robot(cfg: dict, nominal, layout, per_point: int = 0):
+    """The robot adapter a settings mapping asks for.
+
+    Parameters
+    ----------
+    cfg : dict, the capture/validate settings (``backend``, ``host``, ``dynamics``, ``seed``, ...)
+    nominal : RobotModel, the robot the session names
+    layout : Layout, the reference points (the simulated operator aims at the calibration points)
+    per_point : int, captures per point the simulated operator takes (0: no operator)
+
+    Returns
+    -------
+    RobotAdapter
+    """
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.robots import load_model
+
+    backend = cfg["backend"]
+    if backend == "fake":
+        from lasercal.collector.hardware.base import FakeClock
+        from lasercal.collector.hardware.fake import FakeOperator, FakeRobot, perturbed_model
+
+        truth = (
+            perturbed_model(nominal, cfg["perturb_seed"])
+            if cfg.get("perturb_seed") is not None
+            else load_model(cfg["truth"])
+        )
+        pts = {k: layout.points[k] for k in layout.calibration}
+        operator = (
+            FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())
+            if per_point
+            else None
+        )
+        return FakeRobot(truth, FakeClock(), operator, seed=cfg["seed"])
+    if not cfg.get("host"):
+        raise LasercalError(f"--backend {backend} needs --host (the robot's or rosbridge's address)")
+    if backend == "franky":
+        from lasercal.collector.hardware.franky import FrankyRobot
+
+        return FrankyRobot(cfg["host"], cfg["dynamics"], _desk(cfg))
+    if backend == "panda-py":
+        from lasercal.collector.hardware.pandapy import PandaPyRobot
+
+        return PandaPyRobot(cfg["host"], cfg["dynamics"], _desk(cfg))
+    from lasercal.collector.hardware.ros import RosRobot
+
+    joints = cfg["ros_joints"].split(",") if cfg.get("ros_joints") else None
+    return RosRobot(cfg["host"], cfg["ros_port"], nominal.n, joints)
+
+
+def make_rangefinder(cfg: dict, robot, plane_z: float):
+    """The laser rangefinder the settings ask for (``rangefinder``: ``fake``, a serial URL, or none)."""
+    from lasercal.collector.hardware.rangefinder import FakeRangefinder, SerialRangefinder
+    from lasercal.solver.errors import LasercalError
+
+    if cfg.get("rangefinder") == "fake":
+        if cfg["backend"] != "fake":
+            raise LasercalError("--rangefinder fake needs --backend fake")
+        return FakeRangefinder(robot, plane_z, seed=cfg["seed"])
+    if cfg.get("rangefinder"):
+        query = (cfg.get("rangefinder_query") or "").encode().decode("unicode_escape").encode()
+        return SerialRangefinder.from_url(cfg["rangefinder"], query)
+    return None

@@ -13,8 +13,10 @@ stream), so tests and ``--backend fake --auto`` run it without a terminal.
 
 from __future__ import annotations
 
+import datetime
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -23,6 +25,7 @@ from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.formats.session import Layout, session_meta
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -270,6 +273,56 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
             "you can stop"
         )
     return lines
+
+
+def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nominal, rangefinder):
+    """Create a capture session folder whose session.yaml holds everything a resume needs.
+
+    Parameters
+    ----------
+    folder : the session folder to create
+    cfg : dict, the capture settings (they are stored under ``collector``)
+    layout : Layout; layout_path : Path, the layout file it came from
+    robot : RobotAdapter, its extra columns are logged (the fake robot's truth is named as simulated)
+    nominal : RobotModel, the robot the session names
+    rangefinder : the rangefinder or None (then no ``laser_length_measured`` column)
+
+    Returns
+    -------
+    CaptureStore, open for appending
+    """
+    columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
+    fake = cfg["backend"] == "fake"
+    aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if fake else None)
+    collector = {
+        **cfg,
+        "aperture_z": aperture,
+        "layout": str(Path(layout_path).resolve()),
+        "aiming": layout.aiming,
+        "extra_columns": columns,
+        "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+    }
+    extra = {"collector": collector}
+    if fake:  # the report says what it is: simulated data
+        extra["simulated"] = {
+            "truth": robot.truth.name,
+            "aim_noise_mm": cfg["aim_noise"],
+            "seed": cfg["seed"],
+        }
+    return CaptureStore.create(
+        folder, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
+    )
+
+
+def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
+    """The capture coach of a session: the nominal model with the session's measured aperture height."""
+    from lasercal.solver.analysis.design import Coach, Prior
+
+    aperture_z = store.meta.get("laser", {}).get("aperture_z")
+    model = (
+        nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
+    )
+    return Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]), per_point=100)
 
 
 def run_capture(

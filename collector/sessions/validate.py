@@ -139,6 +139,42 @@ def measure_with_markers(img: np.ndarray, name: str, markers) -> tuple[np.ndarra
     return np.array([s.x_mm, s.y_mm]), res.exposure and res.exposure.advice
 
 
+def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, layout_path):
+    """The camera a validation photographs with, and how its photos are measured.
+
+    Parameters
+    ----------
+    spec : str or None, ``fake``, an OpenCV device index, URL or image sequence (None: fake on the fake
+        backend, else an error)
+    cfg : dict, the validation settings (``backend``, ``seed``)
+    robot : RobotAdapter (the fake camera renders the fake robot's true spot)
+    layout : Layout; point : str, the validation point
+    layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
+
+    Returns
+    -------
+    (camera, measure): ``measure(img, name) -> ((2,) mm, exposure advice)`` or None when the photos can
+    only be stored (a real camera and a layout without markers)
+    """
+    spec = spec or ("fake" if cfg["backend"] == "fake" else None)
+    if spec == "fake":
+        if cfg["backend"] != "fake":
+            raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
+        view = fake_view(layout.points[point][:2], layout.plane_z)
+        return FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"]), (
+            lambda img, name: measure_known_view(img, name, view)
+        )
+    if spec is None:
+        raise SessionError(
+            "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"
+        )
+    from lasercal.vision.plane import load_markers
+
+    markers = load_markers(layout_path)
+    measure = None if markers is None else (lambda img, name: measure_with_markers(img, name, markers))
+    return OpenCVCamera(int(spec) if spec.isdigit() else spec), measure
+
+
 def validation_point(layout: Layout, point: str | None) -> str:
     """The point to validate at: ``point``, or the layout's first validation point."""
     point = point or (layout.validation[0] if layout.validation else None)

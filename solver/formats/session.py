@@ -118,6 +118,21 @@ def _names(d, key, points, path) -> tuple:
     return tuple(str(n) for n in names)
 
 
+def session_layout(meta: dict, path) -> Layout:
+    """The layout a capture session was started with, from its session.yaml mapping (the folder is
+    self-contained: points, requested and validation points, plane, aiming hints)."""
+    c = meta.get("collector") or {}
+    pts = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
+    return Layout(
+        str(path),
+        float(meta["plane"]["z"]),
+        pts,
+        tuple(meta["requested"]),
+        tuple(meta.get("validation") or ()),
+        dict(c.get("aiming") or {}),
+    )
+
+
 def load_layout(path) -> Layout:
     """Load and validate a layout YAML, given by path or built-in name ('thesis', 'puma')."""
     path = resolve("layouts", path)
