@@ -100,82 +100,8 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
-def print_report(rep: dict, out=None) -> None:
-    """The solve statistics as a readable table."""
-    w = (out or sys.stdout).write
-    idf = rep["identifiability"]
-    w(
-        f"method {rep['method']}: {'converged' if rep['converged'] else 'NOT converged'} after "
-        f"{rep['iterations']} iterations, {rep['seconds']:.3f} s\n"
-    )
-    w(
-        f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, aiming noise estimate "
-        f"{rep['sigma_mm']:.3f} mm per axis\n"
-    )
-    w(
-        f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number "
-        f"{idf['condition']:.3g}\n"
-    )
-    for u in idf["unidentifiable"]:
-        w(f"  not seen by the data (held at nominal): {u}\n")
-    if rep["outliers"]:
-        w(
-            f"outlier captures (left out): {len(rep['outliers'])}: "
-            + ", ".join(f"#{o['index']} (line {o['line']}, {o['point']})" for o in rep["outliers"][:20])
-            + ("..." if len(rep["outliers"]) > 20 else "")
-            + "\n"
-        )
-    if rep.get("measurement") == "point":
-        w(f"\n{'point':24} {'spread RMS before':>18} {'after':>8}   (mm, tool points about their mean)\n")
-        for nm, b in rep["before"]["points"].items():
-            w(
-                f"{nm:24} {b['spread_rms_mm']:18.3f} "
-                f"{rep['after']['points'].get(nm, {}).get('spread_rms_mm', float('nan')):8.3f}\n"
-            )
-        for nm, b in rep["before"]["distances"].items():
-            w(
-                f"|d - d0| {nm}: before {b:.3f} mm, after "
-                f"{rep['after']['distances'].get(nm, float('nan')):.3f} mm\n"
-            )
-    elif rep.get("measurement") == "position":
-        w(f"gauge: {rep['gauge']}\n")
-        w(
-            f"\n{'target':12} {'n':>4} {'RMS nominal':>12} {'identified':>11}"
-            "   (mm, sensor frame; target at q = 0)\n"
-        )
-        for nm, d in rep["targets"].items():
-            w(
-                f"{nm:12} {d['n']:4d} {d['before_rms_mm']:12.4f} {d['after_rms_mm']:11.4f}"
-                f"   {d['target_mm']}\n"
-            )
-    else:
-        _print_points(rep, w)
-    cv = rep.get("cross_validation")
-    if cv:
-        w(
-            f"\n{cv['folds']}-fold cross-validated prediction error: RMS {cv['holdout_rms_mm']:.3f} mm, mean "
-            f"{cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS "
-            f"{cv['nominal_rms_mm']:.3f})\n"
-        )
-
-
-def _print_points(rep: dict, w) -> None:
-    w(
-        f"\n{'point':8} {'':7} {'n':>4} {'scatter mean':>13} {'scatter std':>12} {'error mean':>11} "
-        f"{'error max':>10}   (mm)\n"
-    )
-    for nm, d in rep["points"].items():
-        for lab in ("before", "after"):
-            s = d[lab]
-            if s:
-                w(
-                    f"{nm:8} {lab:7} {s['n']:4d} {s['scatter_mean']:13.3f} {s['scatter_std']:12.3f} "
-                    f"{s['error_mean']:11.3f} {s['error_max']:10.3f}\n"
-                )
-
-
 def cmd_solve(args) -> int:
-    from lasercal.collector.report.text import format_diagnosis
+    from lasercal.collector.report.text import format_diagnosis, format_solve
     from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
@@ -261,7 +187,7 @@ def cmd_solve(args) -> int:
     if args.json:
         print(json.dumps(rep, indent=2))
     else:
-        print_report(rep)
+        sys.stdout.write(format_solve(rep))
         for d in missing:
             print(f"PARTIAL: not identified: {d}")
         if diagnosis is not None:
