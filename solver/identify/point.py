@@ -226,22 +226,13 @@ def identify_point(
     fitted = extension.with_params(fit.v[p:], se[p:]) if extension else None
     model = P.to_model(fit.v[:p], identification=meta, extensions=fitted.model_entries() if fitted else {})
     points = {nm: fit.v[c : c + 3].tolist() for nm, c in P.col.items()}
-    return Identification(
-        "lm",
+    return Identification.from_fit(
         nominal,
         model,
-        fit.converged,
-        fit.iterations,
-        tuple(fit.history),
-        fit.residuals,
-        fit.weights,
-        tuple(int(i) for i in np.flatnonzero(fit.weights == 0)),
-        fit.sigma,
-        fit.identifiability,
-        dict(zip(names, se.tolist())),
+        fit,
         names,
-        fit.v,
-        time.perf_counter() - t0,
+        se,
+        t0,
         {
             "cov": fit.cov,
             "points": points,

@@ -335,25 +335,8 @@ def identify_position(
     model = P.to_model(
         fit.v[:p], X0, identification=meta, extensions=fitted.model_entries() if fitted else {}
     )
-    return Identification(
-        "lm",
-        nominal,
-        model,
-        fit.converged,
-        fit.iterations,
-        tuple(fit.history),
-        fit.residuals,
-        fit.weights,
-        tuple(int(i) for i in np.flatnonzero(fit.weights == 0)),
-        fit.sigma,
-        fit.identifiability,
-        dict(zip(names_all, se.tolist())),
-        names_all,
-        fit.v,
-        time.perf_counter() - t0,
-        {"cov": fit.cov, "points": {}, "span": fit.span, "gauge": gauge},
-        fitted,
-    )
+    extra = {"cov": fit.cov, "points": {}, "span": fit.span, "gauge": gauge}
+    return Identification.from_fit(nominal, model, fit, names_all, se, t0, extra, fitted)
 
 
 def aligned_nominal(session: Session, model: RobotModel | None = None) -> RobotModel:

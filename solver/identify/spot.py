@@ -77,6 +77,41 @@ class Identification:
     extra: dict = field(default_factory=dict)
     extension: Extension | None = None
 
+    @classmethod
+    def from_fit(cls, nominal, model, fit, names, se, t0: float, extra: dict, extension=None, **override):
+        """An ``lm`` identification from a least-squares fit (:func:`.lsq.fit_subspace`).
+
+        Parameters
+        ----------
+        nominal, model : RobotModel, the start and the identified model
+        fit : the least-squares result (converged, iterations, history, residuals, weights, sigma, v, ...)
+        names : list of str; se : (p,) array, the standard error of each parameter
+        t0 : float, ``time.perf_counter()`` when the identification started
+        extra : dict, covariance, spans, identified points
+        extension : the fitted extension, or None
+        override : fields that differ from the fit's (e.g. iterations over several stages)
+        """
+        kw = {
+            "method": "lm",
+            "nominal": nominal,
+            "model": model,
+            "converged": fit.converged,
+            "iterations": fit.iterations,
+            "history": tuple(fit.history),
+            "residuals": fit.residuals,
+            "weights": fit.weights,
+            "outliers": tuple(int(i) for i in np.flatnonzero(fit.weights == 0)),
+            "sigma_mm": fit.sigma,
+            "identifiability": fit.identifiability,
+            "std_errors": dict(zip(names, se.tolist())),
+            "param_names": names,
+            "estimate": fit.v,
+            "seconds": time.perf_counter() - t0,
+            "extra": extra,
+            "extension": extension,
+        }
+        return cls(**{**kw, **override})
+
     @property
     def rms_mm(self) -> float:
         """RMS residual (in the plane, or 3-D for point sessions) over the captures used, mm."""
@@ -241,22 +276,13 @@ def identify_lm(
     fitted = extension.with_params(v[p:], se_all[p:]) if extension else None
     extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
     model = P.to_model(v[:p], identification=meta, extensions=extensions)
-    return Identification(
-        "lm",
+    return Identification.from_fit(
         nominal,
         model,
-        fit.converged,
-        iterations,
-        tuple(history),
-        fit.residuals,
-        fit.weights,
-        tuple(int(i) for i in np.flatnonzero(fit.weights == 0)),
-        fit.sigma,
-        fit.identifiability,
-        dict(zip(names, se_all.tolist())),
+        fit,
         names,
-        v,
-        time.perf_counter() - t0,
+        se_all,
+        t0,
         {
             "cov": cov,
             "span": fit.span,
@@ -264,6 +290,9 @@ def identify_lm(
             "constraint_residuals": fit.constraint_residuals,
         },
         fitted,
+        iterations=iterations,
+        history=tuple(history),
+        estimate=v,
     )
 
 
