@@ -49,6 +49,18 @@ def test_greedy_prediction_equals_the_refitted_covariance(coach, thesis_captures
     assert plan.expected[-1] < plan.now
 
 
+def test_exchange_improves_the_greedy_design_and_orders_it_greedily(coach):
+    post = coach.post  # the prior: greedy is most myopic here
+    W = D.use_weight(post, coach.region)
+    greedy = D.select(post, W, coach.cand, 12, passes=0)
+    best = D.select(post, W, coach.cand, 12)
+    assert best.expected[-1] < 0.97 * greedy.expected[-1]  # the twelve together, not one by one
+    assert np.all(np.diff(best.expected) < 0) and len(set(h["candidate"] for h in best.history)) == 12
+    J = post.params.spot_jacobian(post.estimate, best.q, best.target[:, 2])[2].reshape(-1, post.params.size)
+    C = D._posterior_cov(J, post.prior_std, post.sigma)
+    assert np.sqrt(np.sum(W * C)) == pytest.approx(best.expected[-1], rel=1e-6)
+
+
 def test_predicted_error_is_close_to_the_measured_one_over_seeds(coach):
     fresh = D.use_region(NOMINAL, LAYOUT, np.random.default_rng(11), n=100)
     a = predict_spots(TRUTH, fresh.q, fresh.target[:, 2])[0]

@@ -487,10 +487,111 @@ def candidate_jacobian(post: Posterior, cand: Candidates) -> np.ndarray:
     return post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]
 
 
+def _drops(Jc: np.ndarray, C: np.ndarray, W: np.ndarray, sigma: float):
+    """Criterion drops of adding each candidate to a design with covariance C (eq. D6), vectorised.
+
+    With G = J_c C (N, 2, p) and S = G J_c^T + sigma^2 I (N, 2, 2), adding candidate c lowers
+    tr(W C) by tr(S^-1 G W G^T).
+
+    Returns
+    -------
+    drop : (N,) array, mm^2
+    G : (N, 2, p) array
+    S : (N, 2, 2) array
+    """
+    G = Jc @ C
+    S = G @ np.swapaxes(Jc, 1, 2) + sigma**2 * np.eye(2)
+    drop = np.trace(np.linalg.solve(S, G @ W @ np.swapaxes(G, 1, 2)), axis1=1, axis2=2)
+    return drop, G, S
+
+
+def _greedy(C: np.ndarray, W: np.ndarray, Jc: np.ndarray, sigma: float, avail: np.ndarray, k: int):
+    """Greedy sequential I-optimal choice of k of the available candidates (eq. D6).
+
+    Returns the chosen indices in order, the criterion drop of each and the covariance after them.
+    """
+    avail, picks, drops = avail.copy(), [], []
+    for _ in range(k):
+        drop, G, S = _drops(Jc, C, W, sigma)
+        drop[~avail] = -np.inf
+        j = int(np.argmax(drop))
+        C = C - G[j].T @ np.linalg.solve(S[j], G[j])
+        avail[j] = False
+        picks.append(j)
+        drops.append(float(drop[j]))
+    return picks, drops, C
+
+
+def _exchange(
+    C0: np.ndarray, W: np.ndarray, Jc: np.ndarray, sigma: float, avail: np.ndarray, picks: list, passes: int
+) -> list:
+    """Fedorov exchange (Fedorov, *Theory of Optimal Experiments*, 1972; Atkinson, Donev & Tobias 2007,
+    Sec. 12.5) of a k-capture design for tr(W C) (eq. D6).
+
+    For each chosen capture in turn, its two rows are removed from C by the Woodbury downdate
+    C- = C + G^T (sigma^2 I - J_i C J_i^T)^-1 G, G = J_i C, and the available candidate with the
+    largest drop from C- replaces it when that lowers the criterion; at most ``passes`` sweeps, fewer
+    once a sweep changes nothing. A greedy design is myopic (its first captures are chosen for the
+    prior alone); the exchange makes the k captures good together.
+
+    Parameters
+    ----------
+    C0 : (p, p) array, covariance before the design
+    W : (p, p) array, eq. D5
+    Jc : (N, 2, p) array, candidate Jacobians
+    sigma : float, aiming noise, mm
+    avail : (N,) bool array, candidates that may be chosen
+    picks : list of k candidate indices, the starting design
+    passes : int
+
+    Returns
+    -------
+    list of k candidate indices
+    """
+    picks = list(picks)
+    J = Jc[picks].reshape(-1, Jc.shape[2])
+    C = _posterior_cov_update(C0, J, sigma)
+    f = float(np.sum(W * C))
+    free = avail.copy()
+    free[picks] = False
+    for _ in range(passes):
+        changed = False
+        for a, i in enumerate(picks):
+            G = Jc[i] @ C
+            Cm = C + G.T @ np.linalg.solve(sigma**2 * np.eye(2) - G @ Jc[i].T, G)
+            drop, Gc, Sc = _drops(Jc, Cm, W, sigma)
+            drop[~free] = -np.inf
+            j = int(np.argmax(drop))
+            if float(np.sum(W * Cm)) - drop[j] < f * (1 - 1e-9):
+                C = Cm - Gc[j].T @ np.linalg.solve(Sc[j], Gc[j])
+                f = float(np.sum(W * C))
+                free[i], free[j], picks[a], changed = True, False, j, True
+        if not changed:
+            break
+    return picks
+
+
+def _posterior_cov_update(C0: np.ndarray, J: np.ndarray, sigma: float) -> np.ndarray:
+    """C = (C0^-1 + J^T J / sigma^2)^-1 by the Woodbury identity, J (rows, p) (eq. D6 for many rows)."""
+    G = J @ C0
+    return C0 - G.T @ np.linalg.solve(G @ J.T + sigma**2 * np.eye(len(J)), G)
+
+
 def select(
-    post: Posterior, W: np.ndarray, cand: Candidates, k: int, allowed=None, Jc: np.ndarray | None = None
+    post: Posterior,
+    W: np.ndarray,
+    cand: Candidates,
+    k: int,
+    allowed=None,
+    Jc: np.ndarray | None = None,
+    passes: int = 3,
 ) -> Plan:
-    """Greedy sequential I-optimal selection of k candidates (eq. D6), vectorised over candidates.
+    """I-optimal choice of k next captures: greedy (eq. D6), then Fedorov exchange, vectorised over
+    candidates.
+
+    The k captures are chosen together (greedy start, :func:`_exchange`), then ordered greedily
+    among themselves, so the first is the one that lowers the predicted error most now and
+    ``expected`` falls with every capture.
 
     Parameters
     ----------
@@ -500,6 +601,7 @@ def select(
     k : int, captures to choose (each at most once)
     allowed : iterable of point names, or None: only candidates at these points
     Jc : (N, 2, p) array, :func:`candidate_jacobian` (computed when not given)
+    passes : int, exchange sweeps (0: greedy only)
 
     Returns
     -------
@@ -516,26 +618,19 @@ def select(
     if avail.sum() < k:
         raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
-    C = post.cov.copy()
-    s2 = post.sigma**2 * np.eye(2)
-    now = float(np.sqrt(max(np.sum(W * C), 0.0)))
-    picks, expected, history = [], [], []
-    for step in range(k):
-        G = Jc @ C  # (N, 2, p)
-        S = G @ np.swapaxes(Jc, 1, 2) + s2
-        H = G @ W @ np.swapaxes(G, 1, 2)
-        drop = np.trace(np.linalg.solve(S, H), axis1=1, axis2=2)
-        drop[~avail] = -np.inf
-        j = int(np.argmax(drop))
-        C = C - G[j].T @ np.linalg.solve(S[j], G[j])
-        avail[j] = False
-        picks.append(j)
-        expected.append(float(np.sqrt(max(np.sum(W * C), 0.0))))
-        history.append(
-            {"step": step + 1, "candidate": j, "drop_mm2": float(drop[j]), "expected_mm": expected[-1]}
-        )
+    now = float(np.sqrt(max(np.sum(W * post.cov), 0.0)))
+    picks, drops, C = _greedy(post.cov, W, Jc, post.sigma, avail, k)
+    if passes and k > 1:
+        chosen = np.zeros(len(avail), bool)
+        chosen[_exchange(post.cov, W, Jc, post.sigma, avail, picks, passes)] = True
+        picks, drops, C = _greedy(post.cov, W, Jc, post.sigma, chosen, k)
+    expected = np.sqrt(np.maximum(np.sum(W * post.cov) - np.cumsum(drops), 0.0))
+    history = tuple(
+        {"step": i + 1, "candidate": j, "drop_mm2": d, "expected_mm": float(e)}
+        for i, (j, d, e) in enumerate(zip(picks, drops, expected))
+    )
     idx = np.array(picks)
-    return Plan(cand.q[idx], cand.point[idx], cand.target[idx], np.array(expected), now, tuple(history))
+    return Plan(cand.q[idx], cand.point[idx], cand.target[idx], expected, now, history)
 
 
 @dataclass(frozen=True)
