@@ -3,6 +3,7 @@ pinocchio (an independent URDF implementation), and bad input."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -223,3 +224,51 @@ def test_sensor_file_row_count(tmp_path, capsys):
         len(err.splitlines()) == 1
         and "tracker.csv, field 'rows': 29 sensor rows but captures.csv has 30" in err
     )
+
+
+# ----------------------------------------------------------------------------- --robot on the command line
+def test_robot_option_replaces_the_session_robot(tmp_path, capsys, monkeypatch):
+    """solve/diagnose --robot: a URDF path from the working folder in place of the session's (here gone);
+    --base-link picks the UR5 out of rail+UR5, whose arm is the same UR5 on a carriage."""
+    _, truth = session(tmp_path / "S", "ur5", 20, 0.0, 8)
+    meta = yaml.safe_load((tmp_path / "S" / "session.yaml").read_text())
+    meta["robot"] = "gone.urdf"
+    (tmp_path / "S" / "session.yaml").write_text(yaml.safe_dump(meta))
+    monkeypatch.chdir(tmp_path)
+    assert main(["solve", "S", "-o", "m.yaml"]) == 2
+    assert "gone.urdf" in capsys.readouterr().err
+    (tmp_path / "arm.urdf").write_text((DATA / "ur5.urdf").read_text())
+    assert main(["solve", "S", "-o", "m.yaml", "--robot", "arm.urdf", "--folds", "0"]) == 0
+    model = load_model("m.yaml")
+    assert model.urdf["file"] == str(tmp_path / "arm.urdf")
+    assert heldout_error(model, truth).max() < 1e-6
+    rail = ["--robot", str(DATA / "rail_ur5.urdf"), "--folds", "0"]
+    assert main(["solve", "S", "-o", "r.yaml"] + rail) == 2  # 7 joints: the session logs 6
+    assert "missing column(s) q7" in capsys.readouterr().err
+    assert main(["solve", "S", "-o", "r.yaml", "--base-link", "base_link"] + rail) == 0
+    model = load_model("r.yaml")
+    assert model.n == 6 and model.urdf["base_link"] == "base_link" and model.urdf["tip_link"] == "flange"
+    assert heldout_error(model, truth).max() < 1e-6
+    capsys.readouterr()
+    assert (
+        main(
+            ["diagnose", "S", "--bootstrap", "0", "--refits", "0", "--json"]
+            + rail[:2]
+            + ["--base-link", "base_link"]
+        )
+        == 0
+    )
+    assert json.loads(capsys.readouterr().out)["effect"] == "none"
+
+
+def test_fullpose_takes_a_urdf_and_its_chain(tmp_path, capsys):
+    fp, m = str(tmp_path / "fp.csv"), str(tmp_path / "m.yaml")
+    rail = ["--robot", str(DATA / "rail_ur5.urdf")]
+    sim = ["simulate-fullpose", "--configs", "10", "--angles", "4", "--noise", "0", "-o", fp]
+    assert main(sim + rail + ["--base-link", "base_link"]) == 0
+    assert main(["fullpose", fp, "-o", m] + rail) == 2
+    assert "fp.csv" in capsys.readouterr().err  # 6 joint columns, 7 joints
+    assert main(["fullpose", fp, "-o", m, "--base-link", "base_link"] + rail) == 0
+    model = load_model(m)
+    assert model.n == 6 and model.urdf["base_link"] == "base_link"
+    assert model.identification["accuracy"]["after"]["position_mm"]["max"] < 1e-5  # no noise: exact
