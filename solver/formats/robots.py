@@ -231,8 +231,8 @@ def load_model(
         from lasercal.solver.formats.urdf import load_urdf
 
         p = Path(ref)
-        if not p.is_absolute() and base is not None and (Path(base) / p).exists():
-            p = Path(base) / p
+        if not p.is_absolute() and base is not None and ((Path(base) / p).exists() or not p.exists()):
+            p = Path(base) / p  # relative to the file that names it (a missing one is reported there)
         return load_urdf(p, base_link, tip_link)
     path = resolve_robot_path(name_or_path, base)
     model = model_from_dict(load_yaml(path), path)
