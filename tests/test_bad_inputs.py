@@ -11,6 +11,7 @@ turns a hang into a failure.
 from __future__ import annotations
 
 import hashlib
+import re
 import shutil
 import signal
 from pathlib import Path
@@ -22,12 +23,14 @@ import yaml
 from lasercal.collector.cli.main import main
 
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
+URDF = Path(__file__).resolve().parent / "data" / "ur5.urdf"
 WATCHDOG_S = 30
 
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
-    """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/."""
+    """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/, and pos/
+    (a position session of the UR5 URDF, which it names as 'robot: arm.urdf' beside its captures)."""
     d = tmp_path_factory.mktemp("valid")
     layout = yaml.safe_load((Path(__file__).resolve().parents[1] / "data/layouts/thesis.yaml").read_text())
     (d / "layout.yaml").write_text(yaml.safe_dump(layout))
@@ -42,6 +45,10 @@ def base(tmp_path_factory):
     (d / "configs.csv").write_text(
         "q1,q2,q3,q4,q5,q6,q7\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in q)
     )
+    assert main(["simulate", str(URDF), "--measurement", "position", "--configs", "8", "--noise", "0.01",
+                 "-o", str(d / "pos")]) == 0  # fmt: skip
+    shutil.copy(URDF, d / "pos" / "arm.urdf")
+    _edit_yaml(d / "pos" / "session.yaml", _set("robot", "arm.urdf"))
     if (MUKCA / "panda_1" / "front").is_dir():
         shutil.copytree(MUKCA / "panda_1" / "front", d / "mukca" / "panda_1" / "front")
     return d
@@ -433,6 +440,110 @@ for cid, (setup, needle) in MUKCA_BAD.items():
     case(f"import-mukca: {cid}", IMPORT + ["-o", "{o}"], setup, needle)
 for cid in ("mukca missing hole file", "mukca hole not utf-8"):
     case(f"study-mukca: {cid}", STUDY + ["-o", "{o}"], MUKCA_BAD[cid][0], MUKCA_BAD[cid][1])
+
+
+# --- 4. position sessions and robots from URDF (--robot on every command that reads a session) ---------
+SOLVE_POS = ["solve", "{d}/pos", "--folds", "0", "-o", "{o}"]
+BRANCHED = """<robot name="b"><link name="base"/><link name="a"/><link name="b"/>
+<joint name="ja" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<joint name="jb" type="revolute"><parent link="base"/><child link="b"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"""
+
+
+def _sensor_file(drop: int):
+    """The session's x, y, z moved to pos/tracker.csv (``positions: tracker.csv``), ``drop`` rows short."""
+
+    def fn(d: Path):
+        lines = (d / "pos/captures.csv").read_text().splitlines()
+        rows = [",".join(ln.split(",")[-4:]) for ln in lines[1 : len(lines) - drop]]
+        (d / "pos/tracker.csv").write_text("\n".join(["target,x,y,z"] + rows) + "\n")
+        _edit_yaml(d / "pos/session.yaml", _set("positions", "tracker.csv"))
+
+    return fn
+
+
+def _urdf_text(old: str, new: str):
+    def fn(d: Path):
+        p = d / "pos/arm.urdf"
+        text = p.read_text()
+        assert old in text
+        p.write_text(text.replace(old, new, 1))
+
+    return fn
+
+
+POS_BAD = {
+    "URDF not a chain": (_touch("pos/arm.urdf", BRANCHED), "arm.urdf"),
+    "URDF missing": (_rm("pos/arm.urdf"), "pos/arm.urdf"),
+    "URDF not XML": (_touch("pos/arm.urdf", "robot: ur5\n"), "arm.urdf"),
+    "URDF revolute joint without limit": (
+        lambda d: (d / "pos/arm.urdf").write_text(
+            re.sub(r"<limit[^>]*/>", "", (d / "pos/arm.urdf").read_text(), count=1)
+        ),
+        "arm.urdf",
+    ),
+    "URDF zero axis": (_urdf_text('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), "arm.urdf"),
+    "session tip_link not a link": (_yaml("pos/session.yaml", _set("tip_link", "tool9")), "tool9"),
+    "positions in metres": (_metres("pos/captures.csv", ["x", "y", "z"]), "captures.csv"),
+    "position x nan": (_cell("pos/captures.csv", 2, "x", "nan"), "captures.csv"),
+    "position sigma negative": (
+        lambda d: (d / "pos/captures.csv").write_text(
+            "\n".join(
+                [ln + (",sigma" if i == 0 else ",-0.01") for i, ln in enumerate(
+                    (d / "pos/captures.csv").read_text().splitlines())]
+            ) + "\n"
+        ),
+        "sigma",
+    ),
+    "position unknown target": (_cell("pos/captures.csv", 1, "target", "T9"), "T9"),
+    "sensor rows one short": (_sensor_file(1), "tracker.csv"),
+}  # fmt: skip
+for cid, (setup, needle) in POS_BAD.items():
+    case(f"solve: {cid}", SOLVE_POS, setup, needle)
+for cid in ("URDF not a chain", "positions in metres", "sensor rows one short"):
+    case(f"diagnose: {cid}", ["diagnose", "{d}/pos", "--bootstrap", "0"], POS_BAD[cid][0], POS_BAD[cid][1])
+ROBOT_BAD = {
+    "--robot a CSV": (["--robot", "{d}/configs.csv"], None, "configs.csv"),
+    "--robot missing URDF": (["--robot", "{d}/nosuch.urdf"], None, "nosuch.urdf"),
+    "--robot missing name": (["--robot", "nosuch_robot"], None, "nosuch_robot"),
+    "--robot a layout": (["--robot", "{d}/layout.yaml"], None, "layout.yaml"),
+    "--robot a xacro": (["--robot", "{d}/arm.urdf.xacro"], _touch("arm.urdf.xacro", "<robot/>"), "xacro"),
+    "--robot URDF not a chain": (["--robot", "{d}/b.urdf"], _touch("b.urdf", BRANCHED), "b.urdf"),
+    "--robot URDF, 7 joints for 6": (["--robot", str(URDF.parent / "rail_ur5.urdf")], None, "q7"),
+    "--tip-link not a link": (["--tip-link", "tool9"], None, "tool9"),
+    "--base-link below --tip-link": (["--base-link", "link6", "--tip-link", "link2"], None,
+                                     "not below"),
+    "--tip-link on a YAML robot": (["--robot", "panda", "--tip-link", "tool0"], None, "tip_link"),
+}  # fmt: skip
+for cid, (extra, setup, needle) in ROBOT_BAD.items():
+    case(f"solve {cid}", SOLVE_POS + extra, setup, needle)
+for cid in ("--robot a CSV", "--robot missing URDF", "--tip-link not a link"):
+    extra, setup, needle = ROBOT_BAD[cid]
+    case(f"diagnose {cid}", ["diagnose", "{d}/pos", "--bootstrap", "0"] + extra, setup, needle)
+    case(f"plan {cid}", ["plan", "{d}/pos", "-o", "{o}"] + extra, setup, needle)
+    case(f"report {cid}", ["report", "{d}/pos", "-o", "{o}"] + extra, setup, needle)
+case(
+    "fullpose --robot a CSV", FULLPOSE[:2] + ["--robot", "{d}/configs.csv", "-o", "{o}"], None, "configs.csv"
+)
+case("fullpose --robot URDF not a chain", FULLPOSE[:2] + ["--robot", "{d}/b.urdf", "-o", "{o}"],
+     _touch("b.urdf", BRANCHED), "b.urdf")  # fmt: skip
+case(
+    "fullpose --robot URDF, 6 joints for 7",
+    FULLPOSE[:2] + ["--robot", str(URDF), "-o", "{o}"],
+    None,
+    "fp.csv",
+)
+SIM_POS = ["simulate", "--measurement", "position", "-o", "{o}"]
+SIMFP_URDF = ["simulate-fullpose", "--robot", "{d}/nosuch.urdf", "-o", "{o}"]
+case("simulate-fullpose --robot missing URDF", SIMFP_URDF, None, "nosuch.urdf")
+case(
+    "simulate position: truth URDF not a chain",
+    SIM_POS + ["{d}/b.urdf"],
+    _touch("b.urdf", BRANCHED),
+    "b.urdf",
+)
+case("simulate position --tip-link not a link", SIM_POS + [str(URDF), "--tip-link", "tool9"], None, "tool9")
 
 
 # plan: a box inside out, a layout point out of reach, an output that exists

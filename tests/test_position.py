@@ -3,6 +3,7 @@ pinocchio (an independent URDF implementation), and bad input."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -223,3 +224,119 @@ def test_sensor_file_row_count(tmp_path, capsys):
         len(err.splitlines()) == 1
         and "tracker.csv, field 'rows': 29 sensor rows but captures.csv has 30" in err
     )
+
+
+# ----------------------------------------------------------------------------- --robot on the command line
+def test_robot_option_replaces_the_session_robot(tmp_path, capsys, monkeypatch):
+    """solve/diagnose --robot: a URDF path from the working folder in place of the session's (here gone);
+    --base-link picks the UR5 out of rail+UR5, whose arm is the same UR5 on a carriage."""
+    _, truth = session(tmp_path / "S", "ur5", 20, 0.0, 8)
+    meta = yaml.safe_load((tmp_path / "S" / "session.yaml").read_text())
+    meta["robot"] = "gone.urdf"
+    (tmp_path / "S" / "session.yaml").write_text(yaml.safe_dump(meta))
+    monkeypatch.chdir(tmp_path)
+    assert main(["solve", "S", "-o", "m.yaml"]) == 2
+    assert "gone.urdf" in capsys.readouterr().err
+    (tmp_path / "arm.urdf").write_text((DATA / "ur5.urdf").read_text())
+    assert main(["solve", "S", "-o", "m.yaml", "--robot", "arm.urdf", "--folds", "0"]) == 0
+    model = load_model("m.yaml")
+    assert model.urdf["file"] == str(tmp_path / "arm.urdf")
+    assert heldout_error(model, truth).max() < 1e-6
+    rail = ["--robot", str(DATA / "rail_ur5.urdf"), "--folds", "0"]
+    assert main(["solve", "S", "-o", "r.yaml"] + rail) == 2  # 7 joints: the session logs 6
+    assert "missing column(s) q7" in capsys.readouterr().err
+    assert main(["solve", "S", "-o", "r.yaml", "--base-link", "base_link"] + rail) == 0
+    model = load_model("r.yaml")
+    assert model.n == 6 and model.urdf["base_link"] == "base_link" and model.urdf["tip_link"] == "flange"
+    assert heldout_error(model, truth).max() < 1e-6
+    capsys.readouterr()
+    assert (
+        main(
+            ["diagnose", "S", "--bootstrap", "0", "--refits", "0", "--json"]
+            + rail[:2]
+            + ["--base-link", "base_link"]
+        )
+        == 0
+    )
+    assert json.loads(capsys.readouterr().out)["effect"] == "none"
+
+
+def test_fullpose_takes_a_urdf_and_its_chain(tmp_path, capsys):
+    fp, m = str(tmp_path / "fp.csv"), str(tmp_path / "m.yaml")
+    rail = ["--robot", str(DATA / "rail_ur5.urdf")]
+    sim = ["simulate-fullpose", "--configs", "10", "--angles", "4", "--noise", "0", "-o", fp]
+    assert main(sim + rail + ["--base-link", "base_link"]) == 0
+    assert main(["fullpose", fp, "-o", m] + rail) == 2
+    assert "fp.csv" in capsys.readouterr().err  # 6 joint columns, 7 joints
+    assert main(["fullpose", fp, "-o", m, "--base-link", "base_link"] + rail) == 0
+    model = load_model(m)
+    assert model.n == 6 and model.urdf["base_link"] == "base_link"
+    assert model.identification["accuracy"]["after"]["position_mm"]["max"] < 1e-5  # no noise: exact
+
+
+# ----------------------------------------------------------------------------- folds keep a pose's targets
+def test_folds_keep_the_targets_of_one_configuration_together(tmp_path):
+    """Three targets per pose, the later targets' joint readings jittered below the pose tolerance, and
+    pose 0 visited again at the end: every pose's rows share a fold, and all k folds are used."""
+    from dataclasses import replace
+
+    from lasercal.solver.analysis.stats import POSE_TOL_RAD, grouped_folds
+
+    s, _ = session(tmp_path, "ur5", 20, 0.0, 10)
+    pose = np.arange(s.m) // 3  # the simulated poses (np.repeat by 3): independent of the grouping
+    jitter = np.random.default_rng(0).uniform(-0.4, 0.4, s.q.shape) * POSE_TOL_RAD * (pose % 3 > 0)[:, None]
+    q = np.vstack([s.q + jitter, s.q[:3]])
+    pose = np.r_[pose, 0, 0, 0]
+    idx = np.r_[np.arange(s.m), 0, 1, 2]
+    s2 = replace(s.subset(idx), q=q)
+    for seed in range(3):
+        f = grouped_folds(s2, 5, seed)
+        assert all(len(set(f[pose == p])) == 1 for p in range(20))
+        assert set(f) == set(range(5)) and np.bincount(f).min() >= 9  # 4 poses per fold, 5 in one
+    assert (
+        len(set(grouped_folds(replace(s2, q=q + 3 * POSE_TOL_RAD * np.arange(len(q))[:, None]), 5)[:3])) > 1
+    )
+
+
+# ----------------------------------------------------------------------------- compliance without inertias
+def _bare_ur5(tmp_path) -> Path:
+    """The UR5 fixture with every <inertial> removed: no gravity model."""
+    import re
+
+    p = tmp_path / "ur5_bare.urdf"
+    p.write_text(re.sub(r"\s*<inertial>.*?</inertial>", "", (DATA / "ur5.urdf").read_text(), flags=re.S))
+    assert not load_model(p).links
+    return p
+
+
+# A UR5 joint is about 2e4 Nm/rad stiff (c = 5e-5 rad/Nm); a 5 kg payload at the wrist loads it with 5 x the
+# torques of the 1 kg lumped load the simulation and the fit use, so the folded compliance is 2.5e-4.
+SAG_C = 5 * 5e-5
+SIGMA = 0.02  # mm per axis: held-out 3-D RMS at the noise floor is sqrt(3) sigma
+
+
+@pytest.mark.parametrize("hidden", [True, False])
+def test_joint_compliance_without_inertias_is_found_by_extend_auto(tmp_path, capsys, hidden):
+    urdf = _bare_ur5(tmp_path)
+    S, M = tmp_path / "S", tmp_path / "m.yaml"
+    sim = ["simulate", str(urdf), "--measurement", "position", "--configs", "40", "--noise", str(SIGMA)]
+    effect = ["--effect", "joint_compliance", "--effect-joints", "2,3", "--effect-size", str(SAG_C)]
+    assert main(sim + (effect if hidden else []) + ["--seed", "1", "-o", str(S)]) == 0
+    capsys.readouterr()
+    assert main(["solve", str(S), "-o", str(M), "--extend", "auto", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)["diagnosis"]
+    floor = np.sqrt(3) * SIGMA
+    held = d["acceptance"]["holdout_rms_mm"]
+    assert (
+        d["details"]["torques"] == "lumped load at the wrist centre"
+        and d["acceptance"]["grouping"] == "by configuration"
+    )
+    model = load_model(M)
+    if hidden:
+        assert d["effect"] == "joint_compliance" and d["joints"] == [2, 3]
+        assert held["geometric"] > 10 * floor and held["extended"] < 1.15 * floor
+        c = model.extensions["joint_compliance"]["c"]
+        assert np.allclose(c, SAG_C, rtol=0.02)
+    else:
+        assert d["effect"] == "none" and not model.extensions
+        assert held["geometric"] < 1.15 * floor

@@ -6,13 +6,14 @@ import argparse
 import json
 import sys
 
-from lasercal.collector.cli.options import SEED, count, number
+from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, number, session_robot
 from lasercal.solver.analysis import ALPHA
 
 
 def args_diagnose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal diagnose``."""
     p.add_argument("session", help="session folder")
+    chain_arguments(p, SESSION_ROBOT)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--report", metavar="DIR", help="write the plots that make the case")
     p.add_argument(
@@ -65,7 +66,7 @@ def cmd_diagnose(args) -> int:
     from lasercal.solver.formats.session import load_session
 
     d = diagnose(
-        load_session(args.session),
+        load_session(args.session, **session_robot(args)),
         alpha=args.alpha,
         n_boot=args.bootstrap,
         seed=args.seed,

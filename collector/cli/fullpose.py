@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasercal.collector.cli.options import FOLDS, SEED, count, number
+from lasercal.collector.cli.options import FOLDS, SEED, chain_arguments, count, number
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.solver.identify.fullpose import FullPoseCalibration
@@ -21,7 +21,8 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
         help="MEASUREMENTS.csv: config,q1..qN,angle_index,x,y,z (mm, rad); a poses.csv "
         "(q1..qN,r11..r33,x,y,z) is read as full poses",
     )
-    p.add_argument("--robot", required=True, help="nominal robot YAML (or built-in name)")
+    p.add_argument("--robot", required=True, help="nominal robot: model YAML, URDF or built-in name")
+    chain_arguments(p)
     p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
     p.add_argument(
         "--method",
@@ -44,7 +45,8 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
 
 def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate-fullpose``."""
-    p.add_argument("--robot", required=True, help="true robot YAML (or built-in name)")
+    p.add_argument("--robot", required=True, help="true robot: model YAML, URDF or built-in name")
+    chain_arguments(p)
     p.add_argument("--configs", type=count(1, 10**5), default=30, help="robot configurations g (default 30)")
     p.add_argument(
         "--angles",
@@ -172,7 +174,7 @@ def cmd_fullpose(args) -> int:
     from lasercal.solver.identify.fullpose_ml import calibrate_points, cross_validate_points
 
     check_output(args.output, force=args.force)
-    model = load_model(args.robot)
+    model = load_model(args.robot, base_link=args.base_link, tip_link=args.tip_link)
     path = Path(args.measurements)
     estimate = True if args.estimate_frames else None
     points = None
@@ -279,7 +281,7 @@ def cmd_simulate_fullpose(args) -> int:
         X[:3, :3] = Rotation.from_euler("xyz", args.sensor[3:], degrees=True).as_matrix()
         X[:3, 3] = args.sensor[:3]
     path = resolve_robot_path(args.robot)
-    truth = load_model(path)
+    truth = load_model(path, base_link=args.base_link, tip_link=args.tip_link)
     target = default_target(truth, args.radius, args.offset)
     d = simulate_circlepoint(
         truth,

@@ -51,3 +51,28 @@ def _folds(text: str) -> int:
 
 
 FOLDS = _folds
+
+
+def chain_arguments(p: argparse.ArgumentParser, robot_help: str | None = None) -> None:
+    """``--base-link`` and ``--tip-link`` (a URDF chain's ends), and ``--robot`` when ``robot_help``."""
+    if robot_help:
+        p.add_argument("--robot", metavar="ROBOT", help=robot_help)
+    p.add_argument(
+        "--base-link", metavar="LINK", help="URDF robot: the chain's first link (default: the root)"
+    )
+    p.add_argument(
+        "--tip-link",
+        metavar="LINK",
+        help="URDF robot: the chain's last link (needed when the tree branches; default: the deepest leaf)",
+    )
+
+
+SESSION_ROBOT = (
+    "robot in place of the session's 'robot' (built-in name, model YAML or URDF, a path from the working "
+    "folder); the session's base_link and tip_link then do not apply"
+)
+
+
+def session_robot(args) -> dict:
+    """The keyword arguments of :func:`solver.formats.session.load_session` from :func:`chain_arguments`."""
+    return {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link}

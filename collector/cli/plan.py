@@ -9,12 +9,13 @@ import sys
 
 import numpy as np
 
-from lasercal.collector.cli.options import SEED, count, number
+from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, number, session_robot
 
 
 def args_plan(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal plan``."""
     p.add_argument("session", help="session folder (session.yaml + captures.csv; no captures yet is fine)")
+    chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
         "--layout", help="layout YAML (default: the points, calibration and validation lists of the session)"
     )
@@ -63,7 +64,7 @@ def cmd_plan(args) -> int:
 
     if args.output:
         check_output(args.output, force=args.force)
-    session = load_session(args.session)
+    session = load_session(args.session, **session_robot(args))
     if session.measurement != "laser":
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
     layout = _layout(args, session)

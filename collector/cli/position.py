@@ -40,7 +40,8 @@ def default_targets(model: RobotModel, k: int) -> dict:
 
 def cmd_simulate_position(args, truth_path: Path, effect) -> int:
     """``lasercal simulate TRUTH --measurement position``: random in-limit poses, every target each pose."""
-    truth = load_model(truth_path)
+    chain = {k: v for k, v in (("base_link", args.base_link), ("tip_link", args.tip_link)) if v}
+    truth = load_model(truth_path, **chain)
     raw = load_yaml(truth_path) if truth_path.suffix.lower() != ".urdf" else {}
     nominal = args.robot or raw.get("nominal") or str(truth_path.resolve())
     if not truth.targets:
@@ -56,7 +57,7 @@ def cmd_simulate_position(args, truth_path: Path, effect) -> int:
     sim = {"truth": str(truth_path.resolve()), "noise_mm": args.noise, "seed": args.seed, "torques": src}
     if effect is not None:
         sim["effect"] = {"name": effect.effect, **effect.to_dict()}
-    meta = position_meta(nominal, names, noise_mm=args.noise, simulated=sim)
+    meta = position_meta(nominal, names, **chain, noise_mm=args.noise, simulated=sim)
     write_position_session(args.output, meta, q, y, tg)
     print(
         f"wrote {args.output}: {args.configs} poses x {len(names)} targets (truth {truth.name}, sensor "

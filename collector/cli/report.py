@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lasercal.collector.cli.options import SEED, count
+from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, session_robot
 from lasercal.solver.formats.export import FORMATS
 
 
@@ -22,6 +22,7 @@ def args_report(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "-o", "--output", required=True, metavar="DIR", help="folder for index.html and its PNG plots"
     )
+    chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
         "--method", choices=("lm", "thesis"), default="lm", help="identification method (default lm)"
     )
@@ -81,7 +82,7 @@ def cmd_report(args) -> int:
             "report needs exactly one capture session folder (with session.yaml) among its folders, got "
             f"{len(sessions)}"
         )
-    session = load_session(sessions[0])
+    session = load_session(sessions[0], **session_robot(args))
     for v in validations:
         for nm in sorted(set(session.point)):
             if np.linalg.norm(session.points[nm] - v.xyz) < 1.0:

@@ -9,7 +9,15 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasercal.collector.cli.options import FOLDS, SEED, count, number
+from lasercal.collector.cli.options import (
+    FOLDS,
+    SEED,
+    SESSION_ROBOT,
+    chain_arguments,
+    count,
+    number,
+    session_robot,
+)
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
@@ -22,6 +30,7 @@ def args_solve(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal solve``."""
     p.add_argument("session", help="session folder (session.yaml + captures.csv)")
     p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
         "--method",
         choices=["lm", "thesis"],
@@ -82,6 +91,7 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
     )
+    chain_arguments(p)
     p.add_argument(
         "--effect",
         choices=list(JOINT_EFFECTS) + ["reference_point_offset"],
@@ -111,7 +121,7 @@ def cmd_solve(args) -> int:
     from lasercal.solver.kinematics.effects import robot_extensions
 
     check_output(args.output, force=args.force)
-    session = load_session(args.session)
+    session = load_session(args.session, **session_robot(args))
     check_data(session)
     diagnosis = None
     robust = not args.no_robust
@@ -301,13 +311,13 @@ def cmd_simulate(args) -> int:
     if args.measurement == "position":
         from lasercal.collector.cli.position import cmd_simulate_position
 
-        n = load_model(path).n
+        n = load_model(path, base_link=args.base_link, tip_link=args.tip_link).n
         return cmd_simulate_position(
             args, path, hidden_effect(args, None, n, np.random.default_rng(args.seed + 1))
         )
     if not args.layout:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
-    truth = load_model(path)
+    truth = load_model(path, base_link=args.base_link, tip_link=args.tip_link)
     raw = load_yaml(path)
     nominal = args.robot or raw.get("nominal") or str(path.resolve())
     layout = load_layout(args.layout)

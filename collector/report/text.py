@@ -48,7 +48,7 @@ def format_diagnosis(d) -> str:
         h = acc["holdout_rms_mm"]
         cand = d.proposed.effect if d.proposed else "no extension"
         lines.append(
-            f"held-out ({acc['folds']} folds by {acc['grouping']}): geometric {h['geometric']:.3f} mm, "
+            f"held-out ({acc['folds']} folds {acc['grouping']}): geometric {h['geometric']:.3f} mm, "
             f"with {cand} {h['extended']:.3f} mm; gain per fold "
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
             + f"  (torques: {d.torque_source})"

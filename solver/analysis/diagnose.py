@@ -568,7 +568,11 @@ def diagnose(
     if k > 1:
         f = grouped_folds(session, k, seed)
         grouping = (
-            "tool position" if session.measurement == "point" and f.max() > 0 else "stratified by point"
+            "by tool position"
+            if session.measurement == "point" and f.max() > 0
+            else "by configuration"
+            if session.measurement == "position"
+            else "stratified by point"
         )
         h_geo = held_out(session, fitter(robust=robust), f)
         h_ext = held_out(session, fitter(robust=robust, extension=chosen), f) if chosen else h_geo

@@ -68,17 +68,55 @@ def per_point(model: RobotModel, session: Session, mask: np.ndarray | None = Non
     return {nm: spot_stats(spots[names == nm], session.points[nm]) for nm in dict.fromkeys(names)}
 
 
+POSE_TOL_RAD = 1e-4  # rad: revolute readings this close are one pose (a still robot read again)
+POSE_TOL_MM = 1e-2  # mm: the same for a prismatic joint
+
+
+def configurations(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Configuration index (m,) of each row: rows whose joint readings agree within the pose tolerance are
+    one configuration.
+
+    Rows i and j are linked when max_j |q_ij - q_kj| / tol_j <= 1 (Chebyshev distance, tol_j =
+    :data:`POSE_TOL_RAD` or :data:`POSE_TOL_MM` for a prismatic joint); configurations are the connected
+    components of these links, in any order of the rows.
+
+    Parameters
+    ----------
+    robot : RobotModel, whose ``prismatic`` joints are in mm
+    q : (m, n) array, rad (mm for prismatic joints)
+
+    Returns
+    -------
+    (m,) int array, the component of each row
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(q, float) / np.where(robot.prismatic, POSE_TOL_MM, POSE_TOL_RAD)
+    pairs = cKDTree(x).query_pairs(1.0, p=np.inf, output_type="ndarray")
+    m = len(x)
+    links = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    return connected_components(links, directed=False)[1]
+
+
 def folds(session: Session, k: int, seed: int = 0) -> np.ndarray:
-    """Fold index (m,) for K-fold cross-validation, stratified by point.
+    """Fold index (m,) for K-fold cross-validation.
 
     Captures sharing a ``group`` column value (repeated captures of one pose) stay in one
-    fold, so that no capture is predicted by a fit that saw it or its twin.
+    fold, so that no capture is predicted by a fit that saw it or its twin. Laser and point
+    sessions are stratified by point. Position sessions without a ``group`` column group rows by
+    :func:`configurations` (the targets measured at one pose stay together: a held-out pose is
+    one the fit never saw) and assign whole configurations to folds at random.
     """
     rng = np.random.default_rng(seed)
-    groups = session.extra.get("group", np.arange(session.m).astype(str))
+    position = session.measurement == "position"
+    default = configurations(session.robot, session.q) if position else np.arange(session.m)
+    groups = np.asarray(session.extra.get("group", default.astype(str)))
+    strata = np.zeros(session.m, dtype=int) if position else session.point
     out = np.empty(session.m, dtype=int)
-    for nm in dict.fromkeys(session.point):
-        sel = np.flatnonzero(session.point == nm)
+    for nm in dict.fromkeys(strata):
+        sel = np.flatnonzero(strata == nm)
         uniq = list(dict.fromkeys(groups[sel]))
         order = rng.permutation(len(uniq))
         fold_of = {uniq[g]: i % k for i, g in enumerate(order)}
@@ -90,7 +128,7 @@ def grouped_folds(session: Session, k: int, seed: int = 0) -> np.ndarray:
     """Fold index (m,) of the cross-validation the statistics and the model selection use.
 
     Point sessions: leave one tool position out (:attr:`Session.positions`; k is ignored), so that a
-    model is judged on a placement of the tool it never saw. Laser sessions: :func:`folds`.
+    model is judged on a placement of the tool it never saw. Laser and position sessions: :func:`folds`.
     """
     pos = session.positions
     names = list(dict.fromkeys(pos))

@@ -51,7 +51,9 @@ def _checked_screw(w, v, path, where: str, notes: list) -> np.ndarray:
 def model_from_dict(d: dict, path="<model>") -> RobotModel:
     """Build and validate a :class:`RobotModel` from a parsed YAML mapping."""
     if not isinstance(d, dict):
-        raise FormatError(path, "a robot model must be a YAML mapping")
+        raise FormatError(
+            path, "not a robot model: expected a lasercal-robot/1 YAML mapping (or a URDF file, *.urdf)"
+        )
     fmt = d.get("format", FORMAT)
     if fmt != FORMAT:
         raise FormatError(path, f"unsupported format {fmt!r} (expected {FORMAT})", field="format")
@@ -209,14 +211,34 @@ def load_yaml(path) -> Any:
 def load_model(
     name_or_path, base: Path | None = None, base_link: str | None = None, tip_link: str | None = None
 ) -> RobotModel:
-    """Load and validate a robot model by name ('panda', 'puma560', ...) or path (YAML, or a ``.urdf``
-    with the chain from ``base_link`` to ``tip_link``: :func:`solver.formats.urdf.load_urdf`)."""
-    if str(name_or_path).lower().endswith(".urdf"):
+    """Load and validate a robot model by name ('panda', 'puma560', ...) or path.
+
+    Parameters
+    ----------
+    name_or_path : str or Path, a built-in name, a ``lasercal-robot/1`` YAML or a ``.urdf``
+        (:func:`solver.formats.urdf.load_urdf`, the chain from ``base_link`` to ``tip_link``)
+    base : Path, optional, the folder a relative path is tried in first (e.g. the session's)
+    base_link, tip_link : str, optional, the URDF chain's ends (only for a URDF)
+
+    Returns
+    -------
+    RobotModel
+    """
+    ref = str(name_or_path)
+    if ref.lower().endswith(".xacro"):
+        raise FormatError(ref, "a xacro file: expand it to a URDF first (xacro FILE.urdf.xacro > FILE.urdf)")
+    if ref.lower().endswith(".urdf"):
         from lasercal.solver.formats.urdf import load_urdf
 
-        p = Path(name_or_path)
-        if not p.is_absolute() and base is not None and (Path(base) / p).exists():
-            p = Path(base) / p
+        p = Path(ref)
+        if not p.is_absolute() and base is not None and ((Path(base) / p).exists() or not p.exists()):
+            p = Path(base) / p  # relative to the file that names it (a missing one is reported there)
         return load_urdf(p, base_link, tip_link)
     path = resolve_robot_path(name_or_path, base)
-    return model_from_dict(load_yaml(path), path)
+    model = model_from_dict(load_yaml(path), path)
+    for key, link in (("base_link", base_link), ("tip_link", tip_link)):
+        if link is not None:
+            raise FormatError(
+                path, f"{key} {link!r} names a URDF link, but this robot is not a URDF", field=key
+            )
+    return model

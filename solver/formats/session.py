@@ -367,8 +367,21 @@ def session_clock(meta: dict, path) -> str:
     return clock
 
 
-def load_session(folder) -> Session:
-    """Load and validate a session folder (session.yaml + captures.csv)."""
+def load_session(folder, robot=None, base_link: str | None = None, tip_link: str | None = None) -> Session:
+    """Load and validate a session folder (session.yaml + captures.csv).
+
+    Parameters
+    ----------
+    folder : str or Path, the session folder
+    robot : str or Path, optional, a robot (name, YAML or ``.urdf``; a relative path from the working
+        folder) in place of the session's ``robot``; the session's ``base_link`` and ``tip_link``
+        then do not apply
+    base_link, tip_link : str, optional, the URDF chain's ends, in place of the session's keys
+
+    Returns
+    -------
+    Session
+    """
     folder = Path(folder)
     ypath, cpath = folder / "session.yaml", folder / "captures.csv"
     if not folder.is_dir():
@@ -386,11 +399,17 @@ def load_session(folder) -> Session:
     for k, v in UNITS.items():
         if units.get(k, v) != v:
             raise FormatError(ypath, f"units.{k} must be {v!r}", field=f"units.{k}")
-    if "robot" not in meta:
+    if robot is not None:
+        robot = load_model(robot, base_link=base_link, tip_link=tip_link)
+    elif "robot" not in meta:
         raise FormatError(ypath, "missing 'robot' (a name under data/robots/ or a path)", field="robot")
-    robot = load_model(
-        meta["robot"], base=folder, base_link=meta.get("base_link"), tip_link=meta.get("tip_link")
-    )
+    else:
+        robot = load_model(
+            meta["robot"],
+            base=folder,
+            base_link=base_link or meta.get("base_link"),
+            tip_link=tip_link or meta.get("tip_link"),
+        )
     measurement = meta.get("measurement", "laser")
     if measurement not in ("laser", "point", "position"):
         raise FormatError(
