@@ -152,7 +152,6 @@ def cmd_solve(args) -> int:
             inlier=ident.weights > 0,
             robust=robust,
             extension=diagnosis.extension if diagnosis else None,
-            start=ident.model if args.method == "lm" else None,  # each fold converges from here in few steps
         )
         if args.folds and args.folds > 1
         else None
