@@ -251,9 +251,9 @@ def cross_validate(
     inlier : (m,) bool array, the captures the summary counts (default: all)
     robust : bool, the robust loss in every fold's fit
     extension : Extension, optional effect fitted with the geometry in every fold
-    start : RobotModel, where every fold's fit starts (e.g. the whole session's ``lm`` fit: each fold then
-        converges to its own optimum in a few steps; not for ``thesis``, whose iteration cap would keep it
-        near the start)
+    start : RobotModel, where every fold's fit starts (default: the session's nominal robot). Never a fit
+        that saw the held-out captures: the directions a fold cannot identify stay at the start, so such a
+        start would leak the held-out data into the prediction
 
     Returns
     -------
