@@ -232,22 +232,22 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     for held in dict.fromkeys(pos):
         train, test = s.subset(pos != held), s.subset(pos == held)
         d = diagnose(replace(train, tau=None), alpha=opts.alpha, n_boot=0, k=5, payload=opts.payload)
-        geo, sus = d.geometric.model, d.geometric.weights == 0  # extensions start there, on its rows
-        comp = fit(train, compliance_ext(common), nominal=geo, suspects=sus)
+        geo, sus = d.geometric.model, d.geometric.weights == 0  # extensions are fitted on its rows
+        comp = fit(train, compliance_ext(common), suspects=sus)
         fits = {
             "nominal": (nominal, None),
-            "plain": (fit(train, nominal=geo, robust=False).model, None),
+            "plain": (fit(train, robust=False).model, None),
             "geometric": (geo, None),
             "nested": (d.extended.model, d.extended.extension) if d.extended else (geo, None),
             "compliance": (comp.model, comp.extension),
         }
         if d.extended is not None:  # the same extended model without the outlier test
-            npl = fit(train, d.extension.with_params(np.zeros(d.extension.size)), nominal=geo, robust=False)
+            npl = fit(train, d.extension.with_params(np.zeros(d.extension.size)), robust=False)
             fits["nested_plain"] = (npl.model, npl.extension)
         else:
             fits["nested_plain"] = fits["plain"]
         if fixed is not None:
-            fx = fit(train, fixed.with_params(np.zeros(fixed.size)), nominal=geo, suspects=sus)
+            fx = fit(train, fixed.with_params(np.zeros(fixed.size)), suspects=sus)
             fits["fixed"] = (fx.model, fx.extension)
         else:
             fits["fixed"] = fits["geometric"]
