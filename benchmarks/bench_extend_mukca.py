@@ -22,14 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.collector.studies.mukca import (
-    PLAIN_TOLERANCE,
-    QUICK,
-    ROBOTS,
-    load_robot,
-    loaded_joints,
-    loto,
-)
+from lasercal.collector.studies.mukca import PLAIN_TOLERANCE, load_robot, loaded_joints, loto
+from lasercal.collector.studies.options import QUICK, ROBOTS
 from lasercal.solver.analysis.diagnose import session_torques
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"

@@ -14,7 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from lasercal.collector.studies.mukca import QUICK, ROBOTS, StudyOptions, run_study
+from lasercal.collector.studies.mukca import run_study
+from lasercal.collector.studies.options import QUICK, ROBOTS, StudyOptions
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 

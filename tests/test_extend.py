@@ -110,6 +110,19 @@ def test_few_degrees_of_freedom_flag_no_valid_rows_but_a_gross_outlier(tmp_path,
     assert fit(bad, robust=False).outliers == ()
 
 
+def test_an_extension_may_flag_only_the_outliers_of_its_geometric_fit(tmp_path):
+    eff = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))
+    s = sim(tmp_path / "s", eff, 61)
+    bad = replace(s, target=s.target.copy())
+    bad.target[5, :2] += 25.0  # aimed at the wrong spot
+    geo = fit(bad)
+    assert geo.outliers == (5,)
+    zero = eff.with_params(np.zeros(1))
+    ext = fit(bad, zero, suspects=geo.weights == 0)
+    assert ext.outliers == (5,) and abs(ext.extension.params[0] - 1.2e-4) < 3 * ext.extension.std_errors[0]
+    assert fit(bad, zero, suspects=np.zeros(bad.m, bool)).outliers == ()  # the geometry kept them all
+
+
 # ------------------------------------------------------------------ acceptance, folds
 def test_hidden_compliance_is_kept_by_cross_validation(tmp_path):
     eff = Extension("joint_compliance", (2,), None, np.array([1.2e-4]))

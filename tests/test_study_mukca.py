@@ -151,6 +151,7 @@ def test_diagnosis_simulation_and_extension(quick_report):
     assert "drift" in d["untested"] and all(f["nested_effect"] != "drift" for f in x["calibration"]["folds"])
     # the robust fit is never worse than plain least squares by more than 2 % on a held-out position
     assert max(f["geometric_over_plain"] for f in x["calibration"]["folds"]) <= 1.02
+    assert max(f["nested_over_nested_plain"] for f in x["calibration"]["folds"]) <= 1.02  # and extended
     c = x["conclusion"]
     assert c["effect"] == d["effect"] and c["gain_percent_ci95"][0] <= c["gain_percent_mean"]
     assert c["line"] in (quick_report[0] / "report.md").read_text()

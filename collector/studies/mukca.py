@@ -232,12 +232,13 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     for held in dict.fromkeys(pos):
         train, test = s.subset(pos != held), s.subset(pos == held)
         d = diagnose(replace(train, tau=None), alpha=opts.alpha, n_boot=0, k=5, payload=opts.payload)
-        comp = fit(train, compliance_ext(common))
+        geo, sus = d.geometric.model, d.geometric.weights == 0  # extensions are fitted on its rows
+        comp = fit(train, compliance_ext(common), suspects=sus)
         fits = {
             "nominal": (nominal, None),
             "plain": (fit(train, robust=False).model, None),
-            "geometric": (d.geometric.model, None),
-            "nested": (d.extended.model, d.extended.extension) if d.extended else (d.geometric.model, None),
+            "geometric": (geo, None),
+            "nested": (d.extended.model, d.extended.extension) if d.extended else (geo, None),
             "compliance": (comp.model, comp.extension),
         }
         if d.extended is not None:  # the same extended model without the outlier test
@@ -246,7 +247,7 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
         else:
             fits["nested_plain"] = fits["plain"]
         if fixed is not None:
-            fx = fit(train, fixed.with_params(np.zeros(fixed.size)))
+            fx = fit(train, fixed.with_params(np.zeros(fixed.size)), suspects=sus)
             fits["fixed"] = (fx.model, fx.extension)
         else:
             fits["fixed"] = fits["geometric"]

@@ -42,7 +42,7 @@ from scipy.special import (
 )
 
 from lasercal.solver.analysis import ALPHA
-from lasercal.solver.analysis.stats import HeldOut, fitter, grouped_folds, held_out
+from lasercal.solver.analysis.stats import HeldOut, grouped_folds, held_out_all, nested_fitter
 from lasercal.solver.errors import ModelError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.measurement import fit, residuals
@@ -402,17 +402,18 @@ def acceptance(h_geo: HeldOut, h_ext: HeldOut, keep: np.ndarray, grouping: str) 
     }
 
 
-def _grow(session: Session, first: Extension, fixed: list, exts: list, tau, alpha: float, robust: bool):
+def _grow(session: Session, first: Extension, fixed: list, exts: list, tau, alpha: float, sus):
     """Forward selection of one effect's joints: start at ``first`` and add the joint of the same effect
     whose conditional score test (Bonferroni over the remaining joints, at the refit) is significant, while
-    one is. ``fixed`` are other effects fitted alongside (a combination's first part).
+    one is. ``fixed`` are other effects fitted alongside (a combination's first part). ``sus``: the
+    :func:`_fit` arguments (robust loss, the geometric fit's outliers as the only suspects).
 
     Returns
     -------
     (Extension, the grown effect), (Identification, the fit of ``fixed`` + it)
     """
     grown = first
-    ext_fit = fit(session, combine(fixed + [grown]), robust=robust)
+    ext_fit = _fit(session, combine(fixed + [grown]), sus)
     if first.effect == "reference_point_offset":
         return grown, ext_fit
     while True:
@@ -428,7 +429,13 @@ def _grow(session: Session, first: Extension, fixed: list, exts: list, tau, alph
             None,
             np.zeros(grown.size + nxt.extension.size),
         )
-        ext_fit = fit(session, combine(fixed + [grown]), robust=robust)
+        ext_fit = _fit(session, combine(fixed + [grown]), sus)
+
+
+def _fit(session: Session, extension, sus) -> Identification:
+    """An extension fitted on the geometric fit's rows: ``sus`` = (robust, that fit's outliers), the only
+    captures its outlier test may flag (:mod:`solver.identify.lsq`, nested fits)."""
+    return fit(session, extension, robust=sus[0], suspects=sus[1])
 
 
 def _merge(terms: list) -> Extension | Combination:
@@ -441,7 +448,7 @@ def _merge(terms: list) -> Extension | Combination:
 
 
 def _combination(
-    session: Session, chosen: Extension, ext_fit: Identification, exts: list, tau, alpha: float, robust: bool
+    session: Session, chosen: Extension, ext_fit: Identification, exts: list, tau, alpha: float, sus
 ) -> dict | None:
     """The other robot effect on further joints, given the chosen one.
 
@@ -463,7 +470,7 @@ def _combination(
     nxt = score_tests(session, ext_fit, others, tau)[0]
     if nxt.p_adjusted >= alpha:
         return None
-    second, _ = _grow(session, nxt.extension, [chosen], exts, tau, alpha, robust)
+    second, _ = _grow(session, nxt.extension, [chosen], exts, tau, alpha, sus)
     terms = [
         Extension(e.effect, (j,), None, np.zeros(e.size // len(e.joints)))
         for e in (chosen, second)
@@ -475,9 +482,7 @@ def _combination(
             min(
                 1.0,
                 len(terms)
-                * score_tests(
-                    session, fit(session, _merge(terms[:i] + terms[i + 1 :]), robust=robust), [t], tau
-                )[0].p,
+                * score_tests(session, _fit(session, _merge(terms[:i] + terms[i + 1 :]), sus), [t], tau)[0].p,
             )
             for i, t in enumerate(terms)
         ]
@@ -490,7 +495,7 @@ def _combination(
     combo = _merge(terms)
     return {
         "extension": combo,
-        "fit": fit(session, combo, robust=robust),
+        "fit": _fit(session, combo, sus),
         "term_p": {t.label: pi for t, pi in zip(terms, p)},
         "dropped": dropped,
     }
@@ -552,9 +557,10 @@ def diagnose(
     chosen = None
     combo = None  # a combination proposed by the F tests, with its fit and the part tests
     if best.p_adjusted < alpha or effect is not None:
-        chosen, ext_fit = _grow(session, best.extension, [], exts, tau, alpha, robust)
+        sus = (robust, geo.weights == 0)
+        chosen, ext_fit = _grow(session, best.extension, [], exts, tau, alpha, sus)
         if effect is None and chosen.effect in ROBOT_EFFECTS:
-            combo = _combination(session, chosen, ext_fit, exts, tau, alpha, robust)
+            combo = _combination(session, chosen, ext_fit, exts, tau, alpha, sus)
     ambiguous = tuple(
         t.label
         for t in tests[1:]
@@ -574,10 +580,12 @@ def diagnose(
             if session.measurement == "position"
             else "stratified by point"
         )
-        h_geo = held_out(session, fitter(robust=robust), f)
-        h_ext = held_out(session, fitter(robust=robust, extension=chosen), f) if chosen else h_geo
+        # per fold: the geometry, then each extension on its rows from its solution
+        exts_cv = [chosen] + ([combo["extension"]] if combo is not None else []) if chosen else []
+        h = held_out_all(session, nested_fitter(exts_cv, robust), f)
+        h_geo, h_ext = h[0], h[1] if chosen else h[0]
         if combo is not None:  # kept only when it predicts held-out data better than its first effect alone
-            h_combo = held_out(session, fitter(robust=robust, extension=combo["extension"]), f)
+            h_combo = h[2]
             vs = acceptance(h_ext, h_combo, inlier, grouping)
             combo["accepted"] = vs["accepted"]
             combo["holdout_rms_mm"] = {"single": vs["holdout_rms_mm"]["geometric"]} | {

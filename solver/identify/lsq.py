@@ -12,6 +12,12 @@
   test, Bonferroni-corrected over the captures (:func:`studentised_outliers`). Test and refit
   repeat until the flagged set is stable; a left-out capture that the refit predicts well
   comes back. With too few degrees of freedom for the test nothing is flagged.
+* Nested fits: an extension of a geometric fit may flag only the captures the geometric fit flagged
+  (``suspects``); it may bring them back. Otherwise a rejection cascades: with a few more columns the
+  refit without the first flagged capture tightens its position's residuals and leaves its neighbour in
+  recording order (real captures are serially correlated) a little further out, and the extension ends
+  up compared with the geometry on other rows and paying more held-out for each row it drops
+  (benchmarks/bench_extend_mukca.py).
 """
 
 from __future__ import annotations
@@ -221,6 +227,7 @@ def fit_subspace(
     w0: np.ndarray | None = None,
     constraints: Callable | None = None,
     groups: np.ndarray | None = None,
+    suspects: np.ndarray | None = None,
 ) -> SubspaceFit:
     """Levenberg-Marquardt in the identifiable subspace at v0, with the robust loss.
 
@@ -236,6 +243,9 @@ def fit_subspace(
     constraints : v -> ((c,) residual rows, (c, p) Jacobian), extra rows never weighted out
         (e.g. known distances, already divided by their standard deviation over sigma)
     groups : (m,) array of labels, noise groups of the outlier test (e.g. tool positions)
+    suspects : (m,) bool array, the only captures the outlier test may flag (e.g. those the geometric fit
+        flagged, for an extension of it); they start left out and come back when the fit predicts them.
+        Default: every capture
 
     Returns
     -------
@@ -245,6 +255,8 @@ def fit_subspace(
     m, d = R0.shape
     p = len(v0)
     w = np.ones(m) if w0 is None else np.asarray(w0, dtype=float).copy()
+    if suspects is not None and robust:
+        w[suspects] = 0.0
 
     def rows(v, sw):
         r = (residual(v) * sw[:, None]).ravel()
@@ -292,6 +304,8 @@ def fit_subspace(
             v = v0 + basis @ sol.x
             sw = np.sqrt(w)
             flags = studentised_outliers(res, jrows(v, sw) @ basis, w, jacobian(v) @ basis, groups)
+            if suspects is not None:
+                flags &= suspects
             if np.array_equal(flags, w == 0):
                 break
             w = np.where(flags, 0.0, 1.0)

@@ -25,15 +25,20 @@ def fit(
     nominal: RobotModel | None = None,
     robust: bool = True,
     method: str = "lm",
+    suspects: np.ndarray | None = None,
 ) -> Identification:
-    """Identify the session's model ('lm' for both measurement types; 'thesis' for laser sessions)."""
+    """Identify the session's model ('lm' for both measurement types; 'thesis' for laser sessions).
+
+    ``suspects`` (m,) bool: the only captures the outlier test may flag -- an extension is fitted on the
+    rows of its geometric fit, ``suspects=geometric.weights == 0`` (:mod:`solver.identify.lsq`).
+    """
     if session.measurement == "point":
-        return identify_point(session, nominal, robust, extension)
+        return identify_point(session, nominal, robust, extension, suspects)
     if session.measurement == "position":
-        return identify_position(session, nominal, robust, extension)
+        return identify_position(session, nominal, robust, extension, suspects=suspects)
     if method == "thesis":
         return identify(session, "thesis", nominal)
-    return identify(session, "lm", nominal, robust=robust, extension=extension)
+    return identify(session, "lm", nominal, robust=robust, extension=extension, suspects=suspects)
 
 
 def residuals(

@@ -160,6 +160,7 @@ def identify_point(
     nominal: RobotModel | None = None,
     robust: bool = True,
     extension: Extension | None = None,
+    suspects: np.ndarray | None = None,
 ) -> Identification:
     """Identify screws, tool point and unknown points from point-constraint captures (lm).
 
@@ -169,6 +170,8 @@ def identify_point(
     nominal : RobotModel (default: the session's robot)
     robust : bool, flag outlier captures
     extension : Extension, optional joint effect identified jointly
+    suspects : (m,) bool array, optional: the only captures the outlier test may flag (an extension fitted
+        on its geometric fit's rows: that fit's outliers; :func:`solver.identify.lsq.fit_subspace`)
 
     Returns
     -------
@@ -213,6 +216,7 @@ def identify_point(
         robust,
         constraints=constraints if session.distances else None,
         groups=session.positions,
+        suspects=suspects,
     )
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     meta = {

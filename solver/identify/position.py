@@ -258,6 +258,7 @@ def identify_position(
     robust: bool = True,
     extension: Extension | None = None,
     joints: bool = True,
+    suspects: np.ndarray | None = None,
 ) -> Identification:
     """Identify screws, sensor frame and targets from measured positions (LM in the identifiable subspace).
 
@@ -269,6 +270,8 @@ def identify_position(
     robust : bool, flag outlier captures
     extension : Extension, optional joint effect identified jointly
     joints : bool, False: only the sensor frame and targets (the nominal's best alignment)
+    suspects : (m,) bool array, optional: the only captures the outlier test may flag (an extension fitted
+        on its geometric fit's rows: that fit's outliers; :func:`solver.identify.lsq.fit_subspace`)
 
     Returns
     -------
@@ -314,7 +317,7 @@ def identify_position(
     x0 = np.zeros(p + k)
     for nm, c in P.col.items():
         x0[c : c + 3] = tg0[nm]
-    fit = fit_subspace(residual, jacobian, x0, names_all, robust)
+    fit = fit_subspace(residual, jacobian, x0, names_all, robust, suspects=suspects)
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     gauge = (
         f"base frame = the nominal's: held at nominal {', '.join(P.held_names)} (a rigid motion of the base, "

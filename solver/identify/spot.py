@@ -166,6 +166,7 @@ def identify_lm(
     nominal: RobotModel | None = None,
     robust: bool = True,
     extension: Extension | None = None,
+    suspects: np.ndarray | None = None,
 ) -> Identification:
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
 
@@ -176,6 +177,8 @@ def identify_lm(
     robust : bool, flag outliers and refit without them
     extension : Extension, optional non-geometric effect identified jointly with the geometry
         (its parameters start at zero; a compliance extension uses the session's torques)
+    suspects : (m,) bool array, optional: the only captures the outlier test may flag (an extension fitted
+        on its geometric fit's rows: that fit's outliers; :func:`solver.identify.lsq.fit_subspace`)
 
     Returns
     -------
@@ -261,7 +264,7 @@ def identify_lm(
     # Stage 2: in-plane residuals, geometry and extension together, in the identifiable subspace at the
     # stage-1 solution.
     v1 = np.r_[x0 + B1 @ first.x, np.zeros(k)]
-    fit = fit_subspace(residual, jacobian, v1, names, robust, w)
+    fit = fit_subspace(residual, jacobian, v1, names, robust, w, suspects=suspects)
     iterations += fit.iterations
     history += fit.history
     v, cov = _aperture_gauge(P, fit.v, fit.cov, session.aperture_z)
