@@ -205,15 +205,14 @@ def fitter(
     method: str = "lm",
     robust: bool = True,
     extension=None,
-    start: RobotModel | None = None,
     suspects: np.ndarray | None = None,
 ):
-    """The ``fitter`` of :func:`held_out` for :func:`solver.identify.measurement.fit`, from ``start``
-    (default: the session's nominal robot); ``suspects`` (training captures) the only ones the outlier
-    test may flag."""
+    """The ``fitter`` of :func:`held_out` for :func:`solver.identify.measurement.fit`, from the session's
+    nominal robot (never from a fit that saw the held-out captures: the directions a fold cannot identify
+    stay at the start); ``suspects`` (training captures) the only ones the outlier test may flag."""
 
     def f(train: Session):
-        r = fit(train, extension, nominal=start, robust=robust, method=method, suspects=suspects)
+        r = fit(train, extension, robust=robust, method=method, suspects=suspects)
         return r.model, r.extension, r.extra.get("points")
 
     return f
@@ -235,7 +234,7 @@ def nested_fitter(extensions: list, robust: bool = True):
             return [geo] * (1 + len(extensions))
         out = [(geo.model, None, geo.extra.get("points"))]
         sus = geo.weights == 0
-        return out + [_attempt(fitter("lm", robust, e, None, sus), train) for e in extensions]
+        return out + [_attempt(fitter("lm", robust, e, sus), train) for e in extensions]
 
     return f
 
@@ -282,7 +281,6 @@ def cross_validate(
     inlier: np.ndarray | None = None,
     robust: bool = True,
     extension=None,
-    start: RobotModel | None = None,
 ) -> CrossValidation:
     """Held-out error of each capture, predicted by a model fitted on the other folds.
 
@@ -295,16 +293,13 @@ def cross_validate(
     inlier : (m,) bool array, the captures the summary counts (default: all)
     robust : bool, the robust loss in every fold's fit
     extension : Extension, optional effect fitted with the geometry in every fold
-    start : RobotModel, where every fold's fit starts (default: the session's nominal robot). Never a fit
-        that saw the held-out captures: the directions a fold cannot identify stay at the start, so such a
-        start would leak the held-out data into the prediction
 
     Returns
     -------
     CrossValidation (in-plane spot errors, or tool-point errors against the training fit's points;
     NaN for the captures of a fold that could not be fitted, listed in ``failed``)
     """
-    h = held_out(session, fitter(method, robust, extension, start), grouped_folds(session, k, seed))
+    h = held_out(session, fitter(method, robust, extension), grouped_folds(session, k, seed))
     return CrossValidation(
         int(h.fold.max()) + 1,
         np.linalg.norm(h.residuals, axis=1),
