@@ -326,21 +326,27 @@ def _netns_available() -> bool:
         return False
 
 
-def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path):
+def _run_on_franky_sim(kind: str, tmp_path, offset: int, timeout: int) -> tuple[dict, bool, str]:
+    """Run scenario ``kind`` of this file in a child process against franky-sim on a loopback address of
+    its own (inside a network namespace when one can be made); its last stdout line is the JSON result."""
     pytest.importorskip(
         "franky", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-control missing"
     )
     pytest.importorskip(
         "franky_sim", reason="the [sim] extra is not installed (pip install -e '.[sim]'): franky-sim missing"
     )
-    host = f"127.0.0.{2 + os.getpid() % 250}"
-    cmd = [sys.executable, __file__, "scenario", str(tmp_path), host]
+    host = f"127.0.0.{2 + (os.getpid() + offset) % 250}"
+    cmd = [sys.executable, __file__, kind, str(tmp_path), host]
     netns = _netns_available()
     if netns:
         cmd = ["unshare", "--net", "--"] + cmd + ["--netns"]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=180, cwd=ROOT)
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
     assert run.returncode == 0, run.stderr[-3000:]
-    r = json.loads(run.stdout.strip().splitlines()[-1])
+    return json.loads(run.stdout.strip().splitlines()[-1]), netns, host
+
+
+def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path):
+    r, netns, host = _run_on_franky_sim("scenario", tmp_path, 0, 180)
     print(
         "franky-sim end to end:",
         {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()},
@@ -363,16 +369,7 @@ def test_franky_adapter_reads_moves_and_notices_loss_against_franky_sim(tmp_path
 
 
 def test_validate_on_franky_sim_refuses_without_confirmation_and_moves_in_bounded_steps(tmp_path):
-    pytest.importorskip("franky", reason="the [sim] extra is not installed: franky-control missing")
-    pytest.importorskip("franky_sim", reason="the [sim] extra is not installed: franky-sim missing")
-    host = f"127.0.0.{2 + (os.getpid() + 101) % 250}"
-    cmd = [sys.executable, __file__, "validate", str(tmp_path), host]
-    netns = _netns_available()
-    if netns:
-        cmd = ["unshare", "--net", "--"] + cmd + ["--netns"]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert run.returncode == 0, run.stderr[-3000:]
-    r = json.loads(run.stdout.strip().splitlines()[-1])
+    r, netns, _ = _run_on_franky_sim("validate", tmp_path, 101, 300)
     print("franky-sim validate:", r, "netns", netns)
     # no terminal and no --yes: exit 2 before any move or any file
     assert r["refused_rc"] == 2 and r["refused_moves"] == 0 and not r["refused_csv"]
@@ -384,16 +381,7 @@ def test_validate_on_franky_sim_refuses_without_confirmation_and_moves_in_bounde
 
 
 def test_capture_guide_move_on_franky_sim_refuses_without_confirmation_and_moves_to_suggestions(tmp_path):
-    pytest.importorskip("franky", reason="the [sim] extra is not installed: franky-control missing")
-    pytest.importorskip("franky_sim", reason="the [sim] extra is not installed: franky-sim missing")
-    host = f"127.0.0.{2 + (os.getpid() + 202) % 250}"
-    cmd = [sys.executable, __file__, "capture", str(tmp_path), host]
-    netns = _netns_available()
-    if netns:
-        cmd = ["unshare", "--net", "--"] + cmd + ["--netns"]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert run.returncode == 0, run.stderr[-3000:]
-    r = json.loads(run.stdout.strip().splitlines()[-1])
+    r, netns, _ = _run_on_franky_sim("capture", tmp_path, 202, 300)
     print("franky-sim capture --guide move:", r, "netns", netns)
     # no terminal and no --yes: exit 2 before any move and before the session folder exists
     assert r["refused_rc"] == 2 and r["refused_moves"] == 0 and not r["refused_folder"]
