@@ -6,7 +6,13 @@ import argparse
 import json
 import sys
 
-from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, number, session_robot
+from lasercal.collector.cli.options import (
+    SESSION_ROBOT,
+    bootstrap_arguments,
+    chain_arguments,
+    number,
+    session_robot,
+)
 from lasercal.solver.analysis import ALPHA
 
 
@@ -22,19 +28,7 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
         default=ALPHA,
         help=f"family-wise significance level (default {ALPHA})",
     )
-    p.add_argument(
-        "--bootstrap",
-        type=count(0, 10**6),
-        default=2000,
-        help="first-order parametric-bootstrap replicates (default 2000; 0 skips)",
-    )
-    p.add_argument(
-        "--refits",
-        type=count(0, 10**4),
-        default=10,
-        help="full simulations of the experiment with refits (default 10)",
-    )
-    p.add_argument("--seed", type=SEED, default=0)
+    bootstrap_arguments(p)
     p.add_argument(
         "--payload",
         metavar="KG,X,Y,Z",

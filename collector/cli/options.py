@@ -76,3 +76,20 @@ SESSION_ROBOT = (
 def session_robot(args) -> dict:
     """The keyword arguments of :func:`solver.formats.session.load_session` from :func:`chain_arguments`."""
     return {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link}
+
+
+def bootstrap_arguments(p: argparse.ArgumentParser) -> None:
+    """The diagnosis's simulation options, shared by ``diagnose`` and ``report``."""
+    p.add_argument(
+        "--bootstrap",
+        type=count(0, 10**6),
+        default=2000,
+        help="diagnosis: first-order parametric-bootstrap replicates (default 2000; 0 skips)",
+    )
+    p.add_argument(
+        "--refits",
+        type=count(0, 10**4),
+        default=10,
+        help="diagnosis: full simulations of the experiment with refits (default 10)",
+    )
+    p.add_argument("--seed", type=SEED, default=0)

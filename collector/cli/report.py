@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, session_robot
+from lasercal.collector.cli.options import SESSION_ROBOT, bootstrap_arguments, chain_arguments, session_robot
 from lasercal.solver.formats.export import FORMATS
 
 
@@ -26,19 +26,7 @@ def args_report(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--method", choices=("lm", "thesis"), default="lm", help="identification method (default lm)"
     )
-    p.add_argument(
-        "--bootstrap",
-        type=count(0, 10**6),
-        default=2000,
-        help="diagnosis: first-order bootstrap replicates (default 2000)",
-    )
-    p.add_argument(
-        "--refits",
-        type=count(0, 10**4),
-        default=10,
-        help="diagnosis: full simulations with refits (default 10)",
-    )
-    p.add_argument("--seed", type=SEED, default=0)
+    bootstrap_arguments(p)
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
