@@ -368,10 +368,10 @@ def _fit_profile(
 
 
 # The reported sigma is the geometric mean of two sandwich estimates of the centre's variance with
-# opposite biases (see _centre_sigma); the lagged one is scaled by LAG_SCALE. Measured on the phone
-# renderer over 0.3-30x clipping, both colours and speckle 0-0.2 (120 photos a cell), the actual
-# spread over the reported sigma is 0.79-1.27 in every cell (the correlation-sum estimate alone:
-# 0.68-1.27; the lagged one alone, unscaled: 1.04-1.58).
+# opposite biases (see _centre_sigma); the lagged one is scaled by LAG_SCALE, set on the phone
+# renderer over 0.3-30x clipping, both colours and speckle 0-0.2 (120 photos a cell: the
+# correlation-sum estimate alone gave an actual spread of 0.68-1.27 of it, the lagged one alone,
+# unscaled, 1.04-1.58). Checked on three other sets of 80 photos a cell: 0.71-1.31 in every cell.
 LAG_SCALE = 1.3
 
 
@@ -395,7 +395,7 @@ def _centre_sigma(
       is divided by 1 - kappa * leverage (capped): the fitted centre has already absorbed part of
       the odd error it is estimated from. Its correlation comes from the whole field, so where
       flank noise outweighs the speckle on the core it is diluted: it over-reports clean clipped
-      spots (~1.3x) and under-reports speckled ones.
+      spots (up to ~1.5x) and under-reports speckled ones.
     - lagged pairs: the sum of gain_i gain_j err_i err_j over pixel pairs up to 2 px apart
       (a truncated heteroscedasticity-and-autocorrelation sandwich), leaving out each pixel's
       pairs near its own mirror image (anti-correlated by construction). Each pair is weighted
