@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    PYTHONPATH=ENV python benchmarks/bench_vision_phone.py     # ~4 min on 2 cores
+    PYTHONPATH=ENV python benchmarks/bench_vision_phone.py     # ~2-4 min on 2 cores
     python benchmarks/bench_vision_phone.py --quick            # ~1 min, fewer photos
 
 (``ENV``: a folder holding ``lasercal`` when the package is not installed.)
