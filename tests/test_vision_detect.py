@@ -54,7 +54,9 @@ def test_speckle_is_the_limit_error_grows_with_it():
     assert high > 1.5 * low
 
 
-def test_reported_uncertainty_matches_the_error_within_a_factor_2():
+def test_reported_uncertainty_matches_the_error_within_a_factor_15():
+    # Clean and strongly speckled (0.4, on the red channel of a 4:2:0 JPEG): the sigma was ~2x
+    # under-reported there when it came from the data's own asymmetry.
     rng = np.random.default_rng(4)
     ratios = []
     for kw, pk in [
@@ -68,7 +70,7 @@ def test_reported_uncertainty_matches_the_error_within_a_factor_2():
             e += [sp.u - u, sp.v - v]
             s += [sp.sigma_u, sp.sigma_v]
         ratios.append(rms(np.array(e)) / rms(np.array(s)))
-    assert all(0.5 < r < 2.0 for r in ratios), ratios
+    assert all(1 / 1.5 < r < 1.5 for r in ratios), ratios
 
 
 @settings(max_examples=15, deadline=None)

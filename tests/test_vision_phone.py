@@ -4,6 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
+from lasercal.vision import detect
 from lasercal.vision.camera import Camera
 from lasercal.vision.detect import HALO_MIN, detect_spots
 from lasercal.vision.errors import NoSpotError
@@ -87,9 +88,12 @@ def rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
 
 
+@pytest.mark.parametrize("speckle", [0.0, 0.2])
 @pytest.mark.parametrize("colour", ["red", "green"])
-def test_clipped_spot_centre_within_030_px_and_its_sigma_within_15x(colour):
-    e, s = centroid_errors(colour, (3.0, 10.0, 30.0), 8, speckle=0.2)
+def test_clipped_spot_centre_within_030_px_and_its_sigma_within_15x(colour, speckle):
+    # Speckle-free clipped spots are where the sigma was over-reported (~1.7x), speckled ones where
+    # it was under-reported: honest within 1.5x in both.
+    e, s = centroid_errors(colour, (3.0, 10.0, 30.0), 8, speckle)
     assert rms(e) < 0.10 and np.abs(e).max() < 0.3  # the bound is 0.30 px RMS
     assert 1 / 1.5 < rms(e) / rms(s) < 1.5
 
@@ -100,17 +104,18 @@ def test_unsaturated_green_spot_centre_within_010_px():
     assert 1 / 1.5 < rms(e) / rms(s) < 1.5
 
 
-def test_unsaturated_red_spot_is_noise_limited_and_says_so():
-    # Colour correction leaves a dim red spot ~1/4 of its red rise in the luma (the full-resolution
-    # plane of a 4:2:0 JPEG): sensor noise and JPEG, not the fit, hold it to ~0.14 px (goal 0.10).
-    e, s = centroid_errors("red", (0.3,), 16, speckle=0.1)
-    assert 0.08 < rms(e) < 0.18 and 1 / 1.5 < rms(e) / rms(s) < 1.5
-    quiet = []
-    for seed in range(16):
-        (u, v), img = photo("red", 0.3, 100 + seed, 0.1, read_noise=0, shot_noise=0)
-        sp = detect_spots(img, colour="red", luma=True)[0][0]
-        quiet.append([sp.u - u, sp.v - v])
-    assert rms(quiet) < 0.75 * rms(e)
+def test_unsaturated_red_spot_fitted_in_luma_plus_chroma(monkeypatch):
+    # Colour correction leaves a dim red spot ~1/4 of its red rise in the luma, the only full-
+    # resolution plane of a 4:2:0 JPEG, twice that in Cr: the fit's plane takes a fifth of Cr.
+    e, s = centroid_errors("red", (0.3,), 16, speckle=0.0)
+    assert rms(e) < 0.115 and 1 / 1.5 < rms(e) / rms(s) < 1.5
+    monkeypatch.setattr(detect, "CHROMA_WEIGHT", 0.0)  # the luma alone, as before
+    luma_only, _ = centroid_errors("red", (0.3,), 16, speckle=0.0)
+    assert rms(e) < 0.85 * rms(luma_only)
+    monkeypatch.undo()
+    # Half the clipping level: within the goal of 0.10 px, with speckle.
+    e, s = centroid_errors("red", (0.5,), 16, speckle=0.1)
+    assert rms(e) < 0.10 and 1 / 1.5 < rms(e) / rms(s) < 1.5
 
 
 def no_spot(img):

@@ -20,9 +20,11 @@ from a dim coloured spot to a white clipped core whose colour survives only in a
    when it is a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre).
 3. centroid (``precise``): an elliptical profile fitted in linear light to the spot and its
    flanks; clipped pixels only bound the profile from below, so the centre of a clipped spot
-   comes from the plateau's edge and the unclipped flanks (see :func:`_fit_profile`). Its
-   sigma propagates the spot's asymmetry about the centre through the fit. Where printed ink
-   lies under a spot, its pixels are left out; spots on ink are flagged.
+   comes from the plateau's edge and the unclipped flanks (see :func:`_fit_profile`). In a
+   4:2:0 JPEG an unclipped spot is fitted in the luma plus a fifth of the chroma difference Cr
+   (see :data:`CHROMA_WEIGHT`). Its sigma propagates the asymmetry of the fit's residuals about
+   the centre through the fit (see :func:`_centre_sigma`). Where printed ink lies under a spot,
+   its pixels are left out; spots on ink are flagged.
 
 With a laser-off reference photo the candidates come from the difference image, which holds
 nothing but laser light, and fainter spots are believed. ``colour="auto"`` tries both lasers
@@ -43,6 +45,14 @@ from lasercal.vision.images import full_scale
 from lasercal.vision.spot import CHANNEL, Evidence, Spot
 
 LUMA = np.array([0.114, 0.587, 0.299])  # BGR weights of JPEG's luma (ITU-R BT.601)
+CR = np.array([-0.0813, -0.4187, 0.5])  # BGR weights of JPEG's red chroma difference (Cr)
+# An unclipped spot in a 4:2:0 JPEG is fitted in the luma plus this much of Cr. After colour
+# correction a dim red spot leaves about a quarter of its red rise in the luma, twice as much in
+# Cr; but Cr is stored at half resolution and quantised ~3x coarser, so its own centre is ~2x
+# worse. Their JPEG errors are independent: measured on the phone renderer (JPEG quality 85-92,
+# spots 0.3-0.5x clipping, speckle 0-0.2), 0.2 cuts the RMS error of red spots by ~15 % and of
+# green ones by ~7 % (0.1-0.3 are within 3 % of it; 0 is the luma alone, 1.4 the red channel).
+CHROMA_WEIGHT = 0.2
 MAX_CANDIDATES = 50
 FIT_STRAY = 1.0  # px
 CLIP = 0.985  # a recorded value at or above this fraction of full scale is clipped
@@ -301,7 +311,8 @@ def _fit_profile(
 
     Parameters
     ----------
-    d : (h, w) array, linear signal over the paper background, DN
+    d : (h, w) array, signal over the paper background, DN (linear light; for an unclipped spot
+        in a 4:2:0 JPEG the encoded luma + chroma plane of :func:`_laser_plane`)
     valid : (h, w) bool array, pixels to fit (in the window, off ink and other spots)
     clipped : (h, w) bool array, pixels at the clipping level
     ceiling : (h, w) array, the clipping level over the background, linear DN
@@ -312,7 +323,8 @@ def _fit_profile(
     Returns
     -------
     (u, v, sigma_u, sigma_v) px, or None when too few pixels are left or the fit wanders off.
-    The sigmas propagate the spot's asymmetry about the centre through the fit (see below).
+    The sigmas propagate the residuals' asymmetry about the centre through the fit (see
+    :func:`_centre_sigma`).
     """
     yy, xx = np.nonzero(valid)
     if len(xx) < 12:
@@ -348,23 +360,99 @@ def _fit_profile(
     if not res.success or np.hypot(res.x[0] - start[0], res.x[1] - start[1]) > r_eq + 2:
         return None
     u, v = float(res.x[0]), float(res.x[1])
-    # The error of the centre comes from what is asymmetric about it: the odd part of the data
-    # under point reflection through the centre (noise, speckle, the uneven bloom of a speckled
-    # core, a ragged plateau edge) - residuals miss what the symmetric model's shape absorbs.
-    # A pixel minus its mirror image, over sqrt(2), stands for the pixel's error; errors are
-    # propagated through the fit's influence on (u, v), inflated for the correlation of neighbours.
-    h, w = d.shape
-    full_d = np.where(clipped, ceiling, d).astype(np.float32)
-    mx, my = (2 * u - xx).astype(np.float32), (2 * v - yy).astype(np.float32)
-    mirror = cv2.remap(full_d, mx.reshape(1, -1), my.reshape(1, -1), cv2.INTER_LINEAR)[0]
-    inside = (mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)
-    err = np.where(inside, (data - mirror) / (np.sqrt(2) * sd), 0)
-    gain = (np.linalg.pinv(res.jac.T @ res.jac) @ res.jac.T)[:2]  # d(u, v) / d(weighted data)
-    field = np.zeros(valid.shape)
-    field[yy, xx] = err
-    kappa = _correlation_sum(field, int(np.clip(round(1.5 * r_eq), 3, 16)))
-    su, sv = np.sqrt(kappa * (gain**2 @ err**2))
+    # The error of the centre comes from what is asymmetric about it: the odd part of the errors
+    # under point reflection through the centre (noise, JPEG, speckle, the uneven bloom of a
+    # speckled core, a ragged plateau edge), propagated through the fit (see _centre_sigma).
+    su, sv = _centre_sigma(res, xx, yy, valid.shape, u, v)
     return u, v, float(su), float(sv)
+
+
+# The reported sigma is the geometric mean of two sandwich estimates of the centre's variance with
+# opposite biases (see _centre_sigma); the lagged one is scaled by LAG_SCALE, set on the phone
+# renderer over 0.3-30x clipping, both colours and speckle 0-0.2 (120 photos a cell: the
+# correlation-sum estimate alone gave an actual spread of 0.68-1.27 of it, the lagged one alone,
+# unscaled, 1.04-1.58). Checked on three other sets of 80 photos a cell: 0.71-1.31 in every cell.
+LAG_SCALE = 1.3
+
+
+def _centre_sigma(
+    res, xx: np.ndarray, yy: np.ndarray, shape: tuple, u: float, v: float
+) -> tuple[float, float]:
+    """1-sigma error of a fitted centre, from the asymmetry of the fit's residuals about it.
+
+    The model is point-symmetric about (u, v), so only the odd part of the errors moves the
+    centre, and the odd part of the data is the odd part of the residuals. A residual minus its
+    mirror image (bilinear, so divided by sqrt(1 + the interpolation weights' squares)) stands for
+    a pixel's error; mirroring the residuals rather than the data keeps the interpolation error
+    of a steep profile (a clipped plateau's edge) out, which the data's own mirror counted as error.
+    The errors are propagated through the fit's influence on (u, v) (its gain) in two ways, whose
+    geometric mean is returned:
+
+    - correlation sum: the sum of gain**2 err**2, times the sum of the error field's
+      autocorrelation out to 3 px (speckle grains and demosaicing make neighbours alike). The
+      field is smoothed by [1 2 1] first: Bayer demosaicing leaves a pixel-scale zipper on a
+      spot's edges that is odd about the centre but averages out in the fit. Each pixel's square
+      is divided by 1 - kappa * leverage (capped): the fitted centre has already absorbed part of
+      the odd error it is estimated from. Its correlation comes from the whole field, so where
+      flank noise outweighs the speckle on the core it is diluted: it over-reports clean clipped
+      spots (up to ~1.5x) and under-reports speckled ones.
+    - lagged pairs: the sum of gain_i gain_j err_i err_j over pixel pairs up to 2 px apart
+      (a truncated heteroscedasticity-and-autocorrelation sandwich), leaving out each pixel's
+      pairs near its own mirror image (anti-correlated by construction). Each pair is weighted
+      by its own gains, so the speckle on the core counts where it acts, and an alternating
+      zipper cancels as it does in the fit. But the residuals are orthogonal to the gain, which
+      eats part of the sum: it under-reports, by a factor that varies less (scaled by LAG_SCALE).
+
+    Parameters
+    ----------
+    res : scipy OptimizeResult of the weighted fit; ``res.fun`` weighted residuals, ``res.jac``
+        their Jacobian, (u, v) its first two parameters
+    xx, yy : (n,) int arrays, the fitted pixels; shape : (h, w) of the box
+    u, v : the fitted centre, px
+
+    Returns
+    -------
+    (sigma_u, sigma_v), px
+    """
+    J = res.jac
+    cov = np.linalg.pinv(J.T @ J)
+    gain = (cov @ J.T)[:2]  # d(u, v) / d(weighted data)
+    R = np.zeros(shape, np.float32)
+    M = np.zeros(shape, np.float32)
+    R[yy, xx], M[yy, xx] = res.fun, 1
+    mx, my = (2 * u - xx).astype(np.float32).reshape(1, -1), (2 * v - yy).astype(np.float32).reshape(1, -1)
+    mirror = cv2.remap(R, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)[0]
+    whole = cv2.remap(M, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)[0] > 0.999
+    fx, fy = mx[0] - np.floor(mx[0]), my[0] - np.floor(my[0])
+    w2 = ((1 - fx) ** 2 + fx**2) * ((1 - fy) ** 2 + fy**2)
+    err = np.where(whole, (res.fun - mirror) / np.sqrt(1 + w2), 0)
+    # Correlation sum.
+    field = np.zeros(shape)
+    field[yy, xx] = err
+    k121 = np.array([0.25, 0.5, 0.25])
+    field = cv2.sepFilter2D(field, -1, k121, k121, borderType=cv2.BORDER_CONSTANT)
+    kappa = _correlation_sum(field, 3)
+    lever = np.einsum("ij,jk,ik->i", J[:, :2], cov[:2, :2], J[:, :2])  # each pixel's pull on (u, v)
+    var_sum = kappa * (gain**2 @ (field[yy, xx] ** 2 / (1 - np.minimum(kappa * lever, 0.5))))
+    # Lagged pairs.
+    P = np.zeros((2, *shape))
+    P[:, yy, xx] = gain * err
+    h, w = shape
+    Y, X = np.mgrid[:h, :w]
+    lag0 = (P * P).sum((1, 2))
+    var_lag = lag0.copy()
+    r = 2
+    for dy in range(0, r + 1):  # each unordered pair once, counted twice
+        for dx in range(-r, r + 1):
+            if dy == 0 and dx <= 0:
+                continue
+            a = (slice(0, h - dy), slice(max(0, -dx), w - max(0, dx)))
+            b = (slice(dy, h), slice(max(0, dx), w - max(0, -dx)))
+            own_mirror = (np.abs(2 * X[a] + dx - 2 * u) <= r) & (np.abs(2 * Y[a] + dy - 2 * v) <= r)
+            var_lag += 2 * np.where(own_mirror, 0, P[(slice(None), *a)] * P[(slice(None), *b)]).sum((1, 2))
+    var_lag = LAG_SCALE**2 * np.maximum(var_lag, 0.25 * lag0)
+    su, sv = (var_sum * var_lag) ** 0.25
+    return float(su), float(sv)
 
 
 def _correlation_sum(res: np.ndarray, reach: int) -> float:
@@ -372,8 +460,7 @@ def _correlation_sum(res: np.ndarray, reach: int) -> float:
 
     Demosaicing, JPEG blocks and speckle grains make neighbouring errors alike; the variance
     of a fitted centre grows by the sum of their normalised autocorrelation over lags up to
-    ``reach`` px (a stationary-noise sandwich estimate). Errors that shift a spot are those
-    correlated over its own size, so the reach is ~1.5 spot radii.
+    ``reach`` px (a stationary-noise sandwich estimate).
 
     Parameters
     ----------
@@ -487,7 +574,17 @@ def measure_spot(
         return Rejection(
             "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour)
         )
-    iy, ix = np.unravel_index(np.argmax(np.where(labels > 0, smooth, -np.inf)), sig.shape)
+    # The brightest blob, unless it is another candidate's (a grown box may reach a brighter
+    # neighbour, such as red ink, that is measured on its own).
+    ours = labels > 0
+    mine = _label_at(labels, cand.u - x0, cand.v - y0)
+    for o in others:
+        theirs = _label_at(labels, o.u - x0, o.v - y0)
+        if theirs and theirs != mine:
+            ours &= labels != theirs
+    if not ours.any():
+        ours = labels > 0
+    iy, ix = np.unravel_index(np.argmax(np.where(ours, smooth, -np.inf)), sig.shape)
     blob = labels == labels[iy, ix]
     raw = plain[..., ch]
     clipped = raw >= CLIP * full
@@ -546,14 +643,19 @@ def measure_spot(
     # The background's noise in linear units: the encoding's slope at the paper level.
     slope = gamma * float(np.median(np.clip(under[window] / full, 1e-3, 1))) ** (gamma - 1)
     n_rec = float(noise @ LUMA) if use_luma else float(noise[ch])
+    d_fit, n_fit, clip_fit = _linear(rec, full, gamma) - lin_base, n_rec * slope, rec >= top
+    if use_luma and not (clip_fit[window].any() or clipped[window].any()):
+        # An unclipped spot in a 4:2:0 JPEG: the luma plus a little of the chroma (see CHROMA_WEIGHT).
+        d_fit = (plain - base) @ _laser_plane(ch)
+        n_fit = _border_noise(d_fit)
     fit = _fit_profile(
-        _linear(rec, full, gamma) - lin_base,
+        d_fit,
         window,
-        rec >= top,
+        clip_fit,
         _linear(np.full_like(rec, top), full, gamma) - lin_base,
         (u, v),
         r_eq,
-        n_rec * slope,
+        n_fit,
     )
     # A fit that strays over a pixel from the windowed centroid fell for clutter in its wider
     # window (JPEG fringes of nearby ink): keep the centroid then.
@@ -566,6 +668,26 @@ def measure_spot(
     return Spot(
         u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink, evidence=ev
     )
+
+
+def _label_at(labels: np.ndarray, x: float, y: float) -> int:
+    """The label under a point of the box (0 outside the box or on the background)."""
+    ix, iy = int(round(x)), int(round(y))
+    if 0 <= iy < labels.shape[0] and 0 <= ix < labels.shape[1]:
+        return int(labels[iy, ix])
+    return 0
+
+
+def _laser_plane(ch: int) -> np.ndarray:
+    """BGR weights of the plane an unclipped spot is fitted in, for a 4:2:0 JPEG: the luma plus
+    :data:`CHROMA_WEIGHT` times the chroma difference (Cr) signed so that the laser raises it."""
+    return (LUMA + CHROMA_WEIGHT * (1 if ch == 2 else -1) * CR).astype(np.float32)
+
+
+def _border_noise(x: np.ndarray) -> float:
+    """Robust sigma of a plane over its box's 2-px border (the background there), at least 0.3 DN."""
+    border = np.concatenate([x[:2].ravel(), x[-2:].ravel(), x[2:-2, :2].ravel(), x[2:-2, -2:].ravel()])
+    return max(_robust_sigma(border - np.median(border)), 0.3)
 
 
 def _evidence(
