@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lasercal.collector.cli.options import count, number
-from lasercal.collector.sessions.motion import MAX_STEP
+from lasercal.collector.sessions.motion import MAX_STEP, MAX_STEP_RANGE
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 from lasercal.solver.formats.data import builtin_dir
 
@@ -99,6 +99,23 @@ def _backend_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _motion_options(p: argparse.ArgumentParser, when: str = "") -> None:
+    """``--yes`` and ``--max-step`` of the commands that move the arm (the bound of sessions.motion)."""
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help=f"{when}confirm the arm's moves in advance (scripts; else type yes)",
+    )
+    r = MAX_STEP_RANGE
+    p.add_argument(
+        "--max-step",
+        type=number(r.lo, r.hi, r.unit, lo_open=r.lo_open, hi_open=r.hi_open),
+        default=MAX_STEP,
+        metavar="RAD",
+        help=f"{when}largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
+    )
+
+
 def args_capture(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal capture``."""
     p.add_argument("--layout", help="layout YAML with the reference points")
@@ -157,16 +174,7 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "can move takes the arm there first (preview and confirmation before the first move), the "
         "operator only refines the aim",
     )
-    p.add_argument(
-        "--yes", action="store_true", help="with --guide move: confirm the moves in advance (scripts)"
-    )
-    p.add_argument(
-        "--max-step",
-        type=number(0, 3.14159, "rad", lo_open=True),
-        default=MAX_STEP,
-        metavar="RAD",
-        help=f"with --guide move: largest joint change of one commanded move (default {MAX_STEP})",
-    )
+    _motion_options(p, "with --guide move: ")
     _backend_options(p)
 
 
@@ -185,16 +193,7 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "--layout",
         help="layout YAML (required for a real robot; default with --backend fake: the thesis layout)",
     )
-    p.add_argument(
-        "--yes", action="store_true", help="confirm the arm's moves in advance (scripts; else type yes)"
-    )
-    p.add_argument(
-        "--max-step",
-        type=number(0, 3.14159, "rad", lo_open=True),
-        default=MAX_STEP,
-        metavar="RAD",
-        help=f"largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
-    )
+    _motion_options(p)
     p.add_argument(
         "--camera",
         help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
