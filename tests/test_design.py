@@ -61,6 +61,27 @@ def test_exchange_improves_the_greedy_design_and_orders_it_greedily(coach):
     assert np.sqrt(np.sum(W * C)) == pytest.approx(best.expected[-1], rel=1e-6)
 
 
+def test_rank_two_updates_and_downdates_equal_a_fresh_covariance(coach, thesis_captures):
+    q, tgt = thesis_captures
+    post = D.posterior(NOMINAL, q, tgt)
+    W = D.use_weight(post, coach.region)
+    Jc = D.candidate_jacobian(post, coach.cand)
+    design = D._Design(post.cov, W, Jc, post.sigma)
+    for i in (3, 17, 40):
+        design.add(i)
+    design.remove(17)  # eq. D7's downdate: as if only 3 and 40 had been added
+    C = D._posterior_cov(
+        np.vstack([post.rows, Jc[[3, 40]].reshape(-1, Jc.shape[2])]), post.prior_std, post.sigma
+    )
+    assert design.f == pytest.approx(np.sum(W * C), rel=1e-9)
+    np.testing.assert_allclose(design.A, Jc @ C, atol=1e-9 * np.abs(Jc @ C).max())
+    np.testing.assert_allclose(
+        design.drops(),
+        [np.trace(np.linalg.solve(J @ C @ J.T + post.sigma**2 * np.eye(2), J @ C @ W @ C @ J.T)) for J in Jc],
+        rtol=1e-7,
+    )
+
+
 def test_predicted_error_is_close_to_the_measured_one_over_seeds(coach):
     fresh = D.use_region(NOMINAL, LAYOUT, np.random.default_rng(11), n=100)
     a = predict_spots(TRUTH, fresh.q, fresh.target[:, 2])[0]

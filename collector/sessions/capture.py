@@ -322,7 +322,7 @@ def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg:
     model = (
         nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
     )
-    return Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]), per_point=100)
+    return Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]))
 
 
 def run_capture(

@@ -34,7 +34,8 @@ Greedy sequential selection (eq. D6): a candidate capture adds two rows J_c (2, 
 sigma^2 I; by the Woodbury identity (two rank-one updates)
 C+ = C - G^T S^-1 G with G = J_c C, S = G J_c^T + sigma^2 I (2x2), and the criterion drops by
 tr(S^-1 G W G^T), evaluated for all candidates at once. The best candidate is taken, C updated,
-and the step repeated K times.
+and the step repeated K times. Eq. D7: the products J_c C and J_c C W of all candidates follow each
+rank-two change of C in O(N p) (:class:`_Design`), so a step never recomputes them in O(N p^2).
 
 Candidates: configurations sampled by the aiming IK (:func:`~lasercal.solver.kinematics.aim.aim`)
 under the current model at the calibration points, kept when they satisfy :class:`Constraints`.
@@ -201,7 +202,9 @@ def use_region(
         points = [layout.points[k] for k in names]
         label = ", ".join(names)
         for nm, p in zip(names, points):
-            if not len(_aim_many(model, [p], 4, rng, con, pool=64)[0]):
+            # 16 tries: about half of the aiming IK's solutions fail the clearance or singularity test,
+            # and 4 (as once here) called a reachable point unreachable for 1 seed in 20
+            if not len(_aim_many(model, [p], 16, rng, con, pool=128)[0]):
                 raise DesignError(
                     f"point {nm} {np.round(p, 1).tolist()} mm is out of reach: no configuration within the "
                     "joint limits, the aiming range and the table clearance aims at it"
@@ -481,67 +484,106 @@ class Plan:
     now: float
     history: tuple = field(default_factory=tuple)
 
+    def first(self, k: int) -> Plan:
+        """The plan's first k captures (its predictions are those of taking them in order)."""
+        return Plan(
+            self.q[:k], self.point[:k], self.target[:k], self.expected[:k], self.now, self.history[:k]
+        )
+
 
 def candidate_jacobian(post: Posterior, cand: Candidates) -> np.ndarray:
     """The candidates' spot Jacobians J_c (N, 2, p) at the posterior's estimate (eq. D6)."""
     return post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]
 
 
-def _drops(Jc: np.ndarray, C: np.ndarray, W: np.ndarray, sigma: float):
-    """Criterion drops of adding each candidate to a design with covariance C (eq. D6), vectorised.
+class _Design:
+    """A design's effect on every candidate, kept up to date by rank-two updates (eqs. D6, D7).
 
-    With G = J_c C (N, 2, p) and S = G J_c^T + sigma^2 I (N, 2, 2), adding candidate c lowers
-    tr(W C) by tr(S^-1 G W G^T).
-
-    Returns
-    -------
-    drop : (N,) array, mm^2
-    G : (N, 2, p) array
-    S : (N, 2, 2) array
-    """
-    G = Jc @ C
-    S = G @ np.swapaxes(Jc, 1, 2) + sigma**2 * np.eye(2)
-    drop = np.trace(np.linalg.solve(S, G @ W @ np.swapaxes(G, 1, 2)), axis1=1, axis2=2)
-    return drop, G, S
-
-
-def _greedy(C: np.ndarray, W: np.ndarray, Jc: np.ndarray, sigma: float, avail: np.ndarray, k: int):
-    """Greedy sequential I-optimal choice of k of the available candidates (eq. D6).
-
-    Returns the chosen indices in order, the criterion drop of each and the covariance after them.
-    """
-    avail, picks, drops = avail.copy(), [], []
-    for _ in range(k):
-        drop, G, S = _drops(Jc, C, W, sigma)
-        drop[~avail] = -np.inf
-        j = int(np.argmax(drop))
-        C = C - G[j].T @ np.linalg.solve(S[j], G[j])
-        avail[j] = False
-        picks.append(j)
-        drops.append(float(drop[j]))
-    return picks, drops, C
-
-
-def _exchange(
-    C0: np.ndarray, W: np.ndarray, Jc: np.ndarray, sigma: float, avail: np.ndarray, picks: list, passes: int
-) -> list:
-    """Fedorov exchange (Fedorov, *Theory of Optimal Experiments*, 1972; Atkinson, Donev & Tobias 2007,
-    Sec. 12.5) of a k-capture design for tr(W C) (eq. D6).
-
-    For each chosen capture in turn, its two rows are removed from C by the Woodbury downdate
-    C- = C + G^T (sigma^2 I - J_i C J_i^T)^-1 G, G = J_i C, and the available candidate with the
-    largest drop from C- replaces it when that lowers the criterion; at most ``passes`` sweeps, fewer
-    once a sweep changes nothing. A greedy design is myopic (its first captures are chosen for the
-    prior alone); the exchange makes the k captures good together.
+    With the design's covariance C, the state is A = J_c C and B = A W for all candidates (N, 2, p),
+    and f = tr(W C). Adding candidate c drops f by tr(S_c^-1 B_c A_c^T), S_c = A_c J_c^T + sigma^2 I
+    (eq. D6). Adding capture j (U = A_j, S_j) makes C+ = C - U^T S_j^-1 U, so (eq. D7)
+    A+ = A - (J_c U^T) S_j^-1 U and B+ = B - (J_c U^T) S_j^-1 (U W): O(N p) per step where
+    recomputing J_c C is O(N p^2); removing capture i is the same with S_i = sigma^2 I - U J_i^T and
+    the opposite sign (Woodbury downdate).
 
     Parameters
     ----------
-    C0 : (p, p) array, covariance before the design
+    C : (p, p) array, covariance before the design
     W : (p, p) array, eq. D5
     Jc : (N, 2, p) array, candidate Jacobians
     sigma : float, aiming noise, mm
+    """
+
+    def __init__(self, C: np.ndarray, W: np.ndarray, Jc: np.ndarray, sigma: float):
+        self.Jc, self.s2 = Jc, sigma**2
+        self.A = Jc @ C
+        self.B = self.A @ W
+        self.f = float(np.sum(W * C))
+
+    def drops(self) -> np.ndarray:
+        """Criterion drop (N,) of adding each candidate, mm^2 (eq. D6)."""
+        S = self.A @ np.swapaxes(self.Jc, 1, 2)
+        M = self.B @ np.swapaxes(self.A, 1, 2)
+        a, b, c, d = S[:, 0, 0] + self.s2, S[:, 0, 1], S[:, 1, 0], S[:, 1, 1] + self.s2
+        # tr(S^-1 M) of each 2x2 S in closed form: a batched solve costs more than the rest of a step
+        return (d * M[:, 0, 0] - b * M[:, 1, 0] - c * M[:, 0, 1] + a * M[:, 1, 1]) / (a * d - b * c)
+
+    def _change(self, i: int, sign: float) -> float:
+        """Add (sign -1) or remove (sign +1) candidate i's two rows; returns the criterion's change."""
+        U, UW = self.A[i].copy(), self.B[i].copy()
+        S_inv = np.linalg.inv(self.s2 * np.eye(2) - sign * U @ self.Jc[i].T)
+        X = self.Jc @ U.T
+        self.A += sign * X @ (S_inv @ U)
+        self.B += sign * X @ (S_inv @ UW)
+        d = sign * float(np.sum(S_inv * (UW @ U.T).T))
+        self.f += d
+        return d
+
+    def state(self) -> tuple:
+        """A copy of the state, for :meth:`restore`."""
+        return self.A.copy(), self.B.copy(), self.f
+
+    def restore(self, state: tuple) -> None:
+        """Return to a state from :meth:`state`."""
+        self.A, self.B, self.f = state
+
+    def add(self, i: int) -> float:
+        """Add candidate i; returns the criterion's drop, mm^2."""
+        return -self._change(i, -1.0)
+
+    def remove(self, i: int) -> None:
+        """Remove a capture added before (candidate i)."""
+        self._change(i, 1.0)
+
+
+def _greedy(design: _Design, avail: np.ndarray, k: int) -> tuple[list, list]:
+    """Greedy sequential I-optimal choice of k of the available candidates (eq. D6), added to
+    ``design``; returns the chosen indices in order and the criterion drop of each."""
+    avail, picks, drops = avail.copy(), [], []
+    for _ in range(k):
+        drop = design.drops()
+        drop[~avail] = -np.inf
+        j = int(np.argmax(drop))
+        drops.append(design.add(j))
+        avail[j] = False
+        picks.append(j)
+    return picks, drops
+
+
+def _exchange(design: _Design, avail: np.ndarray, picks: list, passes: int) -> list:
+    """Fedorov exchange (Fedorov, *Theory of Optimal Experiments*, 1972; Atkinson, Donev & Tobias 2007,
+    Sec. 12.5) of a k-capture design for tr(W C) (eqs. D6, D7).
+
+    For each chosen capture in turn, its two rows are removed (Woodbury downdate) and the available
+    candidate with the largest drop replaces it when that lowers the criterion; at most ``passes``
+    sweeps, fewer once a sweep changes nothing. A greedy design is myopic (its first captures are
+    chosen for the prior alone); the exchange makes the k captures good together.
+
+    Parameters
+    ----------
+    design : _Design holding the k captures ``picks``
     avail : (N,) bool array, candidates that may be chosen
-    picks : list of k candidate indices, the starting design
+    picks : list of k candidate indices
     passes : int
 
     Returns
@@ -549,32 +591,24 @@ def _exchange(
     list of k candidate indices
     """
     picks = list(picks)
-    J = Jc[picks].reshape(-1, Jc.shape[2])
-    C = _posterior_cov_update(C0, J, sigma)
-    f = float(np.sum(W * C))
     free = avail.copy()
     free[picks] = False
     for _ in range(passes):
         changed = False
         for a, i in enumerate(picks):
-            G = Jc[i] @ C
-            Cm = C + G.T @ np.linalg.solve(sigma**2 * np.eye(2) - G @ Jc[i].T, G)
-            drop, Gc, Sc = _drops(Jc, Cm, W, sigma)
+            kept = design.state()
+            design.remove(i)
+            drop = design.drops()
             drop[~free] = -np.inf
             j = int(np.argmax(drop))
-            if float(np.sum(W * Cm)) - drop[j] < f * (1 - 1e-9):
-                C = Cm - Gc[j].T @ np.linalg.solve(Sc[j], Gc[j])
-                f = float(np.sum(W * C))
+            if design.f - drop[j] < kept[2] * (1 - 1e-9):
+                design.add(j)
                 free[i], free[j], picks[a], changed = True, False, j, True
+            else:
+                design.restore(kept)  # a copy is cheaper than adding i back
         if not changed:
             break
     return picks
-
-
-def _posterior_cov_update(C0: np.ndarray, J: np.ndarray, sigma: float) -> np.ndarray:
-    """C = (C0^-1 + J^T J / sigma^2)^-1 by the Woodbury identity, J (rows, p) (eq. D6 for many rows)."""
-    G = J @ C0
-    return C0 - G.T @ np.linalg.solve(G @ J.T + sigma**2 * np.eye(len(J)), G)
 
 
 def select(
@@ -619,11 +653,12 @@ def select(
         raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
     now = float(np.sqrt(max(np.sum(W * post.cov), 0.0)))
-    picks, drops, C = _greedy(post.cov, W, Jc, post.sigma, avail, k)
+    design = _Design(post.cov, W, Jc, post.sigma)
+    picks, drops = _greedy(design, avail, k)
     if passes and k > 1:
-        chosen = np.zeros(len(avail), bool)
-        chosen[_exchange(post.cov, W, Jc, post.sigma, avail, picks, passes)] = True
-        picks, drops, C = _greedy(post.cov, W, Jc, post.sigma, chosen, k)
+        chosen = np.array(_exchange(design, avail, picks, passes))
+        order, drops = _greedy(_Design(post.cov, W, Jc[chosen], post.sigma), np.ones(k, bool), k)
+        picks = chosen[order].tolist()
     expected = np.sqrt(np.maximum(np.sum(W * post.cov) - np.cumsum(drops), 0.0))
     history = tuple(
         {"step": i + 1, "candidate": j, "drop_mm2": d, "expected_mm": float(e)}
@@ -707,9 +742,9 @@ class Status:
     predicted, uncertainty : float, predicted held-out RMS error at the use region and its std, mm
     region : str, where (e.g. 'P4')
     weakest : Weakest
-    plan : Plan, the best ``lookahead`` next captures
+    plan : Plan, the next captures (the first of the best ``horizon`` together, see :class:`Coach`)
     suggestion : (n,) array, the first of them polished to aim exactly under the current model, rad
-    improvement : float, fraction by which the plan would lower the predicted error
+    improvement : float, fraction by which ``lookahead`` more captures would lower the predicted error
     stop : bool, improvement below the stopping threshold
     """
 
@@ -743,6 +778,10 @@ class Coach:
     lookahead : int, captures the stopping rule looks ahead
     stop_gain : float, stop when ``lookahead`` more captures would lower the error by less than this fraction
     per_point : int, candidates sampled per calibration point
+    horizon : int, captures designed together; the suggestion is the first of them. A short horizon
+        is myopic: its early captures serve the next few, not the session (measured with
+        ``benchmarks/bench_coach.py``: 29 guided captures reach the thesis protocol's 45 with a
+        horizon of 10, 26 with 25, where an offline exchange design of the whole session needs 26-28)
     """
 
     def __init__(
@@ -757,12 +796,13 @@ class Coach:
         lookahead: int = 10,
         stop_gain: float = 0.05,
         per_point: int = 200,
+        horizon: int = 25,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
         aimer = model or nominal
         self.nominal, self.layout, self.prior = nominal, layout, prior
-        self.lookahead, self.stop_gain = lookahead, stop_gain
+        self.lookahead, self.stop_gain, self.horizon = lookahead, stop_gain, horizon
         self.region = use_region(aimer, layout, rng, workspace, constraints=con)
         self.cand = candidates(aimer, layout, rng, per_point, con)
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), prior)
@@ -782,14 +822,18 @@ class Coach:
         ----------
         q : (m, n) array, rad
         allowed : point names the next captures may aim at (default: every calibration point)
-        k : int, captures to plan (default ``lookahead``)
+        k : int, captures to plan (default ``lookahead``); they are the first k of a design of
+            max(k, ``horizon``) captures
         """
         post = self.post
         W = use_weight(post, self.region)
         e, de = predicted_error(post, W)
         Jc = candidate_jacobian(post, self.cand)
-        plan = select(post, W, self.cand, k or self.lookahead, allowed, Jc)
+        k = k or self.lookahead
+        n = len(self.cand.q) if allowed is None else int(np.isin(self.cand.point, list(allowed)).sum())
+        plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
+        plan = plan.first(k)
         gain = 1.0 - ahead / e if e > 0 else 0.0
         suggestion = polish(post.model, plan.q[:1], plan.target[0])[0]
         if not (
