@@ -42,32 +42,18 @@ def args_plan(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=SEED, default=0, help="seed of the candidate sampling (default 0)")
 
 
-def _layout(args, session):
-    from lasercal.solver.formats.session import Layout, load_layout
-
-    if args.layout:
-        return load_layout(args.layout)
-    meta = session.meta
-    return Layout(
-        str(session.path),
-        session.plane_z,
-        session.points,
-        tuple(meta.get("requested") or session.points),
-        tuple(meta.get("validation") or ()),
-    )
-
-
 def cmd_plan(args) -> int:
     from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.design import Coach, DesignError, Prior, posterior
-    from lasercal.solver.formats.session import load_session
+    from lasercal.solver.formats.session import load_layout, load_session, session_layout
 
     if args.output:
         check_output(args.output, force=args.force)
     session = load_session(args.session, **session_robot(args))
     if session.measurement != "laser":
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
-    layout = _layout(args, session)
+    # the session's own layout keeps its aiming hints (tilt, length), which the constraints obey
+    layout = load_layout(args.layout) if args.layout else session_layout(session.meta, session.path)
     nominal = session.robot
     if session.aperture_z is not None:
         nominal = nominal.replace(aperture=np.r_[nominal.aperture[:2], session.aperture_z])

@@ -120,14 +120,15 @@ def _names(d, key, points, path) -> tuple:
 
 def session_layout(meta: dict, path) -> Layout:
     """The layout a capture session was started with, from its session.yaml mapping (the folder is
-    self-contained: points, requested and validation points, plane, aiming hints)."""
+    self-contained: points, requested and validation points, plane, aiming hints). A session not
+    made by ``capture`` (simulated, imported) names no requested points: all its points are."""
     c = meta.get("collector") or {}
     pts = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
     return Layout(
         str(path),
         float(meta["plane"]["z"]),
         pts,
-        tuple(meta["requested"]),
+        tuple(meta.get("requested") or pts),
         tuple(meta.get("validation") or ()),
         dict(c.get("aiming") or {}),
     )

@@ -604,7 +604,7 @@ def calibrate_fullpose(
 
 
 @dataclass(frozen=True)
-class CrossValidation:
+class PoseCrossValidation:
     """K-fold cross-validated accuracy, nominal (aligned on each training fold) vs calibrated.
 
     Attributes
@@ -634,7 +634,7 @@ def cross_validate(
     seed: int = 0,
     estimate: bool | None = None,
     sigma: tuple | None = None,
-) -> CrossValidation:
+) -> PoseCrossValidation:
     """K-fold cross-validation of :func:`calibrate_fullpose` (poses shuffled with ``seed``).
 
     Raises
@@ -651,7 +651,7 @@ def cross_validate(
     return fold_accuracy(q, T_meas, k, seed, calibrate)
 
 
-def fold_accuracy(q: np.ndarray, T_meas: np.ndarray, k: int, seed: int, calibrate) -> CrossValidation:
+def fold_accuracy(q: np.ndarray, T_meas: np.ndarray, k: int, seed: int, calibrate) -> PoseCrossValidation:
     """K-fold cross-validated accuracy (Table 4 form) of any calibration of full poses.
 
     Parameters
@@ -664,7 +664,7 @@ def fold_accuracy(q: np.ndarray, T_meas: np.ndarray, k: int, seed: int, calibrat
 
     Returns
     -------
-    CrossValidation
+    PoseCrossValidation
 
     Raises
     ------
@@ -703,7 +703,7 @@ def fold_accuracy(q: np.ndarray, T_meas: np.ndarray, k: int, seed: int, calibrat
             }
         )
     A = {key: accuracy(np.concatenate(a), np.concatenate(b)) for key, (a, b) in acc.items()}
-    return CrossValidation(k, seed, A["nt"], A["nv"], A["ct"], A["cv"], tuple(per_fold))
+    return PoseCrossValidation(k, seed, A["nt"], A["nv"], A["ct"], A["cv"], tuple(per_fold))
 
 
 # ----------------------------------------------------------------------- simulation (Sensors 2013, Section 3)

@@ -34,8 +34,8 @@ from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.circlepoint import target_frame
 from lasercal.solver.identify.fullpose import (
     Accuracy,
-    CrossValidation,
     FullPoseCalibration,
+    PoseCrossValidation,
     accuracy,
     calibrate_fullpose,
     fold_accuracy,
@@ -150,7 +150,7 @@ def calibrate_points(
 
 def cross_validate_points(
     nominal: RobotModel, data: CirclePointData, k: int = 5, seed: int = 0, estimate: bool | None = None
-) -> CrossValidation:
+) -> PoseCrossValidation:
     """K-fold cross-validation of :func:`calibrate_points` over configurations, in the Table 4 form of
     :func:`solver.identify.fullpose.cross_validate` (held-out circle-point poses vs the predicted {E})."""
     q, T = data.poses()
