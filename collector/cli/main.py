@@ -46,7 +46,7 @@ COMMANDS = (
     ),
     Command(
         "validate",
-        "capture",
+        "validate",
         "cmd_validate",
         "photograph the spot at N configurations a model computes for a point (thesis Section 4.3)",
     ),

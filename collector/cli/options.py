@@ -93,3 +93,77 @@ def bootstrap_arguments(p: argparse.ArgumentParser) -> None:
         help="diagnosis: full simulations of the experiment with refits (default 10)",
     )
     p.add_argument("--seed", type=SEED, default=0)
+
+
+def backend_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by capture and validate (None = not given, so a resume can tell)."""
+    from lasercal.collector.hardware import BACKENDS  # here: the commands without a robot skip its import
+
+    g = p.add_argument_group("robot backend")
+    g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
+    g.add_argument("--robot", help="nominal robot model: name under data/robots/ or YAML (default panda)")
+    g.add_argument("--host", help="robot FCI address (franky, panda-py) or rosbridge host (ros)")
+    g.add_argument(
+        "--dynamics",
+        type=number(0, 0.3, lo_open=True),
+        metavar="F",
+        help="franky/panda-py: speed of commanded moves, fraction of the limits, in (0, 0.3] (default 0.1)",
+    )
+    g.add_argument(
+        "--desk-user",
+        metavar="USER",
+        help="Desk user for --trigger pilot (password in $LASERCAL_DESK_PASSWORD)",
+    )
+    g.add_argument("--ros-port", type=count(1, 65535), metavar="PORT", help="rosbridge port (default 9090)")
+    g.add_argument(
+        "--ros-joints",
+        metavar="NAMES",
+        help="comma-separated arm joint names in /joint_states (default: found by name)",
+    )
+    g.add_argument(
+        "--trigger",
+        metavar="enter|serial:URL|pilot",
+        help="enter (default), serial:URL (button box / foot pedal, pyserial URL) or pilot",
+    )
+    f = p.add_argument_group("fake backend")
+    f.add_argument(
+        "--truth",
+        metavar="ROBOT.yaml",
+        help="the fake robot's true geometry: robot YAML or name (default panda_thesis_identified)",
+    )
+    f.add_argument(
+        "--perturb-seed",
+        type=SEED,
+        metavar="S",
+        help="instead of --truth: a seeded random perturbation of the nominal robot",
+    )
+    f.add_argument("--seed", type=SEED, metavar="S", help="seed of the simulation (default 0)")
+    s = p.add_argument_group("standstill")
+    s.add_argument(
+        "--speed-threshold",
+        type=number(0, 1, "rad/s", lo_open=True),
+        metavar="RAD_S",
+        help="the arm is still when every joint is slower (default 0.005)",
+    )
+    s.add_argument(
+        "--hold", type=number(0, 60, "s", lo_open=True), metavar="S", help="... for this long (default 0.5)"
+    )
+
+
+def motion_arguments(p: argparse.ArgumentParser, when: str = "") -> None:
+    """``--yes`` and ``--max-step`` of the commands that move the arm (the bound of sessions.motion)."""
+    from lasercal.collector.sessions.motion import MAX_STEP, MAX_STEP_RANGE  # as BACKENDS above
+
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help=f"{when}confirm the arm's moves in advance (scripts; else type yes)",
+    )
+    r = MAX_STEP_RANGE
+    p.add_argument(
+        "--max-step",
+        type=number(r.lo, r.hi, r.unit, lo_open=r.lo_open, hi_open=r.hi_open),
+        default=MAX_STEP,
+        metavar="RAD",
+        help=f"{when}largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
+    )

@@ -1,0 +1,72 @@
+"""``lasercal validate``: a thin layer over :mod:`sessions.settings` and :mod:`sessions.start`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from lasercal.collector.cli.options import backend_arguments, count, motion_arguments
+
+
+def args_validate(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal validate``."""
+    p.add_argument("model", nargs="?", help="robot model YAML under test (nominal or identified)")
+    p.add_argument("--point", help="validation point (default: the layout's first validation point)")
+    p.add_argument("-n", type=count(1, 10000), default=60, help="configurations (default 60)")
+    p.add_argument(
+        "-o", "--output", metavar="DIR", help="new folder: validation.yaml, validation.csv, photos/"
+    )
+    p.add_argument(
+        "--resume", metavar="DIR", help="continue an interrupted validation run (its settings are kept)"
+    )
+    p.add_argument(
+        "--layout",
+        help="layout YAML (required for a real robot; default with --backend fake: the thesis layout)",
+    )
+    motion_arguments(p)
+    p.add_argument(
+        "--camera",
+        help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
+    )
+    p.add_argument(
+        "--guide",
+        action="store_true",
+        help="guide the operator to each configuration even where the backend can move",
+    )
+    backend_arguments(p)
+
+
+def cmd_validate(args) -> int:
+    from lasercal.collector.sessions.settings import given_settings, validate_settings
+    from lasercal.collector.sessions.start import start_validation
+    from lasercal.solver.analysis.stats import spot_stats
+
+    settings = validate_settings(
+        given_settings(vars(args)),
+        args.model,
+        args.output,
+        args.resume,
+        layout=args.layout,
+        point=args.point,
+        n=args.n,
+        camera=args.camera,
+        guide=args.guide,
+        max_step=args.max_step,
+    )
+    started = start_validation(settings, yes=args.yes)
+    res = started.run(sys.stdout)
+    print(f"wrote {res.path} ({res.photos} photos this run; {res.summary()})")
+    if not res.complete:
+        print(f"continue with: lasercal validate --resume {settings.folder}")
+    if len(res.spots) > 1:
+        s = spot_stats(res.spots, started.layout.points[started.point])
+        print(
+            f"{started.point}: {s.n} spots measured: scatter mean {s.scatter_mean:.3f} mm "
+            f"(std {s.scatter_std:.3f}), error mean {s.error_mean:.3f} mm (max {s.error_max:.3f})"
+        )
+    elif res.spots.size == 0 and res.photos:
+        print(
+            f"measure the photos with: lasercal spots {res.path.parent}/photos/*.png --layout "
+            "LAYOUT_WITH_MARKERS.yaml"
+        )
+    return 0

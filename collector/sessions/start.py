@@ -1,0 +1,278 @@
+"""Starting a capture or validation session from its settings: the models, devices and store it runs with.
+
+The devices open before the session folder is written or reopened, so a device that fails leaves
+nothing to clean up; what the session then does is :func:`sessions.capture.run_capture` or
+:func:`sessions.validate.run_validation`, called by the ``run`` method of what is started here.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from lasercal.collector.hardware import make_rangefinder, make_robot
+from lasercal.collector.hardware.base import RobotAdapter
+from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
+from lasercal.collector.sessions.capture import (
+    CaptureOptions,
+    CaptureResult,
+    new_session,
+    run_capture,
+    session_coach,
+)
+from lasercal.collector.sessions.motion import MAX_STEP, confirmable
+from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
+from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.errors import LasercalError
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import Layout, load_layout
+from lasercal.solver.kinematics.model import RobotModel
+
+if TYPE_CHECKING:  # annotations only: sessions.validate loads OpenCV, which a capture does not need
+    from lasercal.collector.sessions.validate import ValidateOptions, ValidationResult
+
+
+@dataclass(frozen=True)
+class CaptureGuide:
+    """How the operator is guided through a capture session.
+
+    Attributes
+    ----------
+    auto : bool, the simulated operator triggers too (fake backend only) and flagged captures are discarded
+    auto_pace : float, with ``auto``: real seconds per capture, to watch, s
+    move : bool, a backend that can move takes the arm to the coach's suggested poses first
+    coach : bool, a status block, suggested poses and the stopping rule after each capture
+    until_mm : float or None, stop once the coach predicts at most this error at the validation points, mm
+    yes : bool, with ``move``: the moves are confirmed in advance; otherwise typed ``yes`` on a terminal
+    max_step : float, largest joint change of one commanded move, rad
+    """
+
+    auto: bool = False
+    auto_pace: float = 0.0
+    move: bool = False
+    coach: bool = True
+    until_mm: float | None = None
+    yes: bool = False
+    max_step: float = MAX_STEP
+
+
+@dataclass(frozen=True)
+class StartedCapture:
+    """A capture session with its devices open and its folder written (new) or reopened (resumed).
+
+    Attributes
+    ----------
+    settings : CaptureSettings
+    store : CaptureStore, ``recovered`` says whether a resume cut off a torn last line
+    robot : RobotAdapter; trigger : Trigger; rangefinder : the rangefinder or None
+    nominal : RobotModel, the robot the session names
+    opts : CaptureOptions
+    hint : str, the command that resumes the session
+    coach : bool, run the capture coach
+    """
+
+    settings: CaptureSettings
+    store: CaptureStore
+    robot: RobotAdapter
+    trigger: Trigger
+    rangefinder: object
+    nominal: RobotModel
+    opts: CaptureOptions
+    hint: str
+    coach: bool
+
+    def run(self, out=sys.stdout) -> CaptureResult:
+        """Run the session (:func:`run_capture`) on screen ``out``; close the store and devices after.
+
+        Parameters
+        ----------
+        out : text stream, the operator's screen
+
+        Returns
+        -------
+        CaptureResult
+        """
+        cfg, layout = self.settings.cfg, self.settings.layout
+        # Built here, not at start: the coach's design takes a while, after the resume is announced.
+        coach = session_coach(self.store, self.nominal, layout, cfg) if self.coach else None
+        try:
+            real = cfg["backend"] != "fake"
+            return run_capture(
+                self.store,
+                self.robot,
+                self.trigger,
+                self.nominal,
+                self.opts,
+                out,
+                self.rangefinder,
+                self.hint,
+                coach,
+                real,
+            )
+        finally:
+            self.store.close()
+            self.trigger.close()
+            if self.rangefinder is not None:
+                self.rangefinder.close()
+
+
+def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapture:
+    """Open the devices of a capture session, then create or reopen its folder.
+
+    Parameters
+    ----------
+    settings : CaptureSettings (see :func:`sessions.settings.capture_settings`)
+    guide : CaptureGuide
+
+    Returns
+    -------
+    StartedCapture
+
+    Raises
+    ------
+    LasercalError
+        ``auto`` off the fake backend; ``move`` without the coach or on a backend that cannot move.
+    MotionRefused
+        ``move`` on a real robot whose moves cannot be confirmed (no ``yes`` and no terminal).
+    """
+    cfg, layout = settings.cfg, settings.layout
+    if guide.auto and cfg["backend"] != "fake":
+        raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
+    nominal = load_model(cfg["robot"])
+    robot = make_robot(cfg, nominal, layout, cfg["per_point"])
+    rangefinder = make_rangefinder(cfg, robot, layout.plane_z)
+    trigger = AutoTrigger(guide.auto_pace) if guide.auto else make_trigger(cfg["trigger"], robot)
+    if guide.move:  # refused before the session folder exists
+        if not guide.coach:
+            raise LasercalError("--guide move moves the arm to the coach's suggestions: drop --no-coach")
+        if not robot.can_move:
+            raise LasercalError(
+                f"--guide move: the {robot.name} backend cannot move the arm (use --guide hand)"
+            )
+        if cfg["backend"] != "fake":
+            confirmable(guide.yes, what="to the suggested poses ")
+    if settings.resume:
+        store = CaptureStore.open(settings.folder)
+    else:
+        store = new_session(settings.folder, cfg, layout, settings.layout_path, robot, nominal, rangefinder)
+    opts = CaptureOptions(
+        cfg["per_point"],
+        cfg["speed_threshold"],
+        cfg["hold"],
+        auto_discard=guide.auto,
+        until_mm=guide.until_mm,
+        move=guide.move,
+        yes=guide.yes,
+        max_step=guide.max_step,
+    )
+    hint = (
+        f"lasercal capture --resume {store.folder}"
+        + (" --auto" if guide.auto else "")
+        + (" --guide move" if guide.move else "")
+    )
+    return StartedCapture(settings, store, robot, trigger, rangefinder, nominal, opts, hint, guide.coach)
+
+
+@dataclass(frozen=True)
+class StartedValidation:
+    """A validation run with its models checked and its devices open.
+
+    Attributes
+    ----------
+    settings : ValidateSettings
+    model : RobotModel, the model under test
+    layout : Layout; point : str, the validation point
+    robot : RobotAdapter; camera : the camera; measure : how its photos are measured, or None
+    trigger : Trigger or None (None: the robot moves itself to each configuration)
+    opts : ValidateOptions
+    """
+
+    settings: ValidateSettings
+    model: RobotModel
+    layout: Layout
+    point: str
+    robot: RobotAdapter
+    camera: object
+    measure: object
+    trigger: Trigger | None
+    opts: ValidateOptions
+
+    def run(self, out=sys.stdout) -> ValidationResult:
+        """Run the validation (:func:`run_validation`) on screen ``out``; it closes the robot and camera.
+
+        Parameters
+        ----------
+        out : text stream, the operator's screen
+
+        Returns
+        -------
+        ValidationResult
+        """
+        from lasercal.collector.sessions.validate import run_validation
+
+        s = self.settings
+        return run_validation(
+            s.folder,
+            self.model,
+            str(s.run["model"]),
+            self.layout,
+            self.point,
+            self.robot,
+            self.camera,
+            self.opts,
+            self.trigger,
+            self.measure,
+            out=out,
+            meta_extra={"collector": {"settings": s.cfg, "run": s.run}},
+            resume=s.resume,
+            confirm_moves=s.cfg["backend"] != "fake",
+        )
+
+
+def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedValidation:
+    """Load and cross-check the layout, point and model of a validation run; open its robot and camera.
+
+    Parameters
+    ----------
+    settings : ValidateSettings (see :func:`sessions.settings.validate_settings`)
+    yes : bool, the moves are confirmed in advance; otherwise typed ``yes`` on a terminal
+
+    Returns
+    -------
+    StartedValidation
+
+    Raises
+    ------
+    FormatError
+        The layout names no such validation point, or it does not fit the model.
+    SessionError
+        No camera for a real robot, or a fake camera off the fake backend.
+    """
+    from lasercal.collector.sessions.validate import (
+        ValidateOptions,
+        check_layout,
+        make_camera,
+        validation_point,
+    )
+
+    cfg, run = settings.cfg, settings.run
+    layout = load_layout(run["layout"])
+    point = validation_point(layout, run["point"])
+    model = load_model(run["model"])
+    check_layout(layout, model, run["model"], point)
+    robot = make_robot(cfg, load_model(cfg["robot"]), layout)
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"])
+    trigger = None
+    if run["guide"] or not robot.can_move:
+        trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
+    opts = ValidateOptions(
+        run["n"],
+        cfg["seed"],
+        run["guide"],
+        cfg["speed_threshold"],
+        cfg["hold"],
+        yes=yes,
+        max_step=run["max_step"],
+    )
+    return StartedValidation(settings, model, layout, point, robot, camera, measure, trigger, opts)
