@@ -16,7 +16,7 @@ import numpy as np
 
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model
-from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, write_session
+from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, Session, write_session
 from lasercal.solver.formats.table import csv_rows
 
 HOLE_DISTANCE = 50.0  # mm, checked with calipers by the authors
@@ -62,6 +62,11 @@ def positions(robot_dir: Path) -> list[str]:
         for p in Path(robot_dir).iterdir()
         if (p / "hole_0.csv").is_file() and (p / "hole_1.csv").is_file()
     )
+
+
+def position_of(session: Session) -> np.ndarray:
+    """Tool position of each capture (m,) ('front' for point 'front/hole_0')."""
+    return np.array([nm.rsplit("/", 1)[0] for nm in session.point])
 
 
 def import_mukca(robot_dir, out, only: list[str] | None = None) -> Path:
