@@ -95,6 +95,7 @@ def section_sweep(n, speckle, cells):
         f"{'colour':<6} {'exposure':>8} {'clipped':>8} {'detected':>9} {'colour ok':>9} {'unclip px':>9} "
         f"{'clip px':>7} {'2-D px':>7} {'max px':>7} {'sigma':>6} {'ratio':>6}"
     )
+    lost = []  # why each photo without its one spot was lost: the detector's one-line reason
     for colour in ("red", "green"):
         for k, exposure in enumerate(EXPOSURES):
             rng = np.random.default_rng([int(speckle * 100), k, colour == "red"])
@@ -103,7 +104,8 @@ def section_sweep(n, speckle, cells):
                 uv, img = spot_photo(rng, colour, exposure, speckle, 1000 * k + i)
                 try:
                     spots, _ = detect_spots(img, colour="auto", luma=True)
-                except VisionError:
+                except VisionError as exc:
+                    lost.append(f"{colour} {exposure}x, photo {i}: {str(exc)[:200]}")
                     continue
                 s = min(spots, key=lambda s: np.hypot(s.u - uv[0], s.v - uv[1]))
                 found += len(spots) == 1
@@ -119,6 +121,8 @@ def section_sweep(n, speckle, cells):
                 f"{rms(np.hypot(*e.T)):7.3f} {np.abs(e).max(initial=0):7.3f} {rms(sg):6.3f} "
                 f"{rms(e) / rms(sg):6.2f}"
             )
+    for line in lost:
+        print(f"  lost: {line}")
 
 
 def section_summary(cells, speckles):
