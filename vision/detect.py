@@ -80,6 +80,7 @@ REASONS = {
     "dim": "not brighter than the paper (printed marks?)",
     "white": "white, not laser-coloured (reflections?)",
     "fringe": "a faint coloured fringe beside ink or a ring (JPEG artefact)",
+    "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
 }
 
 
@@ -670,7 +671,7 @@ def measure_spot(
     # whatever is brighter nearby, off the blob.
     near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8))
     if not _label_at(near, u, v):
-        return Rejection("dim", cand.u, cand.v, ev)
+        return Rejection("stray", cand.u, cand.v, ev)
     return Spot(
         u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink, evidence=ev
     )
