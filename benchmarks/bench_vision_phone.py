@@ -72,7 +72,8 @@ def clutter(rng, uv) -> tuple:
             return cross_print(xy[0], 10), ink_dot(xy[1], rng.uniform(2, 5))
 
 
-def spot_photo(rng, colour, exposure, speckle, seed):
+def spot_scene(rng, colour, exposure, speckle):
+    """The true centre and the :class:`Photo` of one sweep photo (``spot_photo`` renders it)."""
     uv = rng.uniform([120, 90], [200, 150])
     spot = tilted_spot(
         *uv, rng.uniform(1.5, 3.0), exposure, rng.uniform(0, 40), rng.uniform(0, 180), speckle=speckle
@@ -80,6 +81,11 @@ def spot_photo(rng, colour, exposure, speckle, seed):
     photo = Photo(
         VIEW, prints=clutter(rng, uv), spots=(spot,), colour=colour, camera=camera(rng), **scene(rng)
     )
+    return uv, photo
+
+
+def spot_photo(rng, colour, exposure, speckle, seed):
+    uv, photo = spot_scene(rng, colour, exposure, speckle)
     return uv, render(photo, seed)
 
 
