@@ -72,7 +72,8 @@ def clutter(rng, uv) -> tuple:
             return cross_print(xy[0], 10), ink_dot(xy[1], rng.uniform(2, 5))
 
 
-def spot_photo(rng, colour, exposure, speckle, seed):
+def spot_scene(rng, colour, exposure, speckle):
+    """The true centre and the :class:`Photo` of one sweep photo (``spot_photo`` renders it)."""
     uv = rng.uniform([120, 90], [200, 150])
     spot = tilted_spot(
         *uv, rng.uniform(1.5, 3.0), exposure, rng.uniform(0, 40), rng.uniform(0, 180), speckle=speckle
@@ -80,6 +81,11 @@ def spot_photo(rng, colour, exposure, speckle, seed):
     photo = Photo(
         VIEW, prints=clutter(rng, uv), spots=(spot,), colour=colour, camera=camera(rng), **scene(rng)
     )
+    return uv, photo
+
+
+def spot_photo(rng, colour, exposure, speckle, seed):
+    uv, photo = spot_scene(rng, colour, exposure, speckle)
     return uv, render(photo, seed)
 
 
@@ -95,6 +101,7 @@ def section_sweep(n, speckle, cells):
         f"{'colour':<6} {'exposure':>8} {'clipped':>8} {'detected':>9} {'colour ok':>9} {'unclip px':>9} "
         f"{'clip px':>7} {'2-D px':>7} {'max px':>7} {'sigma':>6} {'ratio':>6}"
     )
+    lost = []  # why each photo without its one spot was lost: the detector's one-line reason
     for colour in ("red", "green"):
         for k, exposure in enumerate(EXPOSURES):
             rng = np.random.default_rng([int(speckle * 100), k, colour == "red"])
@@ -103,7 +110,8 @@ def section_sweep(n, speckle, cells):
                 uv, img = spot_photo(rng, colour, exposure, speckle, 1000 * k + i)
                 try:
                     spots, _ = detect_spots(img, colour="auto", luma=True)
-                except VisionError:
+                except VisionError as exc:
+                    lost.append(f"{colour} {exposure}x, photo {i}: {str(exc)[:200]}")
                     continue
                 s = min(spots, key=lambda s: np.hypot(s.u - uv[0], s.v - uv[1]))
                 found += len(spots) == 1
@@ -119,6 +127,8 @@ def section_sweep(n, speckle, cells):
                 f"{rms(np.hypot(*e.T)):7.3f} {np.abs(e).max(initial=0):7.3f} {rms(sg):6.3f} "
                 f"{rms(e) / rms(sg):6.2f}"
             )
+    for line in lost:
+        print(f"  lost: {line}")
 
 
 def section_summary(cells, speckles):

@@ -80,6 +80,7 @@ REASONS = {
     "dim": "not brighter than the paper (printed marks?)",
     "white": "white, not laser-coloured (reflections?)",
     "fringe": "a faint coloured fringe beside ink or a ring (JPEG artefact)",
+    "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
 }
 
 
@@ -665,6 +666,12 @@ def measure_spot(
         return Rejection("dim", cand.u, cand.v, ev)
     else:
         su, sv = _centroid_sigma(cen, wgt, u, v)
+    # Laser light lies where its colour is. Red ink on bright paper can clip in red and pass for a
+    # clipped spot, but its luma is darker than the paper's: the luma centroid over it runs off to
+    # whatever is brighter nearby, off the blob.
+    near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8))
+    if not _label_at(near, u, v):
+        return Rejection("stray", cand.u, cand.v, ev)
     return Spot(
         u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink, evidence=ev
     )

@@ -359,19 +359,12 @@ def _speckle(shape, grain: float, contrast: float, rng) -> np.ndarray:
     return 1 + contrast * (inten - 1)  # fully developed speckle (exponential) scaled to the contrast
 
 
-def render(photo: Photo, seed: int = 0) -> np.ndarray:
-    """Render a photo.
+def scene_light(photo: Photo, rng) -> np.ndarray:
+    """The light reaching the sensor before any camera processing: (h, w, 3) float32 BGR, DN.
 
-    Parameters
-    ----------
-    photo : Photo
-    seed : int, seed of the noise and speckle
-
-    Returns
-    -------
-    (height, width, 3) uint8 BGR image
+    Paper, prints, laser spots (their speckle drawn from ``rng``) and glares, before noise,
+    auto exposure and clipping: the mean the camera then samples (as :func:`render` does).
     """
-    rng = np.random.default_rng(seed)
     w, h = photo.view.size
     refl = np.ones((h, w, 3), np.float32)
     for item in photo.prints:
@@ -399,6 +392,23 @@ def render(photo: Photo, seed: int = 0) -> np.ndarray:
         x0, y0, x1, y1 = _spot_box(gl.u, gl.v, r, w, h)
         g = _gaussian(LaserSpot(gl.u, gl.v, gl.sigma), x0, y0, x1 - x0, y1 - y0) * (FULL * gl.peak)
         img[y0:y1, x0:x1] += g[..., None] * np.float32(photo.tint)
+    return img
+
+
+def render(photo: Photo, seed: int = 0) -> np.ndarray:
+    """Render a photo.
+
+    Parameters
+    ----------
+    photo : Photo
+    seed : int, seed of the noise and speckle
+
+    Returns
+    -------
+    (height, width, 3) uint8 BGR image
+    """
+    rng = np.random.default_rng(seed)
+    img = scene_light(photo, rng)
     if photo.camera is not None:
         return _phone(img, photo, photo.camera, rng, seed)
     img += np.sqrt(photo.read_noise**2 + photo.shot_noise * np.maximum(img, 0)) * rng.standard_normal(
