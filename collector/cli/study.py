@@ -44,6 +44,12 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
         f"{StudyOptions.bootstrap} and {StudyOptions.refits}",
     )
     p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument(
+        "--jobs",
+        type=count(0, 256),
+        default=0,
+        help="robots studied at once, one process each (default 0: one per CPU core)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
@@ -64,7 +70,7 @@ def cmd_study(args) -> int:
     from lasercal.collector.studies.mukca import run_study
     from lasercal.solver.errors import LasercalError
 
-    opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed)
+    opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed, jobs=args.jobs)
     if args.bootstrap is not None:
         opts = replace(opts, bootstrap=args.bootstrap)
     robots = [r.strip() for r in args.robots.split(",") if r.strip()]

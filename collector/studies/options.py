@@ -23,6 +23,8 @@ class StudyOptions:
     alpha : float, family-wise significance level
     seed : int
     payload : (kg, (3,) mm at q = 0), hand and tool for the gravity model
+    jobs : int, robots studied at once in separate processes (0: one per CPU core; the robots
+        are independent, each with its own seeded generator, so the report is the same)
     """
 
     bootstrap: int = 2000
@@ -30,6 +32,7 @@ class StudyOptions:
     alpha: float = ALPHA
     seed: int = 0
     payload: tuple = PAYLOAD
+    jobs: int = 0
 
 
 QUICK = StudyOptions(bootstrap=200, refits=2)
