@@ -23,6 +23,11 @@ class FormatError(LasercalError):
             where += f", {'column' if line is not None else 'field'} '{field}'"
         super().__init__(f"{where}: {message}")
 
+    def __reduce__(self):
+        # rebuilt from its parts: an error raised in a worker process (``study-mukca --jobs``)
+        # crosses back by pickle, which would call __init__ with the full message alone
+        return type(self), (self.path, self.reason, self.line, self.field)
+
 
 class ModelError(LasercalError):
     """A robot model is inconsistent (wrong joint count, bad screw, ...)."""

@@ -8,6 +8,7 @@ The full four-robot study takes ~90 s on two cores (benchmarks/bench_study_mukca
 from __future__ import annotations
 
 import json
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from lasercal.collector.report.mukca import stiffness
 from lasercal.collector.studies.mukca import consistency, load_robot, summarise
 from lasercal.collector.studies.mukca_checks import homogeneity, jackknife_se
 from lasercal.collector.studies.mukca_import import position_of
+from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import load_session
 from lasercal.solver.identify.measurement import fit
 
@@ -207,3 +209,27 @@ def test_study_needs_two_tool_positions(tmp_path, capsys):
     (tmp_path / "solo" / "front").symlink_to(MUKCA / "panda_4" / "front")
     assert main(["study-mukca", str(tmp_path), "-o", str(tmp_path / "r"), "--robots", "solo", "--quick"]) == 2
     assert "two positions" in capsys.readouterr().err
+
+
+def test_format_error_crosses_a_process_boundary_whole():
+    # study-mukca --jobs runs robots in worker processes; their errors come back by pickle
+    e = pickle.loads(pickle.dumps(FormatError("a.csv", "not a number", line=3, field="q1")))
+    assert str(e) == "a.csv, line 3, column 'q1': not a number" and (e.line, e.field) == (3, "q1")
+
+
+@needs_data
+def test_parallel_study_equals_the_serial_one(tmp_path):
+    reports = []
+    for jobs in ("1", "2"):
+        out = tmp_path / jobs
+        args = ["study-mukca", str(MUKCA), "-o", str(out), "--robots", "panda_1,panda_4", "--quick"]
+        assert main(args + ["--jobs", jobs]) == 0
+        reports.append(json.loads((out / "report.json").read_text()))
+
+    def untimed(d):  # the timings differ; nothing else may
+        if isinstance(d, dict):
+            return {k: untimed(v) for k, v in d.items() if k != "seconds"}
+        return [untimed(v) for v in d] if isinstance(d, list) else d
+
+    assert untimed(reports[0]) == untimed(reports[1])
+    assert set(reports[1]["robots"]) == {"panda_1", "panda_4"}
