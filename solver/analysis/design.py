@@ -232,6 +232,10 @@ class Candidates:
     point: np.ndarray
     target: np.ndarray
 
+    def available(self, allowed=None) -> np.ndarray:
+        """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one)."""
+        return np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
+
 
 def candidates(
     model: RobotModel,
@@ -648,7 +652,7 @@ def select(
     """
     if k <= 0:
         raise DesignError(f"the number of next captures must be positive, got {k}")
-    avail = np.ones(len(cand.q), bool) if allowed is None else np.isin(cand.point, list(allowed))
+    avail = cand.available(allowed)
     if avail.sum() < k:
         raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
@@ -830,7 +834,7 @@ class Coach:
         e, de = predicted_error(post, W)
         Jc = candidate_jacobian(post, self.cand)
         k = k or self.lookahead
-        n = len(self.cand.q) if allowed is None else int(np.isin(self.cand.point, list(allowed)).sum())
+        n = int(self.cand.available(allowed).sum())
         plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         plan = plan.first(k)
