@@ -2,7 +2,10 @@
 
 * Layout ``lasercal-layout/1`` (YAML): ``plane: {z}``, ``points: {NAME: [x, y, z]}`` (mm, base
   frame), optional ``calibration``/``validation`` name lists, ``aiming`` hints and ``markers``
-  (read by ``vision``).
+  (read by ``vision``). ``frame: sheet`` puts ``points`` (and ``markers``) in a printed sheet's own
+  frame, [x, y, 0] mm, whose in-plane pose on the table is unknown (identified by ``solve``);
+  ``sheet: {x_mm, y_mm, yaw_deg}`` is then an optional rough placement (eq. S1 of
+  :mod:`solver.kinematics.sheet`). No ``frame`` is ``frame: base``.
 * Session: a folder with ``session.yaml`` (``format: lasercal-session/1``; ``clock: seconds``, the
   default, or ``order`` when ``t`` is only the recording order) and ``captures.csv``
   (``point,t,q1..qN[,dq1..dqN][,tau1..tauN][,extra...]``; mm, rad, Nm, s).
@@ -15,7 +18,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +30,8 @@ from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.formats.table import read_csv
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
+from lasercal.solver.kinematics.sheet import SheetPose
 
 SESSION_FORMAT = "lasercal-session/1"
 LAYOUT_FORMAT = "lasercal-layout/1"
@@ -35,6 +40,7 @@ CLOCKS = ("seconds", "order")  # what the t column is: a real clock (s), or the 
 _LIMIT_TOL = 1e-6  # rad: logged angles are allowed to sit on a limit up to rounding
 SAME_POINT_MM = 1.0  # reference points closer than this are one point
 APERTURE_TOL_MM = 100.0  # a measured aperture height further than this from the nominal model's is a mistake
+FRAMES = ("base", "sheet")  # the frame of a layout's points: the robot's base, or a printed sheet's own
 AIMING = {"tilt_deg": Range(0.0, 90.0, "deg"), "length": Range(0.0, 5000.0, "mm", lo_open=True)}
 
 
@@ -50,6 +56,9 @@ class Layout:
     calibration, validation : tuple of point names
     aiming : dict, hints for the aiming IK (``tilt_deg``, ``length``)
     raw : dict, the whole mapping (other packages read their own sections, e.g. ``markers``)
+    frame : str, 'base' (points in the robot's base frame) or 'sheet' (points [x, y, 0] in the sheet's
+        own frame, the plane at z = plane_z in the base frame)
+    sheet : SheetPose or None, a sheet layout's rough placement on the table (None: not given)
     """
 
     path: str
@@ -59,6 +68,32 @@ class Layout:
     validation: tuple
     aiming: dict = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
+    frame: str = "base"
+    sheet: SheetPose | None = None
+
+    def in_base(self, pose: SheetPose | None = None) -> Layout:
+        """This layout with its points in the base frame: a sheet layout through ``pose`` (default its
+        placement ``sheet``), eq. S1; a base layout unchanged.
+
+        Raises
+        ------
+        FormatError
+            A sheet layout with neither a pose nor a placement.
+        """
+        if self.frame == "base":
+            return self
+        pose = pose or self.sheet
+        if pose is None:
+            raise FormatError(
+                self.path,
+                "the points are in the sheet's frame and the sheet's placement is unknown: add "
+                "'sheet: {x_mm, y_mm, yaw_deg}' (where the sheet's origin roughly lies, base frame) or give "
+                "an identified model",
+                field="sheet",
+            )
+        names = list(self.points)
+        xyz = pose.to_base(np.array([self.points[k] for k in names]), self.plane_z)
+        return replace(self, points=dict(zip(names, xyz)), frame="base", sheet=None)
 
     def aim_kwargs(self) -> dict:
         """Keyword arguments for :func:`solver.aim.aim` from the ``aiming`` hints."""
@@ -106,6 +141,30 @@ def _plane_z(d, path) -> float:
     return z
 
 
+def _frame(d, path) -> tuple[str, SheetPose | None]:
+    """``frame`` (base or sheet) and a sheet layout's optional placement ``sheet: {x_mm, y_mm, yaw_deg}``."""
+    frame = d.get("frame", "base") or "base"
+    if frame not in FRAMES:
+        raise FormatError(path, f"frame {frame!r} (expected 'base' or 'sheet')", field="frame")
+    placement = d.get("sheet")
+    if placement is None:
+        return frame, None
+    if frame != "sheet":
+        raise FormatError(path, "'sheet' (a placement) needs 'frame: sheet'", field="sheet")
+    if not isinstance(placement, dict) or set(placement) - set(SHEET_KEYS):
+        raise FormatError(path, "'sheet' must be a mapping {x_mm, y_mm, yaw_deg}", field="sheet")
+    vals = []
+    for k in SHEET_KEYS:
+        try:
+            v = float(placement.get(k, 0.0))
+        except (TypeError, ValueError):
+            v = math.nan
+        if not math.isfinite(v):
+            raise FormatError(path, f"{placement.get(k)!r} (expected a finite number)", field=f"sheet.{k}")
+        vals.append(v)
+    return frame, SheetPose(*vals)
+
+
 def _names(d, key, points, path) -> tuple:
     names = d.get(key)
     if names is None:
@@ -124,6 +183,7 @@ def session_layout(meta: dict, path) -> Layout:
     made by ``capture`` (simulated, imported) names no requested points: all its points are."""
     c = meta.get("collector") or {}
     pts = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
+    frame, sheet = _frame(meta, path)
     return Layout(
         str(path),
         float(meta["plane"]["z"]),
@@ -131,6 +191,8 @@ def session_layout(meta: dict, path) -> Layout:
         tuple(meta.get("requested") or pts),
         tuple(meta.get("validation") or ()),
         dict(c.get("aiming") or {}),
+        frame=frame,
+        sheet=sheet,
     )
 
 
@@ -153,7 +215,8 @@ def load_layout(path) -> Layout:
     if not calib:
         calib = tuple(p for p in points if p not in valid)
     plane_z = _plane_z(d, path)
-    check_layout_geometry(path, points, plane_z, calib)
+    frame, sheet = _frame(d, path)
+    check_layout_geometry(path, points, 0.0 if frame == "sheet" else plane_z, calib, frame)
     aiming = dict(d.get("aiming", {}) or {}) if isinstance(d.get("aiming", {}) or {}, dict) else None
     if aiming is None:
         raise FormatError(path, "'aiming' must be a mapping (tilt_deg, length)", field="aiming")
@@ -167,11 +230,14 @@ def load_layout(path) -> Layout:
                     f"aiming {key} = {v!r} (expected [low, high], each {rng.expected()})",
                     field=f"aiming.{key}",
                 )
-    return Layout(str(path), plane_z, points, calib, valid, aiming, d)
+    return Layout(str(path), plane_z, points, calib, valid, aiming, d, frame, sheet)
 
 
-def check_layout_geometry(path, points: dict, plane_z: float, calibration: tuple) -> None:
-    """Points lie on the plane, no two coincide, and the calibration points are not collinear.
+def check_layout_geometry(
+    path, points: dict, plane_z: float, calibration: tuple, frame: str = "base"
+) -> None:
+    """Points lie on the plane (z = 0 on a sheet), no two coincide, and the calibration points are not
+    collinear.
 
     Raises
     ------
@@ -184,7 +250,9 @@ def check_layout_geometry(path, points: dict, plane_z: float, calibration: tuple
         if abs(p[2] - plane_z) > SAME_POINT_MM:
             raise FormatError(
                 path,
-                f"point {n} z = {p[2]:g} mm is off the plane z = {plane_z:g} mm (expected on it)",
+                f"point {n} z = {p[2]:g} mm is off the plane z = {plane_z:g} mm (expected on it)"
+                if frame == "base"
+                else f"point {n} z = {p[2]:g} mm: on a sheet (frame: sheet) points are [x, y, 0] mm",
                 field=f"points.{n}",
             )
     d = np.linalg.norm(xyz[:, None] - xyz[None], axis=2) + np.eye(len(xyz)) * 1e9
@@ -541,6 +609,10 @@ def session_meta(robot_ref: str, layout: Layout, aperture_z: float | None, **ext
         "requested": list(layout.calibration),
         "validation": list(layout.validation),
     }
+    if layout.frame == "sheet":
+        meta["frame"] = "sheet"
+        if layout.sheet is not None:
+            meta["sheet"] = layout.sheet.as_dict()
     meta.update(extra)
     return meta
 
