@@ -14,7 +14,7 @@ from lasercal.collector.hardware.triggers import AutoTrigger, Trigger
 from lasercal.collector.sessions.capture import CaptureOptions, run_capture
 from lasercal.collector.sessions.motion import MotionRefused
 from lasercal.collector.sessions.store import CaptureStore
-from lasercal.solver.analysis.design import Coach, Prior
+from lasercal.solver.analysis.design import Coach
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session, session_meta
 
@@ -71,7 +71,7 @@ def guided_session(folder, trigger=None, confirm_moves=False, per_point=3, **opt
     op = FakeOperator(TRUTH, {k: LAYOUT.points[k] for k in LAYOUT.calibration}, per_point, 1.0, 5)
     robot = Recording.last = Recording(TRUTH, FakeClock(), op, seed=5)
     store = CaptureStore.create(folder, session_meta("panda", LAYOUT, 825.0), 7, robot.extra_columns)
-    coach = Coach(NOMINAL, LAYOUT, 5, Prior(), per_point=30)
+    coach = Coach(NOMINAL, LAYOUT, 5, per_point=30)
     out = io.StringIO()
     o = CaptureOptions(per_point, auto_discard=True, move=True, **opts)
     try:

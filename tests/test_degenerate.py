@@ -37,7 +37,7 @@ def _freeze_joint(src, dst, joint: int) -> None:
 
 
 def test_full_session_has_no_deficiency(panda_noisy):
-    session = panda_noisy[0]
+    session = dataclasses.replace(panda_noisy[0], tolerances=None)  # least squares: nothing held by a prior
     ident = fit(session)
     assert ident.identifiability.rank == ident.identifiability.n_params - 1  # only the aperture gauge
     assert unidentifiable(session, ident) == []
@@ -48,7 +48,7 @@ def test_still_joint_is_named_first(panda_noisy, joint):
     session = panda_noisy[0]
     q = session.q.copy()
     q[:, joint - 1] = q[0, joint - 1]
-    still = dataclasses.replace(session, q=q)
+    still = dataclasses.replace(session, q=q, tolerances=None)  # least squares (a prior holds it: test_prior)
     ident = fit(still)
     missing = unidentifiable(still, ident)
     deficit = ident.identifiability.n_params - 1 - ident.identifiability.rank
@@ -61,9 +61,11 @@ def test_still_joint_is_named_first(panda_noisy, joint):
 
 
 def test_solve_refuses_a_still_joint(session_dir, tmp_path, capsys):
+    """Without a prior (--prior none) nothing holds joint 4's axis: refused, the cause named."""
     _freeze_joint(session_dir, tmp_path / "s", 4)
     capsys.readouterr()
-    assert main(["solve", str(tmp_path / "s"), "-o", str(tmp_path / "m.yaml"), "--folds", "0"]) == 2
+    args = ["solve", str(tmp_path / "s"), "-o", str(tmp_path / "m.yaml"), "--folds", "0", "--prior", "none"]
+    assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("lasercal: error: the data cannot identify 4 parameter")
     assert "joint 4's axis direction (vary joint 4: it never moves in this session)" in err[0]
@@ -74,7 +76,8 @@ def test_solve_refuses_a_still_joint(session_dir, tmp_path, capsys):
 def test_allow_partial_writes_a_model_marked_partial(session_dir, tmp_path, capsys):
     _freeze_joint(session_dir, tmp_path / "s", 4)
     out = tmp_path / "m.yaml"
-    assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--folds", "0", "--allow-partial"]) == 0
+    args = ["solve", str(tmp_path / "s"), "-o", str(out), "--folds", "0", "--allow-partial"]
+    assert main(args + ["--prior", "none"]) == 0
     assert "PARTIAL: not identified: joint 4's axis direction" in capsys.readouterr().out
     idn = yaml.safe_load(out.read_text())["identification"]
     assert idn["partial"] is True
@@ -83,6 +86,21 @@ def test_allow_partial_writes_a_model_marked_partial(session_dir, tmp_path, caps
         "joint 4's axis position",
     ]
     assert sum(c["directions"] for c in idn["unidentifiable_combinations"]) == 4
+
+
+def test_the_prior_holds_a_still_joint_and_solve_says_so(session_dir, tmp_path, capsys):
+    """Under the robot's prior (the default) joint 4's axis is the prior's: no --allow-partial needed, and
+    solve names it with what it leaves uncalibrated."""
+    _freeze_joint(session_dir, tmp_path / "s", 4)
+    out = tmp_path / "m.yaml"
+    capsys.readouterr()
+    assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--folds", "0"]) == 0
+    text = capsys.readouterr().out
+    assert "from the prior: joint 4's axis direction" in text and "uncalibrated" in text
+    idn = yaml.safe_load(out.read_text())["identification"]
+    assert idn["partial"] is False
+    named = [c["combination"] for c in idn["determined_by"]["from_prior"]]
+    assert "joint 4's axis direction" in named and "joint 4's axis position" in named
 
 
 def test_full_rank_model_is_marked_complete(session_dir, tmp_path):

@@ -44,7 +44,7 @@ def test_greedy_prediction_equals_the_refitted_covariance(coach, thesis_captures
     W = D.use_weight(post, coach.region)
     plan = D.select(post, W, coach.cand, 4)
     J = post.params.spot_jacobian(post.estimate, plan.q, plan.target[:, 2])[2].reshape(-1, post.params.size)
-    C = D._posterior_cov(np.vstack([post.rows, J]), post.prior_std, post.sigma)
+    C = D._posterior_cov(np.vstack([post.rows, J]), post.prior_root, post.sigma)
     assert np.sqrt(np.sum(W * C)) == pytest.approx(plan.expected[-1], rel=1e-6)
     assert plan.expected[-1] < plan.now
 
@@ -57,7 +57,7 @@ def test_exchange_improves_the_greedy_design_and_orders_it_greedily(coach):
     assert best.expected[-1] < 0.97 * greedy.expected[-1]  # the twelve together, not one by one
     assert np.all(np.diff(best.expected) < 0) and len(set(h["candidate"] for h in best.history)) == 12
     J = post.params.spot_jacobian(post.estimate, best.q, best.target[:, 2])[2].reshape(-1, post.params.size)
-    C = D._posterior_cov(J, post.prior_std, post.sigma)
+    C = D._posterior_cov(J, post.prior_root, post.sigma)
     assert np.sqrt(np.sum(W * C)) == pytest.approx(best.expected[-1], rel=1e-6)
 
 
@@ -71,7 +71,7 @@ def test_rank_two_updates_and_downdates_equal_a_fresh_covariance(coach, thesis_c
         design.add(i)
     design.remove(17)  # eq. D7's downdate: as if only 3 and 40 had been added
     C = D._posterior_cov(
-        np.vstack([post.rows, Jc[[3, 40]].reshape(-1, Jc.shape[2])]), post.prior_std, post.sigma
+        np.vstack([post.rows, Jc[[3, 40]].reshape(-1, Jc.shape[2])]), post.prior_root, post.sigma
     )
     assert design.f == pytest.approx(np.sum(W * C), rel=1e-9)
     np.testing.assert_allclose(design.A, Jc @ C, atol=1e-9 * np.abs(Jc @ C).max())

@@ -3,6 +3,7 @@ pinocchio (an independent URDF implementation), and bad input."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from lasercal.solver.formats.session import load_session
 from lasercal.solver.formats.urdf import calibrated_urdf, load_urdf
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.position import eta_sizes, sensor_points
+from lasercal.solver.identify.prior import robot_tolerances
 from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
 
 DATA = Path(__file__).parent / "data"
@@ -61,7 +63,8 @@ def heldout_error(model, truth, seed=9, m=200):
 @pytest.mark.parametrize("name", ["ur5", "arm7", "rail_ur5"])
 def test_exact_recovery_without_noise(tmp_path, name):
     s, truth = session(tmp_path, name, 40, 0.0, 1)
-    ident = fit(s)
+    # exact data: as the noise prior vanishes, the prior's weight sigma^2 / s^2 does too (eqs. P2-P3)
+    ident = fit(dataclasses.replace(s, tolerances=robot_tolerances(s.robot).with_noise("position", 1e-9)))
     assert ident.converged and not ident.identifiability.unidentifiable
     assert heldout_error(ident.model, truth).max() < 1e-6
 
@@ -238,14 +241,15 @@ def test_robot_option_replaces_the_session_robot(tmp_path, capsys, monkeypatch):
     assert main(["solve", "S", "-o", "m.yaml"]) == 2
     assert "gone.urdf" in capsys.readouterr().err
     (tmp_path / "arm.urdf").write_text((DATA / "ur5.urdf").read_text())
-    assert main(["solve", "S", "-o", "m.yaml", "--robot", "arm.urdf", "--folds", "0"]) == 0
+    exact = ["--prior", "none"]  # exact data, recovered exactly by least squares
+    assert main(["solve", "S", "-o", "m.yaml", "--robot", "arm.urdf", "--folds", "0"] + exact) == 0
     model = load_model("m.yaml")
     assert model.urdf["file"] == str(tmp_path / "arm.urdf")
     assert heldout_error(model, truth).max() < 1e-6
     rail = ["--robot", str(DATA / "rail_ur5.urdf"), "--folds", "0"]
     assert main(["solve", "S", "-o", "r.yaml"] + rail) == 2  # 7 joints: the session logs 6
     assert "missing column(s) q7" in capsys.readouterr().err
-    assert main(["solve", "S", "-o", "r.yaml", "--base-link", "base_link"] + rail) == 0
+    assert main(["solve", "S", "-o", "r.yaml", "--base-link", "base_link"] + rail + exact) == 0
     model = load_model("r.yaml")
     assert model.n == 6 and model.urdf["base_link"] == "base_link" and model.urdf["tip_link"] == "flange"
     assert heldout_error(model, truth).max() < 1e-6

@@ -54,9 +54,11 @@ FOLDS = _folds
 
 
 def chain_arguments(p: argparse.ArgumentParser, robot_help: str | None = None) -> None:
-    """``--base-link`` and ``--tip-link`` (a URDF chain's ends), and ``--robot`` when ``robot_help``."""
+    """``--base-link`` and ``--tip-link`` (a URDF chain's ends); ``--robot`` and ``--prior`` (a session's
+    nominal robot and the prior of its fits) when ``robot_help``."""
     if robot_help:
         p.add_argument("--robot", metavar="ROBOT", help=robot_help)
+        prior_argument(p)
     p.add_argument(
         "--base-link", metavar="LINK", help="URDF robot: the chain's first link (default: the root)"
     )
@@ -75,7 +77,17 @@ SESSION_ROBOT = (
 
 def session_robot(args) -> dict:
     """The keyword arguments of :func:`solver.formats.session.load_session` from :func:`chain_arguments`."""
-    return {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link}
+    return {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link, "prior": args.prior}
+
+
+def prior_argument(p: argparse.ArgumentParser) -> None:
+    """``--prior``: the prior of every fit (docs/formats.md, "Priors")."""
+    p.add_argument(
+        "--prior",
+        metavar="none|FILE",
+        help="the prior of every fit: the robot's manufacturing tolerances (default), a lasercal-prior/1 "
+        "YAML overriding some of them, or 'none' for plain least squares (the thesis's comparisons)",
+    )
 
 
 def bootstrap_arguments(p: argparse.ArgumentParser) -> None:

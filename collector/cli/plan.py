@@ -35,16 +35,16 @@ def args_plan(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--aim-noise",
         type=number(0, 100, "mm", lo_open=True),
-        default=1.0,
         metavar="MM",
-        help="the operator's expected aiming noise per axis, mm (prior; default 1.0)",
+        help="the operator's expected aiming noise per axis, mm (the noise prior; default the prior's "
+        "noise_mm.laser, 1.0 unless --prior says otherwise)",
     )
     p.add_argument("--seed", type=SEED, default=0, help="seed of the candidate sampling (default 0)")
 
 
 def cmd_plan(args) -> int:
     from lasercal.collector.sessions.store import atomic_output, check_output
-    from lasercal.solver.analysis.design import Coach, DesignError, Prior, posterior
+    from lasercal.solver.analysis.design import Coach, DesignError, posterior
     from lasercal.solver.formats.session import load_layout, load_session, session_layout
 
     if args.output:
@@ -57,10 +57,14 @@ def cmd_plan(args) -> int:
     nominal = session.robot
     if session.aperture_z is not None:
         nominal = nominal.replace(aperture=np.r_[nominal.aperture[:2], session.aperture_z])
-    prior = Prior(aim_mm=args.aim_noise)
-    post = posterior(nominal, session.q, session.target, prior)
+    if session.tolerances is None:
+        raise DesignError("plan predicts from a prior: --prior none leaves no prediction to make")
+    tol = session.tolerances
+    if args.aim_noise is not None:
+        tol = tol.with_noise("laser", args.aim_noise)
+    post = posterior(nominal, session.q, session.target, tol)
     ws = None if args.workspace is None else (args.workspace[:3], args.workspace[3:])
-    coach = Coach(nominal, layout, args.seed, prior, workspace=ws, model=post.model, lookahead=args.next)
+    coach = Coach(nominal, layout, args.seed, tol, workspace=ws, model=post.model, lookahead=args.next)
     coach.post = post
     st = coach.status(session.q)
     plan = st.plan

@@ -51,8 +51,9 @@ def args_solve(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--allow-partial",
         action="store_true",
-        help="write a model even when the data cannot identify every parameter combination it needs "
-        "(marked partial: true, the unidentifiable combinations listed)",
+        help="write a model even when neither the data nor the prior identifies every parameter combination "
+        "it needs (with --prior none, or parameters without a prior; marked partial: true, the "
+        "unidentifiable combinations listed)",
     )
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
@@ -184,7 +185,7 @@ def cmd_solve(args) -> int:
         rep["unidentifiable_combinations"] = meta["unidentifiable_combinations"] = [
             {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
         ]
-    for k in ("cross_validation", "diagnosis"):
+    for k in ("prior", "determined_by", "cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
     # MODEL.yaml carries robot effects only: a session effect (drift, a misplaced point) was fitted so that

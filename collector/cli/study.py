@@ -7,7 +7,7 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from lasercal.collector.cli.options import SEED, count
+from lasercal.collector.cli.options import SEED, count, prior_argument
 from lasercal.collector.studies.options import QUICK, ROBOTS, StudyOptions
 
 
@@ -44,6 +44,7 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
         f"{StudyOptions.bootstrap} and {StudyOptions.refits}",
     )
     p.add_argument("--seed", type=SEED, default=0)
+    prior_argument(p)
     p.add_argument(
         "--jobs",
         type=count(0, 256),
@@ -70,7 +71,7 @@ def cmd_study(args) -> int:
     from lasercal.collector.studies.mukca import run_study
     from lasercal.solver.errors import LasercalError
 
-    opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed, jobs=args.jobs)
+    opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed, jobs=args.jobs, prior=args.prior)
     if args.bootstrap is not None:
         opts = replace(opts, bootstrap=args.bootstrap)
     robots = [r.strip() for r in args.robots.split(",") if r.strip()]

@@ -500,6 +500,9 @@ def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
     fig, axs = plt.subplots(1, n, figsize=(4.2 * n, 3.6), squeeze=False)
     for ax, r in zip(axs[0], robots):
         g = plots[r]["regressor"]
+        if not g:  # no candidate the data could see
+            ax.set_title(f"{r}: no candidate regressor", fontsize=9)
+            continue
         ax.scatter(
             g["x"],
             1e3 * g["y"],

@@ -40,10 +40,42 @@ def diagnosis_plots(d, out) -> list[Path]:
     plt = pyplot()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    s, geo = d.session, d.geometric
-    res = geo.residuals
+    res = d.geometric.residuals
     written = []
 
+    if d.extension is not None or d.tests:  # with no candidate the data can see, no regressor to plot
+        written.append(_residuals_vs_regressor(plt, d, res, out))
+
+    b = d.bootstrap
+    if b:
+        fig, axs = plt.subplots(1, 2, figsize=(9, 3.6))
+        axs[0].hist(b["rms_mm"], bins=15, color="0.7", label="simulated")
+        axs[0].axvline(b["observed_rms_mm"], color="r", label="measured")
+        axs[0].set_xlabel("geometric-fit residual RMS (mm)")
+        axs[0].legend()
+        axs[1].hist(b["best_stat"], bins=15, color="0.7", label="simulated")
+        axs[1].axvline(b["observed_best_stat"], color="r", label="measured")
+        axs[1].set_xlabel("strongest candidate, -log10 p")
+        axs[1].set_title(f"bootstrap p = {b['p_value']:.3g}")
+        axs[1].legend()
+        written.append(save(fig, out / "measured_vs_simulated.png"))
+
+    fig, ax = plt.subplots(figsize=(5, 5))
+    for key, c in (("geometric", "tab:red"), ("extended", "tab:blue")):
+        r = d.residuals_holdout[key]
+        ax.scatter(r[:, 0], r[:, 1], s=8, c=c, label=f"{key}: RMS {d.holdout_rms[key]:.3f} mm")
+    ax.set_aspect("equal")
+    ax.set_xlabel("held-out error x (mm)")
+    ax.set_ylabel("held-out error y (mm)")
+    ax.legend()
+    ax.set_title("held-out errors, before/after the extension", fontsize=10)
+    written.append(save(fig, out / "before_after.png"))
+    return written
+
+
+def _residuals_vs_regressor(plt, d, res: np.ndarray, out: Path) -> Path:
+    """The geometric fit's residuals against the finding's (or best candidate's) regressor."""
+    s, geo = d.session, d.geometric
     ext = (d.extension or d.tests[0].extension).parts[0]  # a combination: its first effect
     fitted = d.extension.parts[0] if d.extension is not None else None
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -86,30 +118,4 @@ def diagnosis_plots(d, out) -> list[Path]:
         ax.set_xlabel(xlab)
         ax.set_ylabel(f"residual as joint {idx[0] + 1} motion (mrad)")
         ax.set_title(f"geometric-fit residuals vs the {ext.effect} regressor")
-    written.append(save(fig, out / "residuals_vs_regressor.png"))
-
-    b = d.bootstrap
-    if b:
-        fig, axs = plt.subplots(1, 2, figsize=(9, 3.6))
-        axs[0].hist(b["rms_mm"], bins=15, color="0.7", label="simulated")
-        axs[0].axvline(b["observed_rms_mm"], color="r", label="measured")
-        axs[0].set_xlabel("geometric-fit residual RMS (mm)")
-        axs[0].legend()
-        axs[1].hist(b["best_stat"], bins=15, color="0.7", label="simulated")
-        axs[1].axvline(b["observed_best_stat"], color="r", label="measured")
-        axs[1].set_xlabel("strongest candidate, -log10 p")
-        axs[1].set_title(f"bootstrap p = {b['p_value']:.3g}")
-        axs[1].legend()
-        written.append(save(fig, out / "measured_vs_simulated.png"))
-
-    fig, ax = plt.subplots(figsize=(5, 5))
-    for key, c in (("geometric", "tab:red"), ("extended", "tab:blue")):
-        r = d.residuals_holdout[key]
-        ax.scatter(r[:, 0], r[:, 1], s=8, c=c, label=f"{key}: RMS {d.holdout_rms[key]:.3f} mm")
-    ax.set_aspect("equal")
-    ax.set_xlabel("held-out error x (mm)")
-    ax.set_ylabel("held-out error y (mm)")
-    ax.legend()
-    ax.set_title("held-out errors, before/after the extension", fontsize=10)
-    written.append(save(fig, out / "before_after.png"))
-    return written
+    return save(fig, out / "residuals_vs_regressor.png")

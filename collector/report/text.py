@@ -10,10 +10,9 @@ def format_diagnosis(d) -> str:
     o = d.as_dict()
     lines = []
     if o["effect"] == "none":
-        lines.append(
-            "finding: none -- the geometric model and aiming noise explain the data (best candidate "
-            f"{d.tests[0].label}, corrected p = {o['p_value']:.3g})"
-        )
+        best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
+        best = best if d.tests else "no candidate the data can see"
+        lines.append(f"finding: none -- the geometric model and aiming noise explain the data ({best})")
     else:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(map(str, o["joints"]))
         lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
@@ -66,6 +65,13 @@ def format_diagnosis(d) -> str:
             )
     for eff, why in d.untested.items():
         lines.append(f"not tested: {eff} -- {why}")
+    if d.unseen:
+        lines.append(
+            "not seen by the data beyond the geometry (the prior would decide them; never selected): "
+            + ", ".join(f"{k} ({v:.2f})" for k, v in list(d.unseen.items())[:8])
+            + (f" and {len(d.unseen) - 8} more" if len(d.unseen) > 8 else "")
+            + "  (posterior / prior sigma)"
+        )
     if d.extension is not None and d.robot_extension is None:
         lines.append(f"{d.effect} is a session effect: fitted and reported, not written to the robot model")
     lines.append("candidates (F test against the geometric model, Bonferroni over all):")
@@ -91,8 +97,23 @@ def format_solve(rep: dict) -> str:
         f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number "
         f"{idf['condition']:.3g}\n"
     )
-    for u in idf["unidentifiable"]:
-        w(f"  not seen by the data (held at nominal): {u}\n")
+    det = rep.get("determined_by")
+    if det is None:
+        for u in idf["unidentifiable"]:
+            w(f"  not seen by the data (held at nominal): {u}\n")
+        w("prior: none (plain least squares)\n")
+    else:
+        w(
+            f"determined by the data {det['data']}, by data and prior {det['data_and_prior']}, by the prior "
+            f"{det['prior']} (posterior / prior sigma < {det['thresholds']['data_below']:g}, between, "
+            f"> {det['thresholds']['prior_above']:g}; prior: the robot's tolerances, docs/formats.md)\n"
+        )
+        for d in det["from_prior"]:
+            n = d["directions"]
+            w(
+                f"  from the prior: {d['combination']} ({n} direction{'s' * (n > 1)}): {d['affects']}; "
+                f"{d['fix']}\n"
+            )
     if rep["outliers"]:
         w(
             f"outlier captures (left out): {len(rep['outliers'])}: "

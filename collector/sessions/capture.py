@@ -316,13 +316,14 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
 
 def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
     """The capture coach of a session: the nominal model with the session's measured aperture height."""
-    from lasercal.solver.analysis.design import Coach, Prior
+    from lasercal.solver.analysis.design import Coach
+    from lasercal.solver.identify.prior import robot_tolerances
 
     aperture_z = store.meta.get("laser", {}).get("aperture_z")
     model = (
         nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
     )
-    return Coach(model, layout, cfg["seed"], Prior(aim_mm=cfg["aim_noise"]))
+    return Coach(model, layout, cfg["seed"], robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"]))
 
 
 def run_capture(

@@ -89,12 +89,13 @@ class RobotStudy:
 
 
 # ------------------------------------------------------------------ machinery
-def load_robot(data_dir, robot: str, workdir) -> Session:
-    """Import ``data_dir/robot`` as a point session in ``workdir/robot`` and load it."""
+def load_robot(data_dir, robot: str, workdir, prior: str | None = None) -> Session:
+    """Import ``data_dir/robot`` as a point session in ``workdir/robot`` and load it (with ``prior``, as
+    :func:`~lasercal.solver.formats.session.load_session`)."""
     folder = Path(data_dir) / robot
     if not folder.is_dir():
         raise FormatError(folder, f"no MUKCa robot folder {robot!r} in {data_dir}")
-    return load_session(import_mukca(folder, Path(workdir) / robot))
+    return load_session(import_mukca(folder, Path(workdir) / robot), prior=prior)
 
 
 def ball_centres(model: RobotModel, ext: Extension | None, session: Session) -> np.ndarray:
@@ -313,6 +314,8 @@ def _regressor_plot(d: Diagnosis) -> dict:
     'none')."""
     s = d.session
     fitted = d.extended or d.geometric
+    if d.extension is None and not d.tests:  # no candidate the data can see: no regressor
+        return {}
     ext = (d.extension or d.tests[0].extension).parts[0]  # a combination: its first effect
     j = ext.joints[0] - 1
     used = fitted.weights > 0
@@ -498,9 +501,9 @@ def run_study(data_dir, out, robots=ROBOTS, opts: StudyOptions | None = None) ->
     t0 = time.perf_counter()
     data_dir, out = Path(data_dir), Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    sessions = {r: load_robot(data_dir, r, out / "sessions") for r in robots}
+    sessions = {r: load_robot(data_dir, r, out / "sessions", opts.prior) for r in robots}
     cleans = {
-        r: load_robot(data_dir, f"{r}_clean", out / "sessions")
+        r: load_robot(data_dir, f"{r}_clean", out / "sessions", opts.prior)
         for r in robots
         if (data_dir / f"{r}_clean").is_dir()
     }

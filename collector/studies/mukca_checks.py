@@ -169,9 +169,9 @@ def simulation_check(d: Diagnosis, n_sim: int, rng: np.random.Generator) -> tupl
     rss, rss_sim = float(T.res @ T.res), np.sum(R**2, axis=0)
     tests = T.tests()
     test_of = {id(t.extension): t for t in tests}
-    Q_best = T.Q[[id(e) for e in exts].index(id(tests[0].extension))]
+    Q_best = T.Q[[id(e) for e in T.exts].index(id(tests[0].extension))]
     rows = []
-    for e, Q in zip(exts, T.Q):
+    for e, Q in zip(T.exts, T.Q):
         if Q.shape[1] == 0:
             continue
         r2 = float(np.sum((Q.T @ T.res) ** 2) / rss)

@@ -25,6 +25,8 @@ class StudyOptions:
     payload : (kg, (3,) mm at q = 0), hand and tool for the gravity model
     jobs : int, robots studied at once in separate processes (0: one per CPU core; the robots
         are independent, each with its own seeded generator, so the report is the same)
+    prior : str or None, the prior of every fit (``--prior``: None the robot's tolerances, 'none' plain
+        least squares, or a lasercal-prior/1 file)
     """
 
     bootstrap: int = 2000
@@ -33,6 +35,7 @@ class StudyOptions:
     seed: int = 0
     payload: tuple = PAYLOAD
     jobs: int = 0
+    prior: str | None = None
 
 
 QUICK = StudyOptions(bootstrap=200, refits=2)

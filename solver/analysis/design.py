@@ -1,20 +1,24 @@
 """Optimal experiment design for laser calibration: where to aim next, how good the fit is, when to stop.
 
 The state of knowledge after m captures is a Gaussian posterior on the minimal-POE parameters
-x (:class:`~lasercal.solver.kinematics.laser.LaserParams` about the nominal model):
+x (:class:`~lasercal.solver.kinematics.laser.LaserParams` about the nominal model) -- the same
+MAP estimate, noise and covariance as ``lasercal solve`` (:mod:`solver.identify.prior`), so the
+error the coach promises is the error of the fit ``solve`` will make:
 
-* prior (eq. D1): x ~ N(x_nom, diag(s^2)), s from :class:`Prior` -- what a hand-assembled arm
-  and a hand-mounted laser can be off by. With no or too few captures the prior alone speaks.
-* estimate (eq. D2): the MAP fit min sum |spot_i(x) - target_i|^2 / sigma0^2 + |(x - x_nom) / s|^2,
-  solved by :func:`~lasercal.solver.identify.lsq.fit_subspace` with the prior as constraint rows
-  (Levenberg-Marquardt in the identifiable subspace, robust loss once there are enough captures).
-* aiming noise (eq. D3): sigma^2 = (nu0 sigma0^2 + RSS) / (nu0 + dof), a scaled-inverse-chi^2
+* prior (eq. D1 = P1): x ~ N(x_nom, diag(s^2)), s from the robot's
+  :class:`~lasercal.solver.identify.prior.Tolerances` -- what a hand-assembled arm and a
+  hand-mounted laser can be off by. With no or too few captures the prior alone speaks.
+* estimate (eq. D2 = P2): the MAP fit min sum |spot_i(x) - target_i|^2 / sigma^2 + |(x - x_nom) / s|^2,
+  solved by :func:`~lasercal.solver.identify.lsq.fit_subspace` (Levenberg-Marquardt in the
+  identifiable subspace, robust loss once there are enough captures).
+* aiming noise (eq. D3 = P3): sigma^2 = (nu0 sigma0^2 + RSS) / (nu0 + dof), a scaled-inverse-chi^2
   posterior with nu0 pseudo-observations at the operator's nominal aiming noise sigma0, and
-  dof = 2 m - tr(H), tr(H) = p - tr(Lambda0 C) the effective number of fitted parameters.
-* covariance (eq. D4): C = (J^T J / sigma^2 + Lambda0)^-1 = diag(s) V diag(sigma^2 / (S^2 + sigma^2))
-  V^T diag(s) from one SVD J diag(s) = U S V^T (V completed to p x p), so one decomposition serves
-  every sigma; it has full rank because of the prior, and directions the data cannot see keep
-  their prior variance.
+  dof = 2 m - tr(H) with tr(H) the effective number of fitted parameters.
+* covariance (eq. D4 = P4): C = (J^T J / sigma^2 + L^T L)^-1 = R V diag(sigma^2 / (S^2 + sigma^2)) V^T R^T
+  with R = L^-1 (the prior covariance's root, L = diag(1/s) T of eq. P1) from one SVD
+  J R = U S V^T (V completed to p x p), so one decomposition serves
+  every sigma (the prediction's uncertainty, eq. D5); it has full rank because of the prior, and
+  directions the data cannot see keep their prior variance.
 
 Predicted held-out error where the robot is used (eq. D5): for configurations q_k aiming at the
 use points (the layout's validation points, or a workspace box), the in-plane spot error of the
@@ -50,6 +54,8 @@ import numpy as np
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.identify.lsq import fit_subspace, identifiability
+from lasercal.solver.identify.prior import DEFAULTS, Tolerances
+from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
 from lasercal.solver.kinematics.model import RobotModel
@@ -58,33 +64,6 @@ from lasercal.solver.kinematics.poe import space_jacobian
 
 class DesignError(LasercalError):
     """An experiment design cannot be made (no reachable use point, bad workspace box, K <= 0, ...)."""
-
-
-@dataclass(frozen=True)
-class Prior:
-    """How far the real robot may be from its nominal model, and how well the operator aims.
-
-    Attributes
-    ----------
-    aim_mm : float, sigma0: nominal aiming noise per in-plane axis, mm
-    aim_dof : float, nu0: pseudo-observations behind aim_mm (eq. D3)
-    axis_rad : float, std of each joint axis's tilt (eta wx, wy), rad
-    offset_mm : float, std of each joint axis's offset (eta qx, qy), mm
-    laser_rad : float, std of the laser direction's tilt, rad
-    aperture_mm : float, std of the aperture position per axis, mm
-    """
-
-    aim_mm: float = 1.0
-    aim_dof: float = 4.0
-    axis_rad: float = 0.01
-    offset_mm: float = 3.0
-    laser_rad: float = 0.03
-    aperture_mm: float = 3.0
-
-    def std(self, P: LaserParams) -> np.ndarray:
-        """Prior standard deviations s (p,) of the parameters of ``P`` (eq. D1)."""
-        joint = np.tile([self.axis_rad, self.axis_rad, self.offset_mm, self.offset_mm], P.model.n)
-        return np.r_[joint, self.laser_rad, self.laser_rad, np.full(3, self.aperture_mm)]
 
 
 @dataclass(frozen=True)
@@ -298,7 +277,7 @@ class Posterior:
     rank : int, parameter combinations the captures alone identify (SVD rank, no prior)
     weights : (m,) array, 1 used, 0 flagged as an outlier
     rows : (2 m_used, p) array, the spot Jacobian of the used captures at the estimate
-    prior_std : (p,) array, s (eq. D1)
+    prior_root : (p, p) array, R = L^-1: the prior covariance is R R^T (eqs. D1, D4)
     """
 
     params: LaserParams
@@ -311,7 +290,12 @@ class Posterior:
     rank: int
     weights: np.ndarray
     rows: np.ndarray
-    prior_std: np.ndarray
+    prior_root: np.ndarray
+
+    @property
+    def prior_std(self) -> np.ndarray:
+        """(p,) the prior's marginal standard deviations, sqrt(diag(R R^T))."""
+        return np.sqrt(np.sum(self.prior_root**2, axis=1))
 
 
 class SpotJacobians:
@@ -347,47 +331,51 @@ class SpotJacobians:
         return J
 
 
-def _posterior_covs(J: np.ndarray, s: np.ndarray):
-    """sigma -> C = (J^T J / sigma^2 + diag(1 / s^2))^-1 (eq. D4), J (rows, p), from one SVD.
+def _posterior_covs(J: np.ndarray, R: np.ndarray):
+    """sigma -> C = (J^T J / sigma^2 + (R R^T)^-1)^-1 (eq. D4), J (rows, p), from one SVD.
 
-    With J diag(s) = U S V^T (V complete, p x p; S padded with zeros):
-    C = diag(s) V diag(sigma^2 / (S^2 + sigma^2)) V^T diag(s). One SVD serves every sigma of the
+    With J R = U S V^T (V complete, p x p; S padded with zeros):
+    C = R V diag(sigma^2 / (S^2 + sigma^2)) V^T R^T. One SVD serves every sigma of the
     noise fixed point (eq. D3) and of the prediction's uncertainty (eq. D5); no difference of
     nearly equal terms, so small variances keep their relative precision.
     """
-    A = J * s
+    A = J @ R
     _, S, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])  # never the big U of a tall J
-    S2 = np.zeros(len(s))
+    S2 = np.zeros(R.shape[1])
     S2[: len(S)] = S**2
+    V = R @ Vt.T
 
     def cov(sigma: float) -> np.ndarray:
-        V = Vt.T * s[:, None]
         return (V * (sigma**2 / (S2 + sigma**2))) @ V.T
 
     return cov
 
 
-def _posterior_cov(J: np.ndarray, s: np.ndarray, sigma: float) -> np.ndarray:
-    """C = (J^T J / sigma^2 + diag(1 / s^2))^-1 (eq. D4), J (rows, p)."""
-    return _posterior_covs(J, s)(sigma)
+def _posterior_cov(J: np.ndarray, R: np.ndarray, sigma: float) -> np.ndarray:
+    """C = (J^T J / sigma^2 + (R R^T)^-1)^-1 (eq. D4), J (rows, p)."""
+    return _posterior_covs(J, R)(sigma)
 
 
 def posterior(
     nominal: RobotModel,
     q: np.ndarray,
     target: np.ndarray,
-    prior: Prior = Prior(),
+    tolerances: Tolerances = DEFAULTS,
     start: np.ndarray | None = None,
     jacobians: SpotJacobians | None = None,
 ) -> Posterior:
     """The posterior after captures q aimed at target (eqs. D1-D4); none at all is fine.
+
+    The MAP fit of ``lasercal solve`` (:func:`~lasercal.solver.identify.lsq.fit_subspace` with the
+    prior of :func:`~lasercal.solver.identify.prior.make_prior`): the same estimate, noise and
+    covariance.
 
     Parameters
     ----------
     nominal : RobotModel, the prior mean
     q : (m, n) array, captured configurations, rad (m may be 0)
     target : (m, 3) array, the reference point of each capture, mm
-    prior : Prior
+    tolerances : Tolerances, the prior (the robot's, :func:`~lasercal.solver.identify.prior.robot_tolerances`)
     start : (p,) array, where the fit starts (e.g. the previous estimate: a warm start)
     jacobians : SpotJacobians of the same nominal model, kept between calls (a session's refits reuse
         the Jacobians of earlier captures at the warm start)
@@ -397,11 +385,12 @@ def posterior(
     Posterior
     """
     P = LaserParams(nominal)
-    x0, s = P.x0(), prior.std(P)
+    x0 = P.x0()
+    prior = laser_prior(P, tolerances)
+    R = np.linalg.inv(prior.whitening)
     q = np.asarray(q, dtype=float).reshape(-1, nominal.n)
     target = np.asarray(target, dtype=float).reshape(-1, 3)
     m = len(q)
-    s0 = prior.aim_mm
     if m:
 
         def residual(v):
@@ -412,37 +401,27 @@ def posterior(
         def jacobian(v):
             return jac(v, q, target[:, 2])
 
-        def prior_rows(v):  # eq. D2: prior residuals in units of the aiming noise
-            return s0 * (v - x0) / s, np.diag(s0 / s)
-
         fit = fit_subspace(
-            residual, jacobian, x0 if start is None else start, P.names, m >= 10, constraints=prior_rows
+            residual, jacobian, x0 if start is None else start, P.names, m >= 10, prior=prior
         )
-        v, w = fit.v, fit.weights
+        v, w, sigma, dof = fit.v, fit.weights, fit.sigma, fit.dof
         J = jacobian(v)[w > 0].reshape(-1, P.size)
-        rss = float(np.sum(fit.residuals[w > 0] ** 2))
-        rank = identifiability(J, P.names)[0].rank
+        rank = fit.identifiability.rank
     else:
-        v, w, J, rss, rank = x0, np.ones(0), np.zeros((0, P.size)), 0.0, 0
-    sigma, dof = s0, 0.0
-    cov = _posterior_covs(J, s)
-    for _ in range(3):  # eq. D3 with tr(H) from the current C (a fixed point reached in a few steps)
-        C = cov(sigma)
-        dof = max(len(J) - (P.size - float(np.sum(np.diag(C) / s**2))), 0.0)
-        sigma = float(np.sqrt((prior.aim_dof * s0**2 + rss) / (prior.aim_dof + dof)))
-    C = cov(sigma)
+        v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
+    C = _posterior_cov(J, R, sigma)
     return Posterior(
         P,
         v,
         P.to_model(v),
         C,
         sigma,
-        1.0 / np.sqrt(2.0 * (prior.aim_dof + dof)),
+        1.0 / np.sqrt(2.0 * (prior.noise_dof + dof)),
         dof,
         rank,
         w,
         J,
-        s,
+        R,
     )
 
 
@@ -459,7 +438,7 @@ def predicted_error(post: Posterior, W: np.ndarray) -> tuple[float, float]:
     deviation either way (eq. D3).
     """
     e = float(np.sqrt(max(np.sum(W * post.cov), 0.0)))
-    cov = _posterior_covs(post.rows, post.prior_std)
+    cov = _posterior_covs(post.rows, post.prior_root)
     lo, hi = (
         float(np.sqrt(max(np.sum(W * cov(post.sigma * f)), 0.0)))
         for f in (1 - post.sigma_rel, 1 + post.sigma_rel)
@@ -775,7 +754,7 @@ class Coach:
     nominal : RobotModel, the prior mean
     layout : Layout
     seed : int, seed of the candidate and use-region sampling
-    prior : Prior
+    tolerances : Tolerances, the prior (the robot's)
     constraints : Constraints (default: the layout's)
     workspace : ((3,), (3,)) box corners, mm, or None (the layout's validation points)
     model : RobotModel that aims the candidates and the use region (default: nominal)
@@ -793,7 +772,7 @@ class Coach:
         nominal: RobotModel,
         layout: Layout,
         seed: int = 0,
-        prior: Prior = Prior(),
+        tolerances: Tolerances = DEFAULTS,
         constraints: Constraints | None = None,
         workspace: tuple | None = None,
         model: RobotModel | None = None,
@@ -805,17 +784,17 @@ class Coach:
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
         aimer = model or nominal
-        self.nominal, self.layout, self.prior = nominal, layout, prior
+        self.nominal, self.layout, self.tolerances = nominal, layout, tolerances
         self.lookahead, self.stop_gain, self.horizon = lookahead, stop_gain, horizon
         self.region = use_region(aimer, layout, rng, workspace, constraints=con)
         self.cand = candidates(aimer, layout, rng, per_point, con)
-        self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), prior)
+        self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), tolerances)
         self.jacobians = SpotJacobians(self.post.params)
 
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
         """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
         self.post = posterior(
-            self.nominal, q, target, self.prior, start=self.post.estimate, jacobians=self.jacobians
+            self.nominal, q, target, self.tolerances, start=self.post.estimate, jacobians=self.jacobians
         )
         return self.post
 

@@ -45,6 +45,7 @@ from lasercal.solver.analysis import ALPHA
 from lasercal.solver.analysis.stats import HeldOut, grouped_folds, held_out_all, nested_fitter
 from lasercal.solver.errors import ModelError
 from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.degenerate import DATA_RATIO
 from lasercal.solver.identify.measurement import fit, residuals
 from lasercal.solver.identify.point import polish_point, session_targets, tip_joint_jacobian
 from lasercal.solver.identify.position import point_joint_jacobian, sensor_points
@@ -113,6 +114,8 @@ class Diagnosis:
         (over the captures the robust geometric fit keeps; holdout None without cross-validation)
     untested : dict effect -> why the data cannot test it
     robust : bool, whether the robust loss was used (in every fit, folds included)
+    unseen : dict candidate label -> posterior / prior sigma: candidates the data cannot see beyond the
+        geometry (the prior would determine them), never tested or selected (:class:`Tester`)
     """
 
     effect: str
@@ -133,6 +136,7 @@ class Diagnosis:
     statistics: dict = field(default_factory=dict)
     untested: dict = field(default_factory=dict)
     robust: bool = True
+    unseen: dict = field(default_factory=dict)
 
     @property
     def robot_extension(self) -> Extension | Combination | None:
@@ -179,6 +183,7 @@ class Diagnosis:
             "acceptance": self.acceptance,
             "statistics": self.statistics,
             "untested": dict(self.untested),
+            "unseen": {k: round(v, 4) for k, v in self.unseen.items()},
             "exported": self.robot_extension is not None,
             "robust": self.robust,
             "details": {
@@ -251,12 +256,24 @@ class Tester:
     columns made orthogonal to what the fit could absorb (rank r); Bonferroni over the candidates.
     Prepared once, it tests any residual vector: the data's, or simulated ones.
 
+    Under a prior (the session's tolerances) a candidate the data cannot see is no candidate: with
+    C_perp its columns beyond the fit's span and s its prior sigmas, the data's information in units of
+    the prior's is the smallest eigenvalue S^2 of (C_perp s)^T (C_perp s) / sigma^2, and the posterior
+    sigma of that term would be at least 1 / sqrt(1 + S^2) of its prior sigma (eq. P5). A term whose
+    ratio exceeds DATA_RATIO (the prior, not the data, would determine it; e.g. a compliance at a
+    joint that carries almost no torque) is set aside in ``unseen`` and never tested or selected.
+
     Parameters
     ----------
     session : Session
     ident : Identification, the fitted model (geometric, or already extended)
     exts : list of Extension, the candidates
     tau : (m, n) array or None
+
+    Attributes
+    ----------
+    exts : list of Extension, the candidates tested (those the data can see)
+    unseen : dict label -> posterior / prior sigma, the candidates set aside
     """
 
     def __init__(self, session: Session, ident: Identification, exts: list, tau):
@@ -271,8 +288,8 @@ class Tester:
         self.U = _orthonormal(np.vstack([ident.extra["span"][used].reshape(d * used.sum(), -1), Jc]))
         self.n_capture_rows = d * used.sum()
         self.res = np.r_[ident.residuals[used].ravel(), ident.extra.get("constraint_residuals", np.zeros(0))]
-        self.exts = exts
-        self.Q = []
+        self.exts, self.Q, self.unseen = [], [], {}
+        tol = session.tolerances
         for e in exts:
             C = np.vstack(
                 [
@@ -280,7 +297,16 @@ class Tester:
                     np.zeros((len(Jc), e.size)),
                 ]
             )
-            self.Q.append(_orthonormal(C - self.U @ (self.U.T @ C)))
+            C_perp = C - self.U @ (self.U.T @ C)
+            if tol is not None:
+                A = C_perp * tol.std(e.kinds)
+                S2 = float(np.linalg.eigvalsh(A.T @ A)[0]) / max(ident.sigma_mm, 1e-12) ** 2
+                ratio = 1.0 / np.sqrt(1.0 + S2)
+                if ratio > DATA_RATIO:
+                    self.unseen[e.label] = float(ratio)
+                    continue
+            self.exts.append(e)
+            self.Q.append(_orthonormal(C_perp))
 
     def tests(self, res: np.ndarray | None = None) -> list[CandidateTest]:
         """Every candidate's test on ``res`` (default: the data's residuals), best first."""
@@ -314,8 +340,16 @@ class Tester:
 
 
 def score_tests(session: Session, ident: Identification, exts: list, tau) -> list[CandidateTest]:
-    """:class:`Tester` on the data's residuals."""
+    """:class:`Tester` on the data's residuals (the candidates the data can see), best first."""
     return Tester(session, ident, exts, tau).tests()
+
+
+_NO_TEST = CandidateTest(Extension("none"), 0.0, 0, 1.0, 1.0, 0.0)  # no candidate the data can see
+
+
+def best_test(session: Session, ident: Identification, exts: list, tau) -> CandidateTest:
+    """The best of :func:`score_tests`, or a test that never passes when there is no candidate to test."""
+    return (score_tests(session, ident, exts, tau) or [_NO_TEST])[0]
 
 
 def bootstrap(
@@ -420,7 +454,7 @@ def _grow(session: Session, first: Extension, fixed: list, exts: list, tau, alph
         rest = [e for e in exts if e.effect == grown.effect and e.joints[0] not in grown.joints]
         if not rest:
             return grown, ext_fit
-        nxt = score_tests(session, ext_fit, rest, tau)[0]
+        nxt = best_test(session, ext_fit, rest, tau)
         if nxt.p_adjusted >= alpha:
             return grown, ext_fit
         grown = Extension(
@@ -467,7 +501,7 @@ def _combination(
     others = [e for e in exts if e.effect in ROBOT_EFFECTS and e.effect != chosen.effect]
     if not others:
         return None
-    nxt = score_tests(session, ext_fit, others, tau)[0]
+    nxt = best_test(session, ext_fit, others, tau)
     if nxt.p_adjusted >= alpha:
         return None
     second, _ = _grow(session, nxt.extension, [chosen], exts, tau, alpha, sus)
@@ -482,7 +516,7 @@ def _combination(
             min(
                 1.0,
                 len(terms)
-                * score_tests(session, _fit(session, _merge(terms[:i] + terms[i + 1 :]), sus), [t], tau)[0].p,
+                * best_test(session, _fit(session, _merge(terms[:i] + terms[i + 1 :]), sus), [t], tau).p,
             )
             for i, t in enumerate(terms)
         ]
@@ -553,7 +587,10 @@ def diagnose(
             )
     tester = Tester(session, geo, exts, tau)
     tests = tester.tests()
-    best = tests[0]
+    if effect is not None and not tests:  # asked for by name: its best candidate, seen or not
+        tester = Tester(replace(session, tolerances=None), geo, exts, tau)
+        tests = tester.tests()
+    best = (tests or [_NO_TEST])[0]
     chosen = None
     combo = None  # a combination proposed by the F tests, with its fit and the part tests
     if best.p_adjusted < alpha or effect is not None:
@@ -639,4 +676,5 @@ def diagnose(
         statistics,
         cannot,
         robust,
+        tester.unseen,
     )

@@ -18,7 +18,7 @@ import numpy as np
 
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
-from lasercal.solver.identify.measurement import fit, residuals
+from lasercal.solver.identify.measurement import determined_by, fit, residuals
 from lasercal.solver.identify.point import tips
 from lasercal.solver.identify.spot import Identification, predict_spots
 from lasercal.solver.kinematics.model import RobotModel
@@ -402,6 +402,15 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
         }
     if ident.std_errors:
         rep["std_errors"] = {k: float(f"{v:.4g}") for k, v in ident.std_errors.items()}
+    prior = ident.extra.get("prior")
+    rep["prior"] = (
+        {"tolerances": session.tolerances.as_dict(), "robot": session.robot.name}
+        if prior is not None and session.tolerances is not None
+        else "none (plain least squares)"
+    )
+    det = determined_by(session, ident)
+    if det is not None:
+        rep["determined_by"] = det.as_dict()
     if cv is not None:
         rep["cross_validation"] = cv.as_dict()
     return rep

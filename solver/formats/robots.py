@@ -15,6 +15,7 @@ import yaml
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.checks import Range, metres_hint, read_text
 from lasercal.solver.formats.data import resolve
+from lasercal.solver.identify.prior import DEFAULTS
 from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
@@ -169,6 +170,8 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     if links and len(links) != n:
         raise FormatError(path, f"'links' must have one entry per joint ({n})", field="links")
     extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
+    prior = d.get("prior") or {}
+    DEFAULTS.updated(prior, path)  # validated here too
     return RobotModel(
         name=str(d.get("name", Path(str(path)).stem)),
         joint_names=tuple(names),
@@ -185,6 +188,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         urdf=dict(d.get("urdf", {}) or {}),
         links=links,
         extensions=dict(d.get("extensions", {}) or {}),
+        prior=dict(prior),
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
     )

@@ -29,6 +29,7 @@ from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.formats.table import read_csv
+from lasercal.solver.identify.prior import Tolerances, load_tolerances, robot_tolerances
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
 from lasercal.solver.kinematics.sheet import SheetPose
@@ -304,6 +305,8 @@ class Session:
     ``points`` maps each target to None (identified).
     clock : str, 'seconds' (t is a clock) or 'order' (t only orders the rows: no effect in time
         can be tested)
+    tolerances : Tolerances or None, the prior of every fit of this session (:mod:`solver.identify.prior`;
+        None: plain least squares). Default: the robot's own (:func:`~solver.identify.prior.robot_tolerances`)
     """
 
     path: Path
@@ -325,6 +328,11 @@ class Session:
     distances: tuple = ()
     sigma: np.ndarray | None = None
     clock: str = "seconds"
+    tolerances: Tolerances | None | str = "robot"
+
+    def __post_init__(self):
+        if isinstance(self.tolerances, str):  # "robot": the nominal's tolerances (a frozen field, set once)
+            object.__setattr__(self, "tolerances", robot_tolerances(self.robot))
 
     @property
     def m(self) -> int:
@@ -364,6 +372,7 @@ class Session:
             distances,
             pick(self.sigma),
             self.clock,
+            self.tolerances,
         )
 
 
@@ -436,8 +445,10 @@ def session_clock(meta: dict, path) -> str:
     return clock
 
 
-def load_session(folder, robot=None, base_link: str | None = None, tip_link: str | None = None) -> Session:
-    """Load and validate a session folder (session.yaml + captures.csv).
+def load_session(
+    folder, robot=None, base_link: str | None = None, tip_link: str | None = None, prior=None
+) -> Session:
+    """Load and validate a session folder (session.yaml + captures.csv), with the prior of its fits.
 
     Parameters
     ----------
@@ -446,12 +457,21 @@ def load_session(folder, robot=None, base_link: str | None = None, tip_link: str
         folder) in place of the session's ``robot``; the session's ``base_link`` and ``tip_link``
         then do not apply
     base_link, tip_link : str, optional, the URDF chain's ends, in place of the session's keys
+    prior : str or Path, optional, 'none' (plain least squares) or a ``lasercal-prior/1`` file over the
+        robot's tolerances (default: the robot's own, :func:`~solver.identify.prior.load_tolerances`)
 
     Returns
     -------
     Session
     """
-    folder = Path(folder)
+    session = _load_session(Path(folder), robot, base_link, tip_link)
+    if prior is None:
+        return session
+    return replace(session, tolerances=load_tolerances(prior, session.robot))
+
+
+def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
+    """:func:`load_session` without the prior (the session's robot's own)."""
     ypath, cpath = folder / "session.yaml", folder / "captures.csv"
     if not folder.is_dir():
         raise FormatError(

@@ -14,6 +14,12 @@ component in g). Groups are taken greedily -- most directions removed first; amo
 joint that never moves in the session, then the upstream group -- and N_0 is restricted to
 v_g = 0 after each, until nothing is left. The chosen groups are the smallest set whose
 values the data cannot tell, each with the data that would fix it.
+
+With a prior (:mod:`solver.identify.prior`) a direction the data cannot see is held by the
+prior, not left undefined: only directions with no prior at all (a sensor frame, identified
+points) are deficient. The directions the prior determined (eq. P5: posterior sigma / prior
+sigma above :data:`PRIOR_RATIO`) are named the same way, with what they leave uncalibrated
+(:func:`determination`).
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ from lasercal.solver.identify.lsq import RANK_RTOL, Identifiability
 
 STILL_RAD = 1e-6  # a joint whose range over the session is below this never moves
 _COMPONENT_TOL = 1e-6  # singular values of a null-space block below this: no component there
+PRIOR_RATIO = 0.9  # posterior / prior sigma above this: the prior determined it (data < 1/4 of the info)
+DATA_RATIO = 0.5  # below this: the data determined it (data > 3 times the prior's information)
 
 
 @dataclass(frozen=True)
@@ -38,19 +46,23 @@ class Deficiency:
     fix : str, the data that would identify it, e.g. "vary joint 4 (it never moves in this session)"
     directions : int, unidentifiable directions it accounts for
     parameters : tuple of str, the parameter names of the group
+    affects : str, what stays uncalibrated while it is not identified, e.g. "tool orientation about
+        joint 7"
     """
 
     combination: str
     fix: str
     directions: int
     parameters: tuple
+    affects: str = ""
 
     def __str__(self) -> str:
         return f"{self.combination} ({self.fix})"
 
 
-def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, str, list[int], bool]]:
-    """Physical parameter groups: (combination, fix, parameter indices, joint never moves), in chain order."""
+def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, str, list[int], bool, str]]:
+    """Physical parameter groups: (combination, fix, parameter indices, joint never moves, what it affects),
+    in chain order."""
     ranges = np.ptp(q, axis=0) if len(q) else np.zeros(len(joint_names))
     kinds = {"wx": "direction", "wy": "direction", "vx": "direction", "vy": "direction"}
     kinds |= {"qx": "position", "qy": "position"}
@@ -71,16 +83,21 @@ def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, s
                 else f"vary joint {j + 1} in more combinations with the other joints "
                 f"(it moves {np.degrees(ranges[j]):.3g} deg here)"
             )
-            groups.append((what, fix, idx, still))
+            affects = (
+                f"tool orientation about axes across joint {j + 1}'s"
+                if kind == "direction"
+                else f"positions swept by joint {j + 1} (its axis's offset)"
+            )
+            groups.append((what, fix, idx, still, affects + " uncalibrated"))
         elif head == "laser":
             fix = "tilt the beam more: aim at each point with varied flange orientations"
-            groups.append(("the laser direction", fix, idx, False))
+            groups.append(("the laser direction", fix, idx, False, "the beam's direction uncalibrated"))
         elif head == "M":
-            groups.append(
-                ("the aperture position", "aim at each point with more varied beam tilts", idx, False)
-            )
+            fix = "aim at each point with more varied beam tilts"
+            groups.append(("the aperture position", fix, idx, False, "where the beam starts uncalibrated"))
         else:
-            groups.append((f"{head}", "capture more varied configurations", idx, False))
+            fix = "capture more varied configurations"
+            groups.append((f"{head}", fix, idx, False, f"{head} uncalibrated"))
     return groups
 
 
@@ -116,19 +133,109 @@ def deficiencies(
     list of Deficiency, empty when the data identify everything the model needs
     """
     N = idf.null_space / np.linalg.norm(idf.null_space, axis=0).clip(RANK_RTOL)
-    N = _restrict(N, list(held))
+    return name_directions(_restrict(N, list(held)), names, joint_names, q)
+
+
+def name_directions(
+    N: np.ndarray, names: list, joint_names: tuple, q: np.ndarray, tol: float = _COMPONENT_TOL
+) -> list[Deficiency]:
+    """The smallest set of parameter groups that carries the directions N (p, k) (module docstring).
+
+    Parameters
+    ----------
+    N : (p, k) array, directions in parameter space
+    names, joint_names, q : as :func:`deficiencies`
+    tol : float, singular values of a group's block of N below this: the group has no component there
+        (exact null spaces: round-off; directions a prior holds are never exactly sparse, so a share:
+        then among groups removing as many directions the one with the larger share goes first)
+
+    Returns
+    -------
+    list of Deficiency
+    """
     groups = _groups(names, tuple(joint_names), np.asarray(q).reshape(-1, len(joint_names)))
     out = []
     while N.shape[1]:
-        removed = [_components(N, g[2]) for g in groups]
-        best_i = min(range(len(groups)), key=lambda i: (-removed[i], not groups[i][3], i))
+        sv = [np.linalg.svd(N[g[2]], compute_uv=False) for g in groups]
+        removed = [int(np.sum(v > tol)) for v in sv]
+        weight = [float(np.sum(v**2)) if tol > _COMPONENT_TOL else 0.0 for v in sv]
+        best_i = min(range(len(groups)), key=lambda i: (-removed[i], -weight[i], not groups[i][3], i))
         best, k = groups[best_i], removed[best_i]
         if k == 0:  # no group carries the rest (cannot happen: the groups cover every parameter)
             break
-        out.append(Deficiency(best[0], best[1], k, tuple(names[i] for i in best[2])))
+        out.append(Deficiency(best[0], best[1], k, tuple(names[i] for i in best[2]), best[4]))
         N = _restrict(N, best[2])
         groups = [g for g in groups if g is not best]
     return out
+
+
+@dataclass(frozen=True)
+class Determination:
+    """Which combinations the data determined and which the prior did (eq. P5 of solver.identify.prior).
+
+    Attributes
+    ----------
+    ratios : (k,) array, posterior sigma / prior sigma of each eigen-direction of the prior-scaled
+        posterior covariance (parameters with a prior), ascending
+    data, both, prior : int, directions with ratio < DATA_RATIO, in between, > PRIOR_RATIO
+    from_prior : tuple of Deficiency, the prior-determined directions named as parameter groups
+    """
+
+    ratios: np.ndarray
+    data: int
+    both: int
+    prior: int
+    from_prior: tuple
+
+    def as_dict(self) -> dict:
+        """The model file's and the report's ``identification.determined_by`` mapping."""
+        return {
+            "data": self.data,
+            "data_and_prior": self.both,
+            "prior": self.prior,
+            "thresholds": {"data_below": DATA_RATIO, "prior_above": PRIOR_RATIO},
+            "ratios": [round(float(r), 4) for r in self.ratios],
+            "from_prior": [
+                {"combination": d.combination, "directions": d.directions, "affects": d.affects, "fix": d.fix}
+                for d in self.from_prior
+            ],
+        }
+
+
+_SHARE = 0.3  # a group holding less than 0.3^2 = 9 % of a prior-held direction (prior units) is not named
+
+
+def determination(
+    cov: np.ndarray, L: np.ndarray, rows: np.ndarray, names: list, joint_names: tuple, q, held: list[int] = ()
+) -> Determination:
+    """Data or prior, per combination (eq. P5): eigen-directions of L C L^T, L the prior's whitening.
+
+    Parameters
+    ----------
+    cov : (p, p) array, the posterior covariance (eq. P4)
+    L : (k, p) array, the prior's whitening (:attr:`solver.identify.prior.Prior.whitening`)
+    rows : (k,) int array, the parameter each row of L belongs to (parameters without a prior have none)
+    names, joint_names, q : as :func:`deficiencies`
+    held : parameter indices of a gauge, fixed by convention rather than by data or prior (left out)
+
+    Returns
+    -------
+    Determination
+    """
+    keep = ~np.isin(rows, list(held))
+    L, rows = L[keep], rows[keep]
+    lam, U = np.linalg.eigh(L @ cov @ L.T)
+    ratios = np.sqrt(np.clip(lam, 0.0, None))
+    prior = ratios > PRIOR_RATIO
+    N = np.zeros((len(names), int(prior.sum())))
+    N[rows] = U[:, prior]  # whitened: each row in units of its tolerance, comparable across mm and rad
+    return Determination(
+        ratios,
+        int(np.sum(ratios < DATA_RATIO)),
+        int(np.sum((ratios >= DATA_RATIO) & ~prior)),
+        int(prior.sum()),
+        tuple(name_directions(N, names, joint_names, q, _SHARE)),
+    )
 
 
 def laser_gauge(names: list, laser_dir: np.ndarray) -> list[int]:

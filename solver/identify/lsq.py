@@ -32,6 +32,9 @@ from scipy.special import (
     fdtrc,  # survival function of the F distribution (scipy.stats.f.sf)
 )
 
+from lasercal.solver.errors import IdentificationError
+from lasercal.solver.identify.prior import Prior
+
 RANK_RTOL = 1e-6
 # Family-wise false-flag rate of the outlier test. Strict on purpose: the test exists for gross mistakes
 # (a capture logged against the wrong point or socket: tens of noise sigmas, flagged at any level), while
@@ -190,11 +193,12 @@ class SubspaceFit:
     Attributes
     ----------
     v : (p,) array, the estimate
-    cov : (p, p) array, its covariance (zero along unidentifiable directions)
+    cov : (p, p) array, its covariance (zero along directions neither the data nor a prior determine;
+        with a prior, eq. P4 of :mod:`solver.identify.prior`)
     residuals : (m, d) array, of every capture (also the flagged ones)
     weights : (m,) array, 1 used, 0 flagged
-    sigma : float, per-axis noise estimated from the used residuals
-    identifiability : Identifiability
+    sigma : float, per-axis noise estimated from the used residuals (with a prior: eq. P3)
+    identifiability : Identifiability, of the data and constraints alone (a prior does not enter it)
     converged : bool
     iterations : int, Jacobian evaluations
     history : list of dict
@@ -202,6 +206,8 @@ class SubspaceFit:
         residual directions the fit could absorb (nested-model tests project on it)
     constraint_span : (c, r) array, the same for the constraint rows (c = 0 without constraints)
     constraint_residuals : (c,) array
+    prior : Prior or None, the prior of a MAP fit
+    dof : float, residual degrees of freedom d m_used - tr H (eq. P3; without a prior, d m_used - rank)
     """
 
     v: np.ndarray
@@ -216,6 +222,12 @@ class SubspaceFit:
     span: np.ndarray
     constraint_span: np.ndarray
     constraint_residuals: np.ndarray
+    prior: Prior | None = None
+    dof: float = 0.0
+
+
+_SIGMA_RTOL = 1e-2  # the noise fixed point (eq. P3) is reached when sigma changes less than this
+_SIGMA_PASSES = 12  # at most this many refits for it (3-5 usually)
 
 
 def fit_subspace(
@@ -228,14 +240,15 @@ def fit_subspace(
     constraints: Callable | None = None,
     groups: np.ndarray | None = None,
     suspects: np.ndarray | None = None,
+    prior: Prior | None = None,
 ) -> SubspaceFit:
-    """Levenberg-Marquardt in the identifiable subspace at v0, with the robust loss.
+    """Levenberg-Marquardt in the identifiable subspace at v0, with the robust loss; MAP with a prior.
 
     Parameters
     ----------
     residual : v -> (m, d) array, per-capture residuals
     jacobian : v -> (m, d, p) array
-    v0 : (p,) array, the start (unidentifiable combinations stay at its values)
+    v0 : (p,) array, the start (combinations neither the data nor the prior identify stay at its values)
     names : list of p str
     robust : bool, flag outliers (:func:`studentised_outliers`) and refit without them
     w0 : (m,) array, starting weights (e.g. captures suspected as gross outliers: 0; they are
@@ -246,6 +259,9 @@ def fit_subspace(
     suspects : (m,) bool array, the only captures the outlier test may flag (e.g. those the geometric fit
         flagged, for an extension of it); they start left out and come back when the fit predicts them.
         Default: every capture
+    prior : Prior or None, the MAP fit of :mod:`solver.identify.prior` (eqs. P2-P4): the prior's rows
+        join the constraints, weighted by the noise sigma, and the fit and sigma are iterated to their
+        fixed point. None: plain least squares
 
     Returns
     -------
@@ -257,14 +273,22 @@ def fit_subspace(
     w = np.ones(m) if w0 is None else np.asarray(w0, dtype=float).copy()
     if suspects is not None and robust:
         w[suspects] = 0.0
+    sigma = prior.noise if prior is not None else 1.0
+    n_con = 0 if constraints is None else len(constraints(v0)[0])
+
+    def extra_rows(v):
+        """The constraints' rows, then the prior's (weighted by the current noise sigma)."""
+        r, J = (np.zeros(0), np.zeros((0, p))) if constraints is None else constraints(v)
+        if prior is not None:
+            rp, Jp = prior.rows(v, sigma)
+            r, J = np.r_[r, rp], np.vstack([J, Jp])
+        return r, J
 
     def rows(v, sw):
-        r = (residual(v) * sw[:, None]).ravel()
-        return r if constraints is None else np.r_[r, constraints(v)[0]]
+        return np.r_[(residual(v) * sw[:, None]).ravel(), extra_rows(v)[0]]
 
     def jrows(v, sw):
-        J = (jacobian(v) * sw[:, None, None]).reshape(m * d, p)
-        return J if constraints is None else np.vstack([J, constraints(v)[1]])
+        return np.vstack([(jacobian(v) * sw[:, None, None]).reshape(m * d, p), extra_rows(v)[1]])
 
     history, iterations = [], 0
 
@@ -293,10 +317,11 @@ def fit_subspace(
         )
         return sol, res
 
-    ident, basis = identifiability(jrows(v0, np.ones(m)), names)
-    sol, res = run(v0, basis, np.zeros(basis.shape[1]), w)
-    r = basis.shape[1]
-    if robust:
+    def robust_fit(z, w):
+        """LM, then test-and-refit until the flagged set is stable."""
+        sol, res = run(v0, basis, z, w)
+        if not robust:
+            return sol, res, w
         # flags can cycle (few captures: a capture is an outlier only while another one is fitted);
         # a weight pattern fitted before is not refitted: its fit is the same up to the LM tolerance
         fits = {w.tobytes(): (sol, res, history[-1])}
@@ -315,15 +340,39 @@ def fit_subspace(
             else:
                 sol, res = run(v0, basis, sol.x, w)
                 fits[w.tobytes()] = (sol, res, history[-1])
+        return sol, res, w
+
+    con = [] if constraints is None else [constraints(v0)[1]]
+    ident, _ = identifiability(np.vstack([jacobian(v0).reshape(m * d, p)] + con), names)  # data alone
+    _, basis = identifiability(jrows(v0, np.ones(m)), names)  # what data, constraints and prior fix
+    r = basis.shape[1]
+    z = np.zeros(r)
+    for _ in range(_SIGMA_PASSES if prior is not None else 1):
+        sol, res, w = robust_fit(z, w)
+        z = sol.x
+        if prior is None:
+            break
+        v = v0 + basis @ z
+        used = w > 0
+        cov = basis @ covariance(jrows(v, np.sqrt(w)) @ basis, sigma) @ basis.T
+        Ju = jacobian(v)[used].reshape(-1, p)
+        dof = d * used.sum() - float(np.sum((Ju @ cov) * Ju)) / sigma**2  # d m - tr H (eq. P3)
+        rss = float(np.sum(res[used] ** 2))
+        new = float(np.sqrt((prior.noise_dof * prior.noise**2 + rss) / (prior.noise_dof + max(dof, 0.0))))
+        done = abs(new / sigma - 1) < _SIGMA_RTOL
+        sigma = new
+        if done:
+            break
     v = v0 + basis @ sol.x
     used = w > 0
-    dof = d * used.sum() - r + (0 if constraints is None else len(constraints(v)[0]))
-    if dof <= 0:
-        from lasercal.solver.errors import IdentificationError
-
-        raise IdentificationError(f"{used.sum()} usable captures cannot identify {r} parameter combinations")
     sw = np.sqrt(w)
-    sigma = float(np.sqrt(np.sum(rows(v, sw) ** 2) / dof))
+    if prior is None:
+        dof = d * used.sum() - r + n_con
+        if dof <= 0:
+            raise IdentificationError(
+                f"{used.sum()} usable captures cannot identify {r} parameter combinations"
+            )
+        sigma = float(np.sqrt(np.sum(rows(v, sw) ** 2) / dof))
     cov = basis @ covariance(jrows(v, sw) @ basis, sigma) @ basis.T
     rc, Jc = constraints(v) if constraints is not None else (np.zeros(0), np.zeros((0, p)))
     return SubspaceFit(
@@ -339,4 +388,6 @@ def fit_subspace(
         jacobian(v) @ basis,
         Jc @ basis,
         rc,
+        prior,
+        float(dof),
     )

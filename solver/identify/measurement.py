@@ -11,7 +11,13 @@ import numpy as np
 
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
-from lasercal.solver.identify.degenerate import Deficiency, deficiencies, laser_gauge
+from lasercal.solver.identify.degenerate import (
+    Deficiency,
+    Determination,
+    deficiencies,
+    determination,
+    laser_gauge,
+)
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
 from lasercal.solver.identify.spot import Identification, identify, spot_residuals
@@ -94,18 +100,35 @@ def check_data(session) -> None:
 
 
 def unidentifiable(session: Session, ident: Identification) -> list[Deficiency]:
-    """What the session's data cannot identify beyond the gauge, named (:mod:`solver.identify.degenerate`).
+    """What neither the session's data nor the prior identifies beyond the gauge, named
+    (:mod:`solver.identify.degenerate`).
 
     Laser sessions hold the aperture's component along the beam (the gauge of spot data); point and
-    position identifications hold their base-frame gauge outside the parameter vector already.
+    position identifications hold their base-frame gauge outside the parameter vector already. A
+    parameter with a prior is held by it (its direction is reported by :func:`determined_by` instead).
 
     Returns
     -------
-    list of Deficiency, empty for a full-rank fit
+    list of Deficiency, empty for a full-rank fit (always, under a prior on every parameter)
     """
     names = list(ident.param_names)
     held = laser_gauge(names, ident.model.laser_dir) if session.measurement == "laser" else []
+    prior = ident.extra.get("prior")
+    if prior is not None:
+        held = sorted(set(held) | set(np.flatnonzero(prior.finite).tolist()))
     return deficiencies(ident.identifiability, names, session.robot.joint_names, session.q, held)
+
+
+def determined_by(session: Session, ident: Identification) -> Determination | None:
+    """Which combinations the data and which the prior determined (eq. P5; None for a fit without prior)."""
+    prior = ident.extra.get("prior")
+    if prior is None or "cov" not in ident.extra:
+        return None
+    names = list(ident.param_names)
+    held = laser_gauge(names, ident.model.laser_dir) if session.measurement == "laser" else []
+    joints = session.robot.joint_names
+    rows = np.flatnonzero(prior.finite)
+    return determination(ident.extra["cov"], prior.whitening, rows, names, joints, session.q, held)
 
 
 def refuse_partial(missing: list[Deficiency]) -> None:

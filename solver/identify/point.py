@@ -23,9 +23,10 @@ import numpy as np
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.lsq import fit_subspace
+from lasercal.solver.identify.prior import make_prior
 from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.effects import Extension, require
-from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+from lasercal.solver.kinematics.minimal import anchor_heights, link_frame, screw_from_eta
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, poe_chain, space_jacobian
 
@@ -84,6 +85,8 @@ class PointParams:
             + ["tool.x", "tool.y", "tool.z"]
             + [f"{nm}.{c}" for nm in self.unknown for c in "xyz"]
         )
+        joint_kinds = ["axis", "axis", "offset", "offset"] * n
+        self.kinds = [joint_kinds[i] for i in self.free] + ["tool"] * 3 + ["point"] * 3 * len(self.unknown)
         self.n_free = len(self.free)
         self.size = self.n_free + 3 + 3 * len(self.unknown)
         self.slice_tool = slice(self.n_free, self.n_free + 3)
@@ -208,15 +211,26 @@ def identify_point(
         r, J = P.distance_rows(v[:p], session)
         return r, np.hstack([J, np.zeros((len(r), k))])
 
+    x0 = np.r_[P.x0(session), np.zeros(k)]
+    kinds = P.kinds + (extension.kinds if extension else [])
     fit = fit_subspace(
         residual,
         jacobian,
-        np.r_[P.x0(session), np.zeros(k)],
+        x0,
         names,
         robust,
         constraints=constraints if session.distances else None,
         groups=session.positions,
         suspects=suspects,
+        prior=make_prior(
+            session.tolerances,
+            kinds,
+            x0,
+            "point",
+            names,
+            nominal.joint_names,
+            anchor_heights(nominal.screws, P.tool0),
+        ),
     )
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     meta = {

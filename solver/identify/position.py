@@ -32,9 +32,10 @@ import numpy as np
 from lasercal.solver.errors import FormatError, IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.lsq import fit_subspace
+from lasercal.solver.identify.prior import make_prior
 from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.effects import Extension, require
-from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+from lasercal.solver.kinematics.minimal import anchor_heights, link_frame, screw_from_eta
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, exp6, poe_chain, skew, space_jacobian
 
@@ -202,6 +203,14 @@ class PositionParams:
             + [f"sensor.{c}" for c in ("wx", "wy", "wz", "vx", "vy", "vz")]
             + [f"{nm}.{c}" for nm in self.targets for c in "xyz"]
         )
+        kinds = {4: ("axis", "axis", "offset", "offset"), 2: ("slide", "slide")}
+        all_kinds = [kd for k in self.sizes for kd in kinds[k]]
+        self.kinds = (
+            [all_kinds[i] for i in self.free]
+            + ["sensor_rot"] * 3
+            + ["sensor_pos"] * 3
+            + ["target"] * 3 * len(self.targets)
+        )
 
     def geometry(self, x: np.ndarray, X0: np.ndarray):
         """Screws (n, 6), dS/deta (list of (6, k)), X (4, 4), targets dict at x."""
@@ -317,7 +326,10 @@ def identify_position(
     x0 = np.zeros(p + k)
     for nm, c in P.col.items():
         x0[c : c + 3] = tg0[nm]
-    fit = fit_subspace(residual, jacobian, x0, names_all, robust, suspects=suspects)
+    kinds = P.kinds + (extension.kinds if extension else [])
+    heights = anchor_heights(nominal.screws, target_start(nominal))
+    prior = make_prior(session.tolerances, kinds, x0, "position", names_all, nominal.joint_names, heights)
+    fit = fit_subspace(residual, jacobian, x0, names_all, robust, suspects=suspects, prior=prior)
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     gauge = (
         f"base frame = the nominal's: held at nominal {', '.join(P.held_names)} (a rigid motion of the base, "

@@ -30,8 +30,10 @@ from scipy import optimize
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_outliers, identifiability
+from lasercal.solver.identify.prior import Prior, Tolerances, make_prior
 from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_jacobian
+from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.model import RobotModel
 
 
@@ -55,7 +57,7 @@ class Identification:
     param_names : list of str
     estimate : (p,) array, the identified parameter vector (in the nominal's link frames)
     seconds : float, wall time
-    extra : dict, e.g. 'cov' the parameter covariance (p, p)
+    extra : dict, e.g. 'cov' the parameter covariance (p, p), 'prior' the Prior of a MAP fit (or None)
     extension : Extension or None, the fitted non-geometric effect with standard errors
     """
 
@@ -87,7 +89,7 @@ class Identification:
         fit : the least-squares result (converged, iterations, history, residuals, weights, sigma, v, ...)
         names : list of str; se : (p,) array, the standard error of each parameter
         t0 : float, ``time.perf_counter()`` when the identification started
-        extra : dict, covariance, spans, identified points
+        extra : dict, covariance, spans, identified points (the fit's prior is added as 'prior')
         extension : the fitted extension, or None
         override : fields that differ from the fit's (e.g. iterations over several stages)
         """
@@ -107,7 +109,7 @@ class Identification:
             "param_names": names,
             "estimate": fit.v,
             "seconds": time.perf_counter() - t0,
-            "extra": extra,
+            "extra": {**extra, "prior": fit.prior},
             "extension": extension,
         }
         return cls(**{**kw, **override})
@@ -117,6 +119,22 @@ class Identification:
         """RMS residual (in the plane, or 3-D for point sessions) over the captures used, mm."""
         w = self.weights > 0
         return float(np.sqrt(np.mean(np.sum(self.residuals[w] ** 2, axis=1))))
+
+
+def laser_prior(P: LaserParams, tolerances: Tolerances | None, extension=None) -> Prior | None:
+    """The prior of a laser robot's parameters (and an extension's, mean 0) about P's reference model
+    (eq. P1 of :mod:`solver.identify.prior`, axis positions anchored at the joints); None without
+    ``tolerances``."""
+    ext = ([], 0) if extension is None else (extension.kinds, extension.size)
+    return make_prior(
+        tolerances,
+        P.kinds + ext[0],
+        np.r_[P.x0(), np.zeros(ext[1])],
+        "laser",
+        P.names,
+        P.model.joint_names,
+        anchor_heights(P.model.screws, P.model.aperture),
+    )
 
 
 def spot_residuals(model: RobotModel, q: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -229,17 +247,25 @@ def identify_lm(
     if robust:
         flags, _ = flag_outliers(spot_residuals(start, q, target), w)
         w = np.where(flags, 0.0, 1.0)
+    x0 = P.x0()
+    prior = laser_prior(P, session.tolerances, extension)
 
     # Stage 1 (geometry only): the beam-to-point distance brings a far-off start (steep beams) into the basin
-    # of stage 2.
-    x0 = P.x0()
+    # of stage 2; with a prior, its rows (at the nominal noise) join in, as in stage 2.
     _, _, J0 = P.spot_jacobian(x0, q, target[:, 2])
-    _, B1 = identifiability(J0.reshape(2 * m, p), P.names)
+    geo_prior = laser_prior(P, session.tolerances)
+    pr = [] if geo_prior is None else [geo_prior.rows(x0, geo_prior.noise)[1]]
+    _, B1 = identifiability(np.vstack([J0.reshape(2 * m, p)] + pr), P.names)
     sw = np.sqrt(w)[:, None, None]
 
     def line(z):
-        r, J = P.line_jacobian(x0 + B1 @ z, q, target)
-        return (r[:, :, None] * sw)[..., 0].ravel(), (J * sw).reshape(3 * m, p) @ B1
+        x = x0 + B1 @ z
+        r, J = P.line_jacobian(x, q, target)
+        r, J = (r[:, :, None] * sw)[..., 0].ravel(), (J * sw).reshape(3 * m, p)
+        if geo_prior is not None:
+            rp, Jp = geo_prior.rows(x, geo_prior.noise)
+            r, J = np.r_[r, rp], np.vstack([J, Jp])
+        return r, J @ B1
 
     first = optimize.least_squares(
         lambda z: line(z)[0],
@@ -255,16 +281,16 @@ def identify_lm(
         {
             "pass": 0,
             "method": "lm (beam distance)",
-            "rms_mm": float(np.sqrt(np.mean(first.fun**2) * 3)),
+            "rms_mm": float(np.sqrt(np.mean(first.fun[: 3 * m] ** 2) * 3)),
             "iterations": int(first.njev),
             "status": int(first.status),
         }
     )
 
     # Stage 2: in-plane residuals, geometry and extension together, in the identifiable subspace at the
-    # stage-1 solution.
+    # stage-1 solution (MAP with the session's prior, eqs. P2-P4 of solver.identify.prior).
     v1 = np.r_[x0 + B1 @ first.x, np.zeros(k)]
-    fit = fit_subspace(residual, jacobian, v1, names, robust, w, suspects=suspects)
+    fit = fit_subspace(residual, jacobian, v1, names, robust, w, suspects=suspects, prior=prior)
     iterations += fit.iterations
     history += fit.history
     v, cov = _aperture_gauge(P, fit.v, fit.cov, session.aperture_z)

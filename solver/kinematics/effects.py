@@ -79,6 +79,11 @@ class Extension:
         return [f"{p}{j}" for j in self.joints for p in _PARAMS[self.effect]]
 
     @property
+    def kinds(self) -> list[str]:
+        """The prior kind of each parameter (:mod:`solver.identify.prior`): the effect's name."""
+        return [self.effect] * self.size
+
+    @property
     def parts(self) -> tuple:
         """The single-effect extensions it consists of (itself)."""
         return (self,)
@@ -220,6 +225,7 @@ class Combination:
     params = property(lambda self: np.concatenate([e.params for e in self.parts]))
     size = property(lambda self: sum(e.size for e in self.parts))
     names = property(lambda self: [n for e in self.parts for n in e.names])
+    kinds = property(lambda self: [k for e in self.parts for k in e.kinds])
     units = property(lambda self: [u for e in self.parts for u in e.units])
     label = property(lambda self: " + ".join(e.label for e in self.parts))
 

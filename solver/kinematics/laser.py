@@ -169,6 +169,7 @@ class LaserParams:
         self.size = 4 * n + 2 + 3
         self.names = [f"{jn}.{p}" for jn in model.joint_names for p in ("wx", "wy", "qx", "qy")]
         self.names += ["laser.vx", "laser.vy", "M.x", "M.y", "M.z"]
+        self.kinds = ["axis", "axis", "offset", "offset"] * n + ["laser"] * 2 + ["aperture"] * 3
         self.slice_laser = slice(4 * n, 4 * n + 2)
         self.slice_M = slice(4 * n + 2, 4 * n + 5)
 

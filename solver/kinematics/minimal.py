@@ -127,3 +127,57 @@ def normalise_screw(S: np.ndarray) -> tuple[np.ndarray, float, float]:
     wu = w / nw
     pitch = float(wu @ v)
     return np.concatenate([wu, v - pitch * wu]), abs(nw - 1), pitch
+
+
+def _nearest_on_axis(p: np.ndarray, w: np.ndarray, a: np.ndarray, u: np.ndarray) -> float | None:
+    """Axial coordinate t along line p + t w nearest to line a + s u (None when they are parallel)."""
+    n = np.cross(w, u)
+    if np.linalg.norm(n) < 1e-6:
+        return None
+    # t solves (p + t w - a) . (w - (w.u) u) = 0, the common normal's foot on the first line
+    c = w @ u
+    return float((a - p) @ (w - c * u) / (1 - c * c))
+
+
+def anchor_heights(screws: np.ndarray, tip: np.ndarray) -> np.ndarray:
+    """Where each revolute joint physically sits along its axis, as a height h in its link frame (mm).
+
+    A joint's axis is tilted, by manufacture, about the joint itself -- its bearings -- not about its
+    link frame's origin (the foot of the perpendicular from the base origin, eq. 2.2.15), which may lie
+    a metre away along the axis. The anchor is the mean of the feet of the common normals with the
+    neighbouring axes (the tool point ``tip`` at q = 0 stands in for the last joint's next one; the
+    base origin for the first joint's previous one); a parallel neighbour gives none. Tilting eta's
+    axis direction by (wx, wy) moves the axis at height h by h (wx, wy): the offset at the joint is
+    (qx + h wx, qy + h wy), to first order (:func:`screw_from_eta`).
+
+    Parameters
+    ----------
+    screws : (n, 6) array, the reference model's joint screws (mm)
+    tip : (3,) array, the tool point or laser aperture at q = 0, mm
+
+    Returns
+    -------
+    (n,) array, mm (0 for prismatic joints and joints with no anchor)
+    """
+    n = len(screws)
+    h = np.zeros(n)
+    for j, S in enumerate(screws):
+        w = S[:3]
+        if np.linalg.norm(w) < 0.5:
+            continue
+        T = link_frame(S)
+        o = T[:3, 3]
+        feet = []
+        for k in (j - 1, j + 1):
+            if k < 0:
+                feet.append(float(w @ (np.zeros(3) - o)))  # the base origin, projected on the axis
+            elif k >= n or np.linalg.norm(screws[k, :3]) < 0.5:
+                feet.append(float(w @ (np.asarray(tip, dtype=float) - o)))  # the tool, projected
+            else:
+                wk = screws[k, :3]
+                t = _nearest_on_axis(o, w, np.cross(wk, screws[k, 3:]), wk)
+                if t is not None:
+                    feet.append(t)
+        h[j] = np.mean(feet) if feet else 0.0
+    return h
+

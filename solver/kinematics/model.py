@@ -19,6 +19,7 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
     urdf: {file, base_link, tip_link}  # optional: the URDF the model came from (export keeps it)
     links: [...]           # optional: masses (kg) and centres of mass at q = 0 (mm)
     extensions: {}         # optional: non-geometric parameters (see solver.effects)
+    prior: {}              # optional: manufacturing tolerances, every fit's prior (solver.identify.prior)
     identification: {}     # written by `lasercal solve`: method, statistics, standard errors
 """
 
@@ -72,6 +73,7 @@ class RobotModel:
     urdf : dict, the URDF the model came from ({file, base_link, tip_link, joints}); empty otherwise
     links : tuple of Link, the gravity model (may be empty)
     extensions : dict, non-geometric parameters by effect name
+    prior : dict, tolerances overriding the defaults of :mod:`solver.identify.prior` (mm, rad)
     identification : dict, metadata written by an identification
     notes : tuple of str, what was corrected on load (never silent)
     """
@@ -91,6 +93,7 @@ class RobotModel:
     urdf: dict = field(default_factory=dict)
     links: tuple = ()
     extensions: dict = field(default_factory=dict)
+    prior: dict = field(default_factory=dict)
     identification: dict = field(default_factory=dict)
     notes: tuple = ()
 
@@ -160,6 +163,8 @@ class RobotModel:
             d["links"] = [{"mass": float(lk.mass), "com": r(lk.com)} for lk in self.links]
         if self.extensions:
             d["extensions"] = self.extensions
+        if self.prior:
+            d["prior"] = dict(self.prior)
         if self.identification:
             d["identification"] = self.identification
         if self.notes:

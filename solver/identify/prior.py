@@ -1,0 +1,275 @@
+"""Priors from manufacturing tolerances: what a real arm's parameters may be before any data.
+
+Robot calibration is least squares with priors: a real arm is its nominal model to within the
+tolerances of its manufacture and assembly, and the data refine it where they can. Every
+identification in ``solver`` (laser spots, tool points, 3-D positions, their extensions, the
+capture coach) is the same maximum-a-posteriori (MAP) estimate:
+
+* prior (eq. P1): T (x - x_0) ~ N(0, diag(s^2)), x_0 the nominal (the start), s from
+  :class:`Tolerances` by parameter kind; s = inf is no prior (a sensor frame, identified points:
+  anything goes). T is the identity but for each revolute joint's axis position, whose tolerance
+  holds where the joint physically is (its bearings), not at its link frame's origin:
+  T maps (qx, qy) to (qx + h wx, qy + h wy), h the joint's anchor height along its axis
+  (:func:`~lasercal.solver.kinematics.minimal.anchor_heights`) -- a tilt of joint 5's axis about
+  the elbow is not also a 10 mm offset;
+* estimate (eq. P2): min_x |r(x)|^2 / sigma^2 + |T (x - x_0) / s|^2, solved by
+  :func:`~lasercal.solver.identify.lsq.fit_subspace` with the prior as extra residual rows
+  sigma T (x - x_0) / s (Levenberg-Marquardt in the identifiable subspace, robust loss);
+* noise (eq. P3): sigma^2 = (nu_0 sigma_0^2 + RSS) / (nu_0 + d m - tr H), a scaled-inverse-chi^2
+  posterior with nu_0 pseudo-observations at the measurement's nominal noise sigma_0, and
+  tr H = tr(J C J^T) / sigma^2 the effective number of fitted parameters; P2 and P3 are iterated
+  to their fixed point;
+* covariance (eq. P4): C = (J^T J / sigma^2 + T^T diag(1 / s^2) T)^-1, through an SVD of the stacked
+  rows (never a normal-matrix inverse); it has full rank wherever the prior is finite, and a
+  direction the data cannot see keeps its prior variance;
+* data or prior (eq. P5): the eigen-directions u of L C L^T, L = diag(1/s) T (the posterior in units
+  of the prior) with eigenvalue lambda: sqrt(lambda) = posterior sigma / prior sigma along u.
+  Near 1 the prior determined that combination, near 0 the data did.
+
+``--prior none`` (``prior=None`` everywhere) is plain least squares: the thesis's comparisons keep it.
+
+Defaults (:data:`DEFAULTS`) hold for a hand-assembled arm and a hand-mounted laser; a robot's data
+file may state its own (``prior:`` in ``lasercal-robot/1``), and a user's file overrides both
+(``lasercal-prior/1``, docs/formats.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from lasercal.solver.errors import FormatError
+
+FORMAT = "lasercal-prior/1"
+
+# Each parameter of an identification has a kind; its prior sigma is the tolerance of that kind.
+KINDS = {
+    "axis": "axis_rad",  # a revolute joint's axis direction (eta wx, wy)
+    "offset": "offset_mm",  # a revolute joint's axis position across the axis (eta qx, qy)
+    "slide": "axis_rad",  # a prismatic joint's direction (eta vx, vy)
+    "laser": "laser_rad",  # the laser beam's direction (eta_p)
+    "aperture": "aperture_mm",  # the laser aperture at q = 0
+    "tool": "tool_mm",  # a tool point at q = 0
+    "target": "target_mm",  # a tracker target on the last link at q = 0
+    "point": "point_mm",  # a reference point identified with the robot (point sessions)
+    "sensor_rot": "sensor_rad",  # the 3-D sensor's frame, rotation
+    "sensor_pos": "sensor_mm",  # the 3-D sensor's frame, translation
+    "sheet_pos": "sheet_mm",  # a printed sheet's position on the table
+    "sheet_yaw": "sheet_rad",  # a printed sheet's rotation on the table
+    "joint_compliance": "compliance_rad_per_nm",
+    "encoder_eccentricity": "eccentricity_rad",
+    "drift": "drift_rad_per_s",
+    "reference_point_offset": "point_offset_mm",
+}
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Prior standard deviations by parameter kind (eq. P1) and the noise prior (eq. P3).
+
+    Lengths mm, angles rad. ``inf`` is no prior for that kind.
+
+    Attributes
+    ----------
+    axis_rad : float, a joint axis's direction (2 components per joint)
+    offset_mm : float, a joint axis's position across it (2 components per joint)
+    laser_rad : float, the laser direction (hand-mounted pointer)
+    aperture_mm : float, the laser aperture's position at q = 0 (per axis)
+    tool_mm : float, a tool point at q = 0 (per axis)
+    target_mm : float, a tracker target on the last link (per axis; inf: wherever the closed-form start
+        puts it)
+    point_mm : float, a reference point identified with the robot (per axis)
+    sensor_rad, sensor_mm : float, the 3-D sensor's frame (inf: anywhere)
+    sheet_mm, sheet_rad : float, a printed sheet's placement on the table about its stated placement
+    compliance_rad_per_nm : float, a joint compliance c (q_true = q + c tau)
+    eccentricity_rad : float, an encoder eccentricity amplitude (a, b)
+    drift_rad_per_s : float, a joint drift rate
+    point_offset_mm : float, a reference point's offset from where the layout says (per axis)
+    noise_mm : dict measurement -> sigma_0, the nominal measurement noise per axis (mm)
+    noise_dof : float, nu_0: pseudo-observations behind noise_mm
+    """
+
+    axis_rad: float = 0.01
+    offset_mm: float = 3.0
+    laser_rad: float = 0.03
+    aperture_mm: float = 3.0
+    tool_mm: float = 5.0
+    target_mm: float = math.inf
+    point_mm: float = math.inf
+    sensor_rad: float = math.inf
+    sensor_mm: float = math.inf
+    sheet_mm: float = 50.0
+    sheet_rad: float = math.radians(15.0)
+    compliance_rad_per_nm: float = 2e-4
+    eccentricity_rad: float = 2e-3
+    drift_rad_per_s: float = 1e-5
+    point_offset_mm: float = 3.0
+    noise_mm: tuple = (("laser", 1.0), ("point", 0.3), ("position", 0.02))
+    noise_dof: float = 4.0
+
+    def std(self, kinds) -> np.ndarray:
+        """Prior sigmas s (p,) of parameters of the given kinds (eq. P1)."""
+        return np.array([getattr(self, KINDS[k]) for k in kinds], dtype=float)
+
+    def noise(self, measurement: str) -> float:
+        """sigma_0 of a measurement type ('laser', 'point', 'position'), mm."""
+        return dict(self.noise_mm)[measurement]
+
+    def with_noise(self, measurement: str, mm: float) -> Tolerances:
+        """These tolerances with sigma_0 of one measurement type set to ``mm``."""
+        return replace(self, noise_mm=tuple((dict(self.noise_mm) | {measurement: float(mm)}).items()))
+
+    def as_dict(self) -> dict:
+        """The tolerances as a JSON- and YAML-ready mapping (no prior, inf, written as None)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d["noise_mm"] = dict(self.noise_mm)
+        return {k: None if isinstance(v, float) and math.isinf(v) else v for k, v in d.items()}
+
+    def updated(self, d: dict, path="<prior>", where: str = "prior") -> Tolerances:
+        """These tolerances with the entries of a mapping ``d`` changed, validated.
+
+        Raises
+        ------
+        FormatError
+            An unknown key, or a value that is not a positive number (inf allowed; naming the field).
+        """
+        if not isinstance(d, dict):
+            raise FormatError(path, "expected a mapping of tolerances (mm, rad)", field=where)
+        known = {f.name for f in fields(self)}
+        out = {}
+        for k, v in d.items():
+            if k not in known:
+                raise FormatError(
+                    path, f"unknown tolerance {k!r} (known: {', '.join(sorted(known))})", field=f"{where}.{k}"
+                )
+            if v is None:  # as_dict's "no prior"
+                v = math.inf
+            if k == "noise_mm":
+                if not isinstance(v, dict) or set(v) - {"laser", "point", "position"}:
+                    raise FormatError(
+                        path, "noise_mm must map laser/point/position to mm", field=f"{where}.{k}"
+                    )
+                vals = dict(self.noise_mm) | {m: _positive(x, path, f"{where}.{k}.{m}") for m, x in v.items()}
+                if any(math.isinf(x) for x in vals.values()):
+                    raise FormatError(path, "a noise sigma must be finite (mm)", field=f"{where}.{k}")
+                out[k] = tuple(vals.items())
+            else:
+                out[k] = _positive(v, path, f"{where}.{k}")
+        if math.isinf(out.get("noise_dof", 1.0)):
+            raise FormatError(path, "noise_dof must be finite", field=f"{where}.noise_dof")
+        return replace(self, **out)
+
+
+def _positive(v, path, field: str) -> float:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not x > 0:  # NaN fails too
+        raise FormatError(path, f"{v!r} (expected a number > 0, or .inf for no prior)", field=field)
+    return x
+
+
+DEFAULTS = Tolerances()
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A Gaussian prior on one parameter vector (eq. P1) and on the noise (eq. P3).
+
+    Attributes
+    ----------
+    mean : (p,) array, x_0
+    std : (p,) array, s (inf: no prior on that parameter)
+    noise : float, sigma_0, mm
+    noise_dof : float, nu_0
+    T : (p, p) array, the map whose image has the independent tolerances s (eq. P1; invertible)
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    noise: float
+    noise_dof: float
+    T: np.ndarray
+
+    @property
+    def finite(self) -> np.ndarray:
+        """(p,) bool: rows of T (x - x_0) with a prior."""
+        return np.isfinite(self.std)
+
+    @property
+    def whitening(self) -> np.ndarray:
+        """L = diag(1/s) T over the finite rows (k, p): L (x - x_0) ~ N(0, I) (eqs. P1, P5)."""
+        f = self.finite
+        return self.T[f] / self.std[f, None]
+
+    def rows(self, v: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+        """The prior's residual rows sigma L (v - x_0) and their Jacobian sigma L (eq. P2)."""
+        L = sigma * self.whitening
+        return L @ (v - self.mean), L
+
+
+def make_prior(
+    tol: Tolerances | None,
+    kinds,
+    mean: np.ndarray,
+    measurement: str,
+    names: list | None = None,
+    joint_names=(),
+    heights: np.ndarray | None = None,
+) -> Prior | None:
+    """The prior of a parameter vector of the given kinds about ``mean`` (None: plain least squares).
+
+    Parameters
+    ----------
+    tol : Tolerances or None
+    kinds : list of p str, keys of :data:`KINDS`
+    mean : (p,) array, x_0
+    measurement : str, 'laser', 'point' or 'position' (sigma_0)
+    names, joint_names, heights : the parameter names ('joint4.qx', ...), the joints' names and their
+        anchor heights (mm, :func:`~lasercal.solver.kinematics.minimal.anchor_heights`): the axis
+        position's tolerance then holds at the joint (eq. P1's T); without them, T = I
+    """
+    if tol is None:
+        return None
+    p = len(kinds)
+    T = np.eye(p)
+    if names is not None and heights is not None:
+        idx = {nm: i for i, nm in enumerate(names)}
+        for jn, h in zip(joint_names, heights):
+            for qc, wc in (("qx", "wx"), ("qy", "wy")):
+                if f"{jn}.{qc}" in idx and f"{jn}.{wc}" in idx:
+                    T[idx[f"{jn}.{qc}"], idx[f"{jn}.{wc}"]] = h
+    return Prior(np.asarray(mean, float).copy(), tol.std(kinds), tol.noise(measurement), tol.noise_dof, T)
+
+
+def robot_tolerances(model) -> Tolerances:
+    """A robot's tolerances: its data file's ``prior:`` section over :data:`DEFAULTS`."""
+    return DEFAULTS.updated(model.prior, f"robot {model.name}") if model.prior else DEFAULTS
+
+
+def load_tolerances(spec, model) -> Tolerances | None:
+    """The tolerances a command uses: ``spec`` 'none' (plain least squares), 'default' or None (the robot's
+    own, :func:`robot_tolerances`), or a ``lasercal-prior/1`` YAML file that overrides them.
+
+    Raises
+    ------
+    FormatError
+        A file that cannot be read or is malformed (naming the file and field).
+    """
+    if spec is not None and str(spec).lower() == "none":
+        return None
+    base = robot_tolerances(model)
+    if spec is None or str(spec).lower() == "default":
+        return base
+    from lasercal.solver.formats.robots import load_yaml
+
+    d = load_yaml(spec)
+    if not isinstance(d, dict) or d.get("format") != FORMAT:
+        raise FormatError(spec, f"expected a YAML mapping with 'format: {FORMAT}'", field="format")
+    units = d.get("units") or {}
+    if units.get("length", "mm") != "mm" or units.get("angle", "rad") != "rad":
+        raise FormatError(spec, "units must be length: mm, angle: rad", field="units")
+    return base.updated(d.get("prior") or {}, spec)
