@@ -3,6 +3,7 @@ held-out data, outlier handling that keeps valid rows, failed folds reported, pr
 
 import csv
 import io
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -188,3 +189,40 @@ def test_one_hidden_effect_is_never_diagnosed_as_a_combination(tmp_path, effect,
     d = diagnose(sim(tmp_path / "s", effect, seed), n_boot=0, k=0)  # the F tests alone: no held-out rescue
     assert d.effect == effect.effect and d.extension.joints == effect.joints
     assert "combination" not in d.acceptance
+
+
+def test_a_tracker_session_of_a_sagging_arm_names_the_sag_and_no_term_it_cannot_see(tmp_path, capsys):
+    """Issue 25: a URDF arm (UR5 with link masses), three tracker targets, 0.02 mm noise, its shoulder and
+    elbow sagging under gravity (c2 = c3 = -2e-5 rad/Nm, up to 1.1 mrad) and a wrist that carries almost
+    no torque. ``solve --extend auto`` names the sag, keeps no term the data cannot see (the wrist's
+    compliance is set aside, its posterior would be its prior) and predicts held-out poses better than
+    the geometry; nothing needs --allow-partial."""
+    from lasercal.solver.analysis.simulate import random_configs, simulate_positions
+    from lasercal.solver.formats.positions import position_meta, write_position_session
+    from lasercal.solver.formats.urdf import load_urdf
+    from lasercal.solver.kinematics.gravity import model_torques
+    from tests.test_position import DATA, perturbed
+
+    urdf = DATA / "ur5.urdf"
+    nominal = load_urdf(urdf)
+    rng = np.random.default_rng(3)
+    truth = perturbed(nominal, rng)
+    q = np.repeat(random_configs(nominal, 60, rng), 3, axis=0)
+    names = np.tile(np.array(list(truth.targets), dtype=object), 60)
+    tau = model_torques(truth, q)[0]
+    assert np.ptp(tau[:, 4]) < 0.1 < 10 < np.ptp(tau[:, 1])  # the wrist carries ~no torque, the shoulder much
+    sag = Extension("joint_compliance", (2, 3), None, np.array([-2e-5, -2e-5]))
+    y = simulate_positions(truth, q, names, 0.02, rng, sag, tau)
+    write_position_session(tmp_path / "s", position_meta(str(urdf), truth.targets), q, y, names)
+    capsys.readouterr()
+    args = ["solve", str(tmp_path / "s"), "-o", str(tmp_path / "m.yaml"), "--extend", "auto", "--json"]
+    assert main(args) == 0
+    rep = json.loads(capsys.readouterr().out)
+    d = rep["diagnosis"]
+    assert d["effect"] == "joint_compliance" and d["joints"] == [2, 3]
+    assert not rep["partial"] and "unidentifiable_combinations" not in rep
+    assert "joint_compliance at joint 5" in d["unseen"] and d["unseen"]["joint_compliance at joint 5"] > 0.9
+    c = [d["parameters"][f"c{j}"]["value"] for j in (2, 3)]
+    assert np.allclose(c, -2e-5, rtol=0.1)
+    h = d["acceptance"]["holdout_rms_mm"]
+    assert h["extended"] < 0.5 * h["geometric"]

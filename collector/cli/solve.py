@@ -92,6 +92,15 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
     )
+    p.add_argument(
+        "--sheet-pose",
+        type=number(-1e4, 1e4),
+        nargs=3,
+        metavar=("X", "Y", "YAW"),
+        help="laser: the points lie on a sheet at this true pose (mm, mm, deg: p_base = Rz(YAW) p_sheet + "
+        "[X, Y, plane z]) in the true robot's own frame (joint 1 as the nominal's); the session says "
+        "frame: sheet and gives the layout's placement (where the layout says the points are)",
+    )
     chain_arguments(p)
     p.add_argument(
         "--effect",
@@ -297,6 +306,33 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
     return Extension(args.effect, joints, None, params)
 
 
+def sheet_world(truth, nominal, layout, pose):
+    """``simulate --sheet-pose``: the true robot in its own frame (eq. S2), the layout as a sheet (a base
+    layout's points become sheet coordinates, placed where the layout says), the points where the sheet
+    truly lies, and what the session records of it.
+
+    Returns
+    -------
+    (truth in its own frame, the sheet layout, the layout at the true pose (base frame), dict)
+    """
+    from dataclasses import replace
+
+    import numpy as np
+
+    from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
+
+    if layout.frame == "base":
+        pts = {k: np.r_[v[:2], 0.0] for k, v in layout.points.items()}
+        layout = replace(layout, points=pts, frame="sheet", sheet=SheetPose())
+    true = SheetPose(*(float(a) for a in pose))
+    own = moved(truth, own_frame(truth, nominal))
+    return own, layout, layout.in_base(true), {
+        "pose": true.as_dict(),
+        "frame": "the true robot's own (joint 1 as the nominal's, joint 2 at q = 0 in its direction)",
+        "truth_in_own_frame": "truth.yaml",
+    }
+
+
 def cmd_simulate(args) -> int:
     import numpy as np
 
@@ -323,13 +359,21 @@ def cmd_simulate(args) -> int:
     layout = load_layout(args.layout)
     rng = np.random.default_rng(args.seed)
     effect = hidden_effect(args, layout, truth.n, rng)
-    c = simulate_captures(truth, layout, args.per_point, args.aim_noise, rng, effect=effect)
     sim = {"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed}
+    aimed = layout
+    if args.sheet_pose is not None:
+        truth, layout, aimed, sim["sheet"] = sheet_world(truth, load_model(nominal, base=path.parent), layout,
+                                                         args.sheet_pose)  # fmt: skip
+    elif layout.frame == "sheet":
+        aimed = layout.in_base()  # the sheet lies where its placement says
+    c = simulate_captures(truth, aimed, args.per_point, args.aim_noise, rng, effect=effect)
     if effect is not None:
         sim["effect"] = {"name": effect.effect, **effect.to_dict()}
     meta = session_meta(nominal, layout, truth.aperture[2], simulated=sim)
     with atomic_output(args.output, folder=True) as tmp:
         write_session(tmp, meta, c.point, c.t, c.q, tau=c.tau)
+        if args.sheet_pose is not None:
+            truth.save(Path(tmp) / sim["sheet"]["truth_in_own_frame"])
     hidden = (
         f", hidden {effect.effect} {effect.names} = {np.round(effect.params, 9).tolist()}" if effect else ""
     )

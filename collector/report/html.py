@@ -35,7 +35,7 @@ from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.table import csv_rows
 from lasercal.solver.identify.measurement import unidentifiable
-from lasercal.solver.identify.spot import Identification, spot_residuals
+from lasercal.solver.identify.spot import Identification, base_targets, spot_residuals
 from lasercal.solver.kinematics.laser import LaserParams
 
 _STAT_KEYS = ("scatter_mean", "scatter_std", "error_mean", "error_max")
@@ -283,7 +283,7 @@ def verdict(session: Session, ident: Identification, validations=(), missing=())
         )
     else:
         used = ident.weights > 0
-        r = spot_residuals(ident.nominal, session.q, session.target)[used]
+        r = spot_residuals(ident.nominal, session.q, base_targets(session, ident.nominal))[used]
         before = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
         text = (
             f"{state}: {before:.2g} → {ident.rms_mm:.2g} mm RMS on the calibration captures, "
@@ -357,7 +357,7 @@ def residual_plots(session: Session, ident: Identification, path: Path) -> Path:
     (bottom)."""
     plt = pyplot()
     names = list(dict.fromkeys(session.point))
-    before = spot_residuals(ident.nominal, session.q, session.target)
+    before = spot_residuals(ident.nominal, session.q, base_targets(session, ident.nominal))
     fig, axs = plt.subplots(2, len(names), figsize=(3.4 * len(names), 6.6), squeeze=False)
     used = ident.weights > 0
     for j, nm in enumerate(names):

@@ -114,6 +114,14 @@ def format_solve(rep: dict) -> str:
                 f"  from the prior: {d['combination']} ({n} direction{'s' * (n > 1)}): {d['affects']}; "
                 f"{d['fix']}\n"
             )
+    sh = rep.get("sheet")
+    if sh:
+        p, sd = sh["pose"], sh["std"]
+        w(
+            f"the sheet lies at x {p['x_mm']:.2f} ± {sd['x_mm']:.2f} mm, y {p['y_mm']:.2f} ± "
+            f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg (its origin and x axis "
+            "in the robot's own base frame, docs/formats.md)\n"
+        )
     if rep["outliers"]:
         w(
             f"outlier captures (left out): {len(rep['outliers'])}: "

@@ -49,7 +49,7 @@ from lasercal.solver.identify.degenerate import DATA_RATIO
 from lasercal.solver.identify.measurement import fit, residuals
 from lasercal.solver.identify.point import polish_point, session_targets, tip_joint_jacobian
 from lasercal.solver.identify.position import point_joint_jacobian, sensor_points
-from lasercal.solver.identify.spot import Identification
+from lasercal.solver.identify.spot import Identification, base_targets
 from lasercal.solver.kinematics.aim import polish
 from lasercal.solver.kinematics.effects import (
     ROBOT_EFFECTS,
@@ -373,7 +373,7 @@ def bootstrap(
     used = ident.weights > 0
     s = session.subset(used)
     point = s.measurement == "point"
-    target = session_targets(s, ident.extra.get("points", {})) if point else s.target
+    target = session_targets(s, ident.extra.get("points", {})) if point else base_targets(s, ident.model)
     rms = []
     for _ in range(n_refit):
         if s.measurement == "position":  # the sensor's noise is on the positions, the poses are exact

@@ -20,7 +20,7 @@ from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.measurement import determined_by, fit, residuals
 from lasercal.solver.identify.point import tips
-from lasercal.solver.identify.spot import Identification, predict_spots
+from lasercal.solver.identify.spot import Identification, base_targets, predict_spots
 from lasercal.solver.kinematics.model import RobotModel
 
 
@@ -61,11 +61,13 @@ def spot_stats(spots: np.ndarray, point: np.ndarray) -> SpotStats:
 
 
 def per_point(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:
-    """:func:`spot_stats` per reference point of the spots ``model`` predicts for the captures."""
+    """:func:`spot_stats` per reference point of the spots ``model`` predicts for the captures (base frame;
+    a sheet session's points through the model's sheet pose)."""
     mask = np.ones(session.m, bool) if mask is None else mask
-    spots, _ = predict_spots(model, session.q[mask], session.target[mask, 2])
+    target = base_targets(session, model)[mask]
+    spots, _ = predict_spots(model, session.q[mask], target[:, 2])
     names = session.point[mask]
-    return {nm: spot_stats(spots[names == nm], session.points[nm]) for nm in dict.fromkeys(names)}
+    return {nm: spot_stats(spots[names == nm], target[names == nm][0]) for nm in dict.fromkeys(names)}
 
 
 POSE_TOL_RAD = 1e-4  # rad: revolute readings this close are one pose (a still robot read again)
@@ -400,6 +402,8 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
             nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None}
             for nm in before
         }
+    if ident.model.sheet is not None:
+        rep["sheet"] = {"pose": ident.model.sheet.as_dict(), "std": ident.model.sheet_std, "frame": "base"}
     if ident.std_errors:
         rep["std_errors"] = {k: float(f"{v:.4g}") for k, v in ident.std_errors.items()}
     prior = ident.extra.get("prior")

@@ -19,6 +19,8 @@ from lasercal.solver.identify.prior import DEFAULTS
 from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
+from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
+from lasercal.solver.kinematics.sheet import SheetPose
 
 PLANE_Z = Range(-5000.0, 5000.0, "mm")
 MASS = Range(0.0, 1000.0, "kg")
@@ -47,6 +49,25 @@ def _checked_screw(w, v, path, where: str, notes: list) -> np.ndarray:
             "normalised on load"
         )
     return S
+
+
+def _sheet(d: dict, key: str, path) -> list | None:
+    """A model's ``sheet`` or ``sheet_std`` mapping {x_mm, y_mm, yaw_deg}, validated (None if absent)."""
+    m = d.get(key)
+    if m is None:
+        return None
+    if not isinstance(m, dict) or set(m) != set(SHEET_KEYS):
+        raise FormatError(path, "expected a mapping {x_mm, y_mm, yaw_deg}", field=key)
+    vals = []
+    for k in SHEET_KEYS:
+        try:
+            v = float(m[k])
+        except (TypeError, ValueError):
+            v = float("nan")
+        if not np.isfinite(v):
+            raise FormatError(path, f"{m[k]!r} (expected a finite number)", field=f"{key}.{k}")
+        vals.append(v)
+    return vals
 
 
 def model_from_dict(d: dict, path="<model>") -> RobotModel:
@@ -172,6 +193,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
     prior = d.get("prior") or {}
     DEFAULTS.updated(prior, path)  # validated here too
+    sheet, sheet_std = (_sheet(d, k, path) for k in ("sheet", "sheet_std"))
     return RobotModel(
         name=str(d.get("name", Path(str(path)).stem)),
         joint_names=tuple(names),
@@ -189,6 +211,8 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         links=links,
         extensions=dict(d.get("extensions", {}) or {}),
         prior=dict(prior),
+        sheet=None if sheet is None else SheetPose(*sheet),
+        sheet_std=None if sheet_std is None else dict(zip(SHEET_KEYS, sheet_std)),
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
     )

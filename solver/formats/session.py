@@ -307,6 +307,10 @@ class Session:
         can be tested)
     tolerances : Tolerances or None, the prior of every fit of this session (:mod:`solver.identify.prior`;
         None: plain least squares). Default: the robot's own (:func:`~solver.identify.prior.robot_tolerances`)
+    frame : str, 'base' or 'sheet': a sheet session's ``points`` are [x, y, 0] in the sheet's frame, and
+        ``target`` holds their x, y there with z the plane's height in the base frame; the sheet's pose
+        is identified with the robot (:mod:`solver.kinematics.sheet`)
+    sheet : SheetPose or None, a sheet session's stated rough placement (the prior's mean), if any
     """
 
     path: Path
@@ -329,6 +333,8 @@ class Session:
     sigma: np.ndarray | None = None
     clock: str = "seconds"
     tolerances: Tolerances | None | str = "robot"
+    frame: str = "base"
+    sheet: SheetPose | None = None
 
     def __post_init__(self):
         if isinstance(self.tolerances, str):  # "robot": the nominal's tolerances (a frozen field, set once)
@@ -373,6 +379,8 @@ class Session:
             pick(self.sigma),
             self.clock,
             self.tolerances,
+            self.frame,
+            self.sheet,
         )
 
 
@@ -575,6 +583,10 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     target = np.array([np.full(3, np.nan) if points[nm] is None else points[nm] for nm in names]).reshape(
         -1, 3
     )
+    frame, sheet = _frame(meta, ypath) if measurement == "laser" else ("base", None)
+    if frame == "sheet":
+        check_layout_geometry(ypath, points, 0.0, tuple(points), frame)
+        target[:, 2] = plane_z  # x, y on the sheet; z the plane's height in the base frame
     return Session(
         folder,
         meta,
@@ -594,6 +606,8 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         tool_point,
         distances,
         clock=clock,
+        frame=frame,
+        sheet=sheet,
     )
 
 

@@ -20,7 +20,7 @@ from lasercal.solver.identify.degenerate import (
 )
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
-from lasercal.solver.identify.spot import Identification, identify, spot_residuals
+from lasercal.solver.identify.spot import Identification, base_targets, identify, spot_residuals
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -65,7 +65,7 @@ def residuals(
             if session.points[nm] is None and nm not in known:
                 known[nm] = p[session.point == nm].mean(axis=0)
         return p - session_targets(session, known)
-    target = session.target.copy()
+    target = base_targets(session, model).copy()
     if ext is not None:
         target[:, :2] += ext.target_offset(session.point)
     return spot_residuals(model, q, target)

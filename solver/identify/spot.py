@@ -22,7 +22,7 @@ Two methods:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize
@@ -33,8 +33,11 @@ from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_out
 from lasercal.solver.identify.prior import Prior, Tolerances, make_prior
 from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_jacobian
-from lasercal.solver.kinematics.minimal import anchor_heights
+from lasercal.solver.kinematics.minimal import anchor_heights, screw_from_eta
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.poe import ad
+from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
+from lasercal.solver.kinematics.sheet import SheetPose, sheet_to_base
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,17 +124,21 @@ class Identification:
         return float(np.sqrt(np.mean(np.sum(self.residuals[w] ** 2, axis=1))))
 
 
-def laser_prior(P: LaserParams, tolerances: Tolerances | None, extension=None) -> Prior | None:
-    """The prior of a laser robot's parameters (and an extension's, mean 0) about P's reference model
-    (eq. P1 of :mod:`solver.identify.prior`, axis positions anchored at the joints); None without
-    ``tolerances``."""
-    ext = ([], 0) if extension is None else (extension.kinds, extension.size)
+def laser_prior(
+    P: LaserParams, tolerances: Tolerances | None, kinds=(), mean=(), names=(), free=None
+) -> Prior | None:
+    """The prior of a laser robot's parameters about P's reference model, followed by more parameters
+    (the sheet's pose, an extension's) of the given kinds, means and names (eq. P1 of
+    :mod:`solver.identify.prior`, axis positions anchored at the joints); ``free`` selects the parameters
+    fitted (default all). None without ``tolerances``."""
+    kinds, names, mean = P.kinds + list(kinds), P.names + list(names), np.r_[P.x0(), mean]
+    free = np.arange(len(kinds)) if free is None else free
     return make_prior(
         tolerances,
-        P.kinds + ext[0],
-        np.r_[P.x0(), np.zeros(ext[1])],
+        [kinds[i] for i in free],
+        mean[free],
         "laser",
-        P.names,
+        [names[i] for i in free],
         P.model.joint_names,
         anchor_heights(P.model.screws, P.model.aperture),
     )
@@ -179,6 +186,62 @@ def _aperture_gauge(
     return gauge(v), G @ cov @ G.T
 
 
+SHEET_NAMES = ["sheet.x", "sheet.y", "sheet.yaw"]  # mm, mm, rad: eq. S1's pose, identified with the robot
+
+
+def sheet_gauge(P: LaserParams) -> list[int]:
+    """Parameters held to fix the robot's own base frame when the points lie on a sheet of unknown pose.
+
+    Spots on a sheet cannot tell a rigid motion of the base in the table's plane (x, y, and a rotation
+    about the plane's normal) from the sheet's own: the base frame is then the robot's (docs/formats.md,
+    "The robot's own base frame"). Held at nominal: joint 1's four parameters (its axis, direction and
+    position, is the nominal's: the table is normal to it) and the direction component of joint 2 that a
+    rotation about joint 1 moves most (joint 2's axis at q = 0 keeps the nominal's direction: a Panda's
+    has no x component). The height is the plane's (the session's ``plane.z``).
+
+    Returns
+    -------
+    list of indices into P's parameters
+    """
+    S1, S2 = P.model.screws[0], P.model.screws[1]
+    _, dS2 = screw_from_eta(P.frames[1], np.zeros(4))
+    d_eta = np.linalg.lstsq(dS2, ad(S1) @ S2, rcond=None)[0]  # joint 2's eta under a rotation about joint 1
+    return [0, 1, 2, 3, 4 + int(np.argmax(np.abs(d_eta[:2])))]
+
+
+def rigid_2d(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    """The rotation angle (rad) and translation (2,) with b ~ R a + t, least squares (Kabsch in the plane).
+
+    Parameters
+    ----------
+    a, b : (k, 2) arrays, k >= 2 (not all coincident)
+    """
+    ma, mb = a.mean(axis=0), b.mean(axis=0)
+    A, B = a - ma, b - mb
+    yaw = float(np.arctan2(np.sum(A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0]), np.sum(A * B)))
+    c, s = np.cos(yaw), np.sin(yaw)
+    return yaw, mb - np.array([[c, -s], [s, c]]) @ ma
+
+
+def sheet_start(session: Session, model: RobotModel) -> SheetPose:
+    """The sheet's pose that best matches ``model``'s spots: each point's mean spot against its sheet
+    coordinates (:func:`rigid_2d`). The start of a sheet session's fit, and the nominal model's pose."""
+    spots, _ = predict_spots(model, session.q, session.target[:, 2])
+    names = list(dict.fromkeys(session.point))
+    mean = np.array([spots[session.point == nm, :2].mean(axis=0) for nm in names])
+    yaw, t = rigid_2d(np.array([session.points[nm][:2] for nm in names]), mean)
+    return SheetPose(float(t[0]), float(t[1]), float(np.degrees(yaw)))
+
+
+def base_targets(session: Session, model: RobotModel) -> np.ndarray:
+    """The captures' reference points (m, 3) in the base frame: a sheet session's through ``model``'s sheet
+    pose (eq. S1; a model without one, e.g. the nominal, through :func:`sheet_start`)."""
+    if session.frame != "sheet":
+        return session.target
+    pose = model.sheet or sheet_start(session, model)
+    return pose.to_base(session.target[:, :2], session.target[:, 2])
+
+
 def identify_lm(
     session: Session,
     nominal: RobotModel | None = None,
@@ -187,6 +250,10 @@ def identify_lm(
     suspects: np.ndarray | None = None,
 ) -> Identification:
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
+
+    The parameters are the laser robot's (:class:`~lasercal.solver.kinematics.laser.LaserParams`), then
+    for a sheet session the sheet's pose [x mm, y mm, yaw rad] (eq. S1, with the gauge of
+    :func:`sheet_gauge` held), then the extension's; the fit is MAP with the session's prior.
 
     Parameters
     ----------
@@ -200,7 +267,7 @@ def identify_lm(
 
     Returns
     -------
-    Identification
+    Identification (for a sheet session the model carries ``sheet`` and ``sheet_std``)
     """
     t0 = time.perf_counter()
     nominal = nominal or session.robot
@@ -211,59 +278,85 @@ def identify_lm(
     k = extension.size if extension else 0
     if extension:
         require(extension, t, tau)
+    sheet = session.frame == "sheet"
+    nsh = 3 if sheet else 0
     if 2 * m <= 8:
-        raise IdentificationError(f"{m} captures are far too few to identify {p + k} parameters")
-    names = P.names + (extension.names if extension else [])
+        raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
+    pose0 = (session.sheet or sheet_start(session, start)) if sheet else None
+    u0 = np.r_[P.x0(), pose0.vector if sheet else [], np.zeros(k)]
+    held = sheet_gauge(P) if sheet else []
+    free = np.setdiff1d(np.arange(len(u0)), held)
+    names_all = P.names + (SHEET_NAMES if sheet else []) + (extension.names if extension else [])
+    kinds_all = P.kinds + (["sheet_pos", "sheet_pos", "sheet_yaw"] if sheet else []) + (
+        extension.kinds if extension else []
+    )
+    names = [names_all[i] for i in free]
+    tol = session.tolerances
+    if tol is not None and sheet and session.sheet is None:  # no stated placement: no prior on the pose
+        tol = replace(tol, sheet_mm=np.inf, sheet_rad=np.inf)
 
-    def model_inputs(v):
-        """True configurations and in-plane targets under parameters v = [x, theta]."""
+    def embed(v):
+        u = u0.copy()
+        u[free] = v
+        return u
+
+    def model_inputs(u):
+        """True configurations and in-plane base-frame targets under parameters u = [x, pose, theta]."""
+        tg = sheet_to_base(u[p : p + 3], target[:, :2], target[:, 2])[0][:, :2] if sheet else target[:, :2]
         if not extension:
-            return q, target[:, :2]
-        e = extension.with_params(v[p:])
-        return e.true_q(q, t, tau), target[:, :2] + e.target_offset(session.point)
+            return q, tg
+        e = extension.with_params(u[p + nsh :])
+        return e.true_q(q, t, tau), tg + e.target_offset(session.point)
 
     def residual(v):
-        qt, tg = model_inputs(v)
-        spot, _ = P.spots(v[:p], qt, target[:, 2])
+        u = embed(v)
+        qt, tg = model_inputs(u)
+        spot, _ = P.spots(u[:p], qt, target[:, 2])
         return spot[:, :2] - tg
 
     def jacobian(v):
-        qt, _ = model_inputs(v)
-        _, _, J = P.spot_jacobian(v[:p], qt, target[:, 2])
-        if not extension:
-            return J
-        if extension.effect == "reference_point_offset":
+        u = embed(v)
+        qt, _ = model_inputs(u)
+        _, _, J = P.spot_jacobian(u[:p], qt, target[:, 2])
+        cols = [J]
+        if sheet:
+            cols.append(-sheet_to_base(u[p : p + 3], target[:, :2], target[:, 2])[1][:, :2])
+        if extension and extension.effect == "reference_point_offset":
             Je = np.zeros((m, 2, 2))
             Je[session.point == extension.point] = -np.eye(2)
-        else:
+            cols.append(Je)
+        elif extension:
             idx, G = extension.regressors(q, t, tau)
-            _, Jq = spot_joint_jacobian(P.to_model(v[:p]), qt, target[:, 2])
-            Je = Jq[:, :, idx] * G[:, None, :]
-        return np.concatenate([J, Je], axis=2)
+            _, Jq = spot_joint_jacobian(P.to_model(u[:p]), qt, target[:, 2])
+            cols.append(Jq[:, :, idx] * G[:, None, :])
+        return np.concatenate(cols, axis=2)[:, :, free]
 
     history, iterations = [], 0
     w = np.ones(m)
+    base0 = pose0.to_base(target[:, :2], target[:, 2]) if sheet else target
     # gross outliers (a wrong point) already stand out against the nominal model: keep them out of the start
     if robust:
-        flags, _ = flag_outliers(spot_residuals(start, q, target), w)
+        flags, _ = flag_outliers(spot_residuals(start, q, base0), w)
         w = np.where(flags, 0.0, 1.0)
-    x0 = P.x0()
-    prior = laser_prior(P, session.tolerances, extension)
+    prior = laser_prior(P, tol, kinds_all[p:], u0[p:], names_all[p:], free)
 
-    # Stage 1 (geometry only): the beam-to-point distance brings a far-off start (steep beams) into the basin
-    # of stage 2; with a prior, its rows (at the nominal noise) join in, as in stage 2.
+    # Stage 1 (geometry only, the sheet at its start): the beam-to-point distance brings a far-off start
+    # (steep beams) into the basin of stage 2; with a prior, its rows (at the nominal noise) join in.
+    geo = free[free < p]
+    x0 = P.x0()
     _, _, J0 = P.spot_jacobian(x0, q, target[:, 2])
-    geo_prior = laser_prior(P, session.tolerances)
-    pr = [] if geo_prior is None else [geo_prior.rows(x0, geo_prior.noise)[1]]
-    _, B1 = identifiability(np.vstack([J0.reshape(2 * m, p)] + pr), P.names)
+    geo_prior = laser_prior(P, tol, free=geo)
+    pr = [] if geo_prior is None else [geo_prior.rows(x0[geo], geo_prior.noise)[1]]
+    _, B1 = identifiability(np.vstack([J0[:, :, geo].reshape(2 * m, len(geo))] + pr), P.names)
     sw = np.sqrt(w)[:, None, None]
 
     def line(z):
-        x = x0 + B1 @ z
-        r, J = P.line_jacobian(x, q, target)
-        r, J = (r[:, :, None] * sw)[..., 0].ravel(), (J * sw).reshape(3 * m, p)
+        x = x0.copy()
+        x[geo] += B1 @ z
+        r, J = P.line_jacobian(x, q, base0)
+        r, J = (r[:, :, None] * sw)[..., 0].ravel(), (J[:, :, geo] * sw).reshape(3 * m, len(geo))
         if geo_prior is not None:
-            rp, Jp = geo_prior.rows(x, geo_prior.noise)
+            rp, Jp = geo_prior.rows(x[geo], geo_prior.noise)
             r, J = np.r_[r, rp], np.vstack([J, Jp])
         return r, J @ B1
 
@@ -287,36 +380,45 @@ def identify_lm(
         }
     )
 
-    # Stage 2: in-plane residuals, geometry and extension together, in the identifiable subspace at the
-    # stage-1 solution (MAP with the session's prior, eqs. P2-P4 of solver.identify.prior).
-    v1 = np.r_[x0 + B1 @ first.x, np.zeros(k)]
-    fit = fit_subspace(residual, jacobian, v1, names, robust, w, suspects=suspects, prior=prior)
+    # Stage 2: in-plane residuals, geometry, sheet and extension together, in the identifiable subspace at
+    # the stage-1 solution (MAP with the session's prior, eqs. P2-P4 of solver.identify.prior).
+    v1 = u0.copy()
+    v1[geo] += B1 @ first.x
+    fit = fit_subspace(residual, jacobian, v1[free], names, robust, w, suspects=suspects, prior=prior)
     iterations += fit.iterations
     history += fit.history
-    v, cov = _aperture_gauge(P, fit.v, fit.cov, session.aperture_z)
-    se_all = np.sqrt(np.clip(np.diag(cov), 0, None))
+    cov_all = np.zeros((len(u0), len(u0)))
+    cov_all[np.ix_(free, free)] = fit.cov
+    u, cov_all = _aperture_gauge(P, embed(fit.v), cov_all, session.aperture_z)
+    v, cov = u[free], cov_all[np.ix_(free, free)]
+    se_all = np.sqrt(np.clip(np.diag(cov_all), 0, None))
     meta = {
         "method": "lm",
         "converged": fit.converged,
         "iterations": iterations,
         "rank": fit.identifiability.rank,
-        "n_params": p + k,
+        "n_params": len(free),
     }
-    fitted = extension.with_params(v[p:], se_all[p:]) if extension else None
+    fitted = extension.with_params(u[p + nsh :], se_all[p + nsh :]) if extension else None
     extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
-    model = P.to_model(v[:p], identification=meta, extensions=extensions)
+    model = P.to_model(u[:p], identification=meta, extensions=extensions)
+    if sheet:
+        std = se_all[p : p + 3] * [1, 1, 180 / np.pi]
+        model = model.replace(sheet=SheetPose.from_vector(u[p : p + 3]), sheet_std=dict(zip(SHEET_KEYS, std)))
+        nominal = nominal.replace(sheet=sheet_start(session, start))  # the nominal's best pose ("before")
     return Identification.from_fit(
         nominal,
         model,
         fit,
         names,
-        se_all,
+        se_all[free],
         t0,
         {
             "cov": cov,
             "span": fit.span,
             "constraint_span": fit.constraint_span,
             "constraint_residuals": fit.constraint_residuals,
+            "held": [names_all[i] for i in held],
         },
         fitted,
         iterations=iterations,
@@ -342,6 +444,11 @@ def identify_thesis(
     Identification
     """
     t0 = time.perf_counter()
+    if session.frame == "sheet":
+        raise IdentificationError(
+            "the thesis method needs the reference points in the base frame (frame: base); the points of a "
+            "sheet session are identified with the robot by --method lm"
+        )
     nominal = nominal or session.robot
     model = _start(nominal, session)
     q, target = session.q, session.target

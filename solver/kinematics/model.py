@@ -20,6 +20,8 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
     links: [...]           # optional: masses (kg) and centres of mass at q = 0 (mm)
     extensions: {}         # optional: non-geometric parameters (see solver.effects)
     prior: {}              # optional: manufacturing tolerances, every fit's prior (solver.identify.prior)
+    sheet: {x_mm, y_mm, yaw_deg}      # written by `solve` for a sheet session: the sheet's pose (eq. S1)
+    sheet_std: {x_mm, y_mm, yaw_deg}  # its standard deviations
     identification: {}     # written by `lasercal solve`: method, statistics, standard errors
 """
 
@@ -32,6 +34,8 @@ from typing import Any
 
 import numpy as np
 import yaml
+
+from lasercal.solver.kinematics.sheet import SheetPose
 
 FORMAT = "lasercal-robot/1"
 
@@ -74,6 +78,9 @@ class RobotModel:
     links : tuple of Link, the gravity model (may be empty)
     extensions : dict, non-geometric parameters by effect name
     prior : dict, tolerances overriding the defaults of :mod:`solver.identify.prior` (mm, rad)
+    sheet : SheetPose or None, the printed sheet's pose in the base frame, identified by ``solve``
+        (:mod:`solver.kinematics.sheet`); the plane's height is ``plane_z``
+    sheet_std : dict or None, its standard deviations {x_mm, y_mm, yaw_deg}
     identification : dict, metadata written by an identification
     notes : tuple of str, what was corrected on load (never silent)
     """
@@ -94,6 +101,8 @@ class RobotModel:
     links: tuple = ()
     extensions: dict = field(default_factory=dict)
     prior: dict = field(default_factory=dict)
+    sheet: SheetPose | None = None
+    sheet_std: dict | None = None
     identification: dict = field(default_factory=dict)
     notes: tuple = ()
 
@@ -165,6 +174,10 @@ class RobotModel:
             d["extensions"] = self.extensions
         if self.prior:
             d["prior"] = dict(self.prior)
+        if self.sheet is not None:
+            d["sheet"] = self.sheet.as_dict()
+            if self.sheet_std is not None:
+                d["sheet_std"] = {k: float(round(v, 9)) for k, v in self.sheet_std.items()}
         if self.identification:
             d["identification"] = self.identification
         if self.notes:
