@@ -245,7 +245,7 @@ def sheet_photo(layout: MarkerLayout, points: dict, target: str, seed: int) -> t
 
     Returns
     -------
-    (h, w, 3) uint8 BGR JPEG-decoded image, and the spot's true position (2,) sheet mm
+    (h, w, 3) uint8 BGR JPEG-decoded image, the spot's true position (2,) sheet mm, the scale (mm/px)
     """
     rng = np.random.default_rng([seed, 23])
     size = np.array([1600, 1200])
@@ -255,9 +255,10 @@ def sheet_photo(layout: MarkerLayout, points: dict, target: str, seed: int) -> t
     extent = np.ptp(
         corners @ np.array([[c, -s], [s, c]]), axis=0
     )  # the sheet's extent along the photo's axes
+    scale = float((extent / size).max() * rng.uniform(1.25, 1.35))  # the whole sheet in the photo, mm/px
     view = look_down(
         tuple(size),
-        float((extent / size).max() * rng.uniform(1.25, 1.35)),  # the whole sheet in the photo, mm/px
+        scale,
         centre=tuple(rng.uniform(-5, 5, 2)),
         yaw_deg=yaw,
         tilt_deg=tuple(rng.uniform(-2, 2, 2)),  # perspective; it also moves the view by up to ~25 mm
@@ -280,19 +281,21 @@ def sheet_photo(layout: MarkerLayout, points: dict, target: str, seed: int) -> t
         gradient=rng.uniform(-0.15, 0.15),
         vignetting=rng.uniform(0, 0.1),
     )
-    return render(photo, seed), xy
+    return render(photo, seed), xy, scale
 
 
-def photo_errors(layout_path, design: SheetDesign, seeds) -> np.ndarray:
-    """Sheet-mm errors (n, 2) of the laser spot measured in phone photos, one per seed (targets cycle)."""
+def photo_errors(layout_path, design: SheetDesign, seeds) -> tuple[np.ndarray, np.ndarray]:
+    """Sheet-mm errors (n, 2) of the laser spot measured in phone photos, one per seed (targets cycle),
+    and the photos' scales (n,) mm/px."""
     layout = load_markers(layout_path)
     names = list(design.points)
-    out = []
+    out, scales = [], []
     for s in seeds:
-        img, xy = sheet_photo(layout, design.points, names[s % len(names)], s)
+        img, xy, scale = sheet_photo(layout, design.points, names[s % len(names)], s)
         res = measure_photo(img, f"photo {s}", Options(), layout, subsampled=True)
         out.append([res.spots[0].x_mm - xy[0], res.spots[0].y_mm - xy[1]])
-    return np.array(out)
+        scales.append(scale)
+    return np.array(out), np.array(scales)
 
 
 def main():
@@ -322,13 +325,17 @@ def main():
         print(
             f"\n## Phone photos of the sheet, a red spot on a sheet point: error in sheet mm over {n} photos"
         )
-        print(f"{'paper':<9} {'RMS x':>7} {'RMS y':>7} {'mean 2-D':>9} {'max 2-D':>8}")
+        head = ("paper", "mm/px", "RMS x", "RMS y", "mean 2-D", "max 2-D", "max px")
+        print("{:<9} {:>11} {:>7} {:>7} {:>9} {:>8} {:>7}".format(*head))
         for paper in ("A4", "A3"):
             design, files = folders[paper]
-            e = photo_errors(files["layout"], design, range(n))
+            e, scales = photo_errors(files["layout"], design, range(n))
             d = np.hypot(*e.T)
             rx, ry = np.sqrt((e**2).mean(0))
-            print(f"{paper:<9} {rx:7.4f} {ry:7.4f} {d.mean():9.4f} {d.max():8.4f}")
+            print(
+                f"{paper:<9} {scales.min():5.3f}-{scales.max():5.3f} {rx:7.4f} {ry:7.4f} {d.mean():9.4f} "
+                f"{d.max():8.4f} {(d / scales).max():7.3f}"
+            )
     print(f"\n(benchmark took {time.time() - t0:.0f} s)")
 
 
