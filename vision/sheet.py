@@ -366,9 +366,9 @@ def draw_sheet(design: SheetDesign, plane_z: float):
         patch(_marker_rects(design.dictionary, i, u, v, design.marker), f"marker-{i}")
     for bar in design.bars:
         patch(_bar_rects(bar), f"bar-{bar.length:g}")
-        mid = bar.length / 2
-        at = (bar.start[0] + mid, bar.start[1] + TICK / 2 + 1) if bar.axis == 0 else None
-        at = at or (bar.start[0] + TICK / 2 + 1, bar.start[1] + mid)
+        above = TICK / 2 + 1  # the label sits beside the bar, clear of its ticks
+        u, v = bar.start
+        at = (u + bar.length / 2, v + above) if bar.axis == 0 else (u + above, v + bar.length / 2)
         ax.text(
             *at,
             f"{bar.length:g} mm: check with a ruler",
