@@ -574,6 +574,19 @@ case(
     "laser-length",
 )
 
+# sheet: the paper, lengths, a placement and a robot
+SHEET = ["sheet", "-o", "{o}"]
+SHEET_VALUES = {"--paper": ["A5", "0x200", "nanx200"], "--margin": ["-1", "nan"], "--marker": ["0", "inf"],
+                "--plane-z": ["nan"]}  # fmt: skip
+for opt, v in ((o, v) for o, vs in SHEET_VALUES.items() for v in vs):
+    case(f"sheet {opt} {v}", SHEET + [opt, v], None, opt)
+case("sheet paper too small for the bars", SHEET + ["--paper", "150x150"], None, "too small")
+case("sheet --place nan", SHEET + ["--place", "nan", "0", "0"], None, "--place")
+case("sheet --place two numbers", SHEET + ["--place", "450", "0"], None, "--place")
+case("sheet --robot without --place", SHEET + ["--robot", "panda"], None, "--place")
+case("sheet --robot unknown", SHEET + ["--robot", "nosuch", "--place", "450", "0", "0"], None, "nosuch")
+case("sheet -o existing", ["sheet", "-o", "{d}/kept"], _mkdir("kept"), "--force")
+
 
 def _data_lines(path: Path):
     lines = path.read_text().splitlines()

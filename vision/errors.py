@@ -37,5 +37,9 @@ class LayoutError(VisionError):
         super().__init__(f"{where}: {message}")
 
 
+class SheetError(VisionError):
+    """A reference sheet cannot be laid out (a paper too small for its markers, scale bars and points)."""
+
+
 class CalibrationError(VisionError):
     """Camera calibration or a circle fit could not be carried out."""

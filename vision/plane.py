@@ -1,8 +1,9 @@
 """From pixels to millimetres on the table plane, with printed ArUco/ChArUco fiducials.
 
 Units: image points in pixels (OpenCV convention, recorded, i.e. with lens
-distortion unless a camera is given); plane points in mm in the robot base frame
-(x, y on the plane whose height is the layout's ``plane.z``).
+distortion unless a camera is given); plane points in mm in the layout's frame: the
+robot base frame (x, y on the plane whose height is the layout's ``plane.z``), or with
+``frame: sheet`` a printed sheet's own frame (``lasercal sheet``; see vision/sheet.py).
 
 The layout's ``markers`` section (``format: lasercal-layout/1``; other sections
 are ignored here)::
@@ -10,7 +11,7 @@ are ignored here)::
     markers:
       dictionary: DICT_4X4_50        # an OpenCV predefined dictionary
       min_markers: 3                 # optional: markers needed (default min(3, listed))
-      ids:                           # per marker id: its 4 outer corners, mm, base frame,
+      ids:                           # per marker id: its 4 outer corners, mm, layout frame,
         0: [[x, y], [x, y], [x, y], [x, y]]  # in OpenCV's order: top-left, top-right,
         1: ...                                # bottom-right, bottom-left of the printed marker
       charuco:                       # optional ChArUco board (corners ~3x more precise)
@@ -40,6 +41,7 @@ from lasercal.vision.errors import LayoutError, MarkerError
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # renamed in numpy 2.0
 LAYOUT_FORMAT = "lasercal-layout/1"
+FRAMES = ("base", "sheet")  # a layout's frame: the robot's base, or a printed sheet's own
 RANSAC_MM = 2.0  # a corner further than this from its layout position is an outlier, mm
 
 
@@ -95,6 +97,7 @@ class MarkerLayout:
     min_markers : int, markers needed in a photo (a ChArUco board counts as enough)
     charuco : CharucoLayout or None
     plane_z : float or None, the layout's ``plane.z``, mm
+    frame : str, the frame of the corners (and so of the mm measured): 'base' or 'sheet'
     """
 
     path: str
@@ -103,6 +106,7 @@ class MarkerLayout:
     min_markers: int
     charuco: CharucoLayout | None = None
     plane_z: float | None = None
+    frame: str = "base"
 
 
 def _vec(value, n, path, field):
@@ -172,6 +176,9 @@ def load_markers(path) -> MarkerLayout | None:
     units = doc.get("units") or {}
     if isinstance(units, dict) and units.get("length", "mm") != "mm":
         raise LayoutError(path, "only mm is supported", "units.length")
+    frame = doc.get("frame") or "base"
+    if frame not in FRAMES:
+        raise LayoutError(path, f"{frame!r} (expected 'base' or 'sheet')", "frame")
     m = doc.get("markers")
     if m is None:
         return None
@@ -227,7 +234,7 @@ def load_markers(path) -> MarkerLayout | None:
         plane_z = float(plane["z"]) if isinstance(plane, dict) and "z" in plane else None
     except (TypeError, ValueError):
         raise LayoutError(path, "expected a number, mm", "plane.z") from None
-    return MarkerLayout(str(path), m["dictionary"], corners, min_markers, charuco, plane_z)
+    return MarkerLayout(str(path), m["dictionary"], corners, min_markers, charuco, plane_z, frame)
 
 
 def _detector(dictionary: str):

@@ -68,6 +68,12 @@ COMMANDS = (
         "find the non-geometric effect the geometric model misses (or 'none')",
     ),
     Command(
+        "sheet",
+        "sheet",
+        "cmd_sheet",
+        "a printable reference sheet (PDF, SVG at 1:1: crosses, markers, scale bars) and its layout",
+    ),
+    Command(
         "spots",
         "vision",
         "spots_command",

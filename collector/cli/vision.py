@@ -6,7 +6,9 @@ whole command are raised as :class:`~lasercal.vision.errors.VisionError` for the
 program to report.
 
 Units: pixels (OpenCV convention unless ``--convention imagej``: +0.5 px), mm on
-the plane in the robot base frame, tilt in mrad and degrees.
+the plane in the layout's frame (the robot base frame, or a printed sheet's own frame with
+``frame: sheet``; ``spots --model`` adds base-frame mm through the model's sheet pose), tilt in
+mrad and degrees.
 """
 
 from __future__ import annotations
@@ -127,6 +129,12 @@ def args_spots(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal spots``."""
     p.add_argument("images", nargs="+", metavar="IMAGE")
     _add_measure_args(p)
+    p.add_argument(
+        "--model",
+        metavar="MODEL.yaml",
+        help="with a 'frame: sheet' layout: an identified model whose 'sheet' pose (from solve) adds "
+        "base-frame mm (bx_mm, by_mm)",
+    )
 
 
 def args_beam_check(p: argparse.ArgumentParser) -> None:
@@ -196,7 +204,12 @@ def _context(args):
 
 
 def _measure_all(args):
-    """Measure every photo; a lost photo becomes a warning and an entry with ``error`` (the batch goes on)."""
+    """Measure every photo; a lost photo becomes a warning and an entry with ``error`` (the batch goes on).
+
+    Returns
+    -------
+    (list of (JSON entry, PhotoResult or None), MarkerLayout or None)
+    """
     from lasercal.vision.images import read_image
     from lasercal.vision.measure import measure_file
     from lasercal.vision.overlay import draw, write
@@ -213,22 +226,71 @@ def _measure_all(args):
             name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
             write(name, draw(read_image(path), res.spots, res.plane, f"{path}  [{how}]", args.convention))
         entry = res.to_dict(opts.method, args.convention, layout.plane_z if layout else None)
+        if layout is not None:
+            entry["frame"] = layout.frame
         results.append((entry, None if res.error else res))
-    return results
+    return results, layout
 
 
 def _fmt(x, spec):
     return "-" if x is None else format(x, spec)
 
 
+def _sheet_pose(model_path: str, layout):
+    """The identified sheet pose (eq. S1) of ``--model``, for a ``frame: sheet`` layout.
+
+    Raises
+    ------
+    LasercalError
+        No sheet layout, or a model without a ``sheet`` pose.
+    """
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.robots import load_model
+
+    if layout is None or layout.frame != "sheet":
+        raise LasercalError(
+            "--model turns sheet mm into base-frame mm: it needs --layout with 'frame: sheet' (the mm of a "
+            "base-frame layout already are)"
+        )
+    pose = getattr(load_model(model_path), "sheet", None)
+    if pose is None:
+        raise LasercalError(
+            f"{model_path}: no 'sheet' pose; solve a session whose layout says 'frame: sheet' to identify "
+            "where the sheet lies"
+        )
+    return pose
+
+
+def _add_base_mm(entries: list, pose) -> None:
+    """Each spot's base-frame ``x_base_mm, y_base_mm`` from its sheet mm (eq. S1), in place."""
+    import numpy as np
+
+    spots = [s for e in entries for s in e["spots"] if s["x_mm"] is not None]
+    if spots:
+        xy = pose.to_base(np.array([[s["x_mm"], s["y_mm"]] for s in spots]), 0.0)  # x, y only
+        for s, p in zip(spots, xy):
+            s["x_base_mm"], s["y_base_mm"] = round(float(p[0]), 4), round(float(p[1]), 4)
+    for e in entries:
+        e["sheet_pose"] = pose.as_dict()
+
+
 def spots_command(args) -> int:
     """``lasercal spots``: print spots per photo; 2 when no photo gave a spot."""
-    results = _measure_all(args)
+    from lasercal.vision.plane import load_markers
+
+    base = args.model is not None
+    pose = _sheet_pose(args.model, load_markers(args.layout) if args.layout else None) if base else None
+    results, layout = _measure_all(args)
     entries = [e for e, _ in results]
+    if base:
+        _add_base_mm(entries, pose)
+    frame = layout.frame if layout is not None else "base"
     if args.json:
         print(json.dumps(entries, indent=2))
     else:
-        print(f"# pixels: {args.convention} convention; mm: base frame on the plane; method: {args.method}")
+        mm = f"{frame} frame on the plane"
+        mm += f"; bx_mm, by_mm: base frame through {args.model}" if base else ""
+        print(f"# pixels: {args.convention} convention; mm: {mm}; method: {args.method}")
         head = (
             "image",
             "#",
@@ -243,9 +305,10 @@ def spots_command(args) -> int:
             "peak",
             "sat",
             "area",
-        )
+        ) + (("bx_mm", "by_mm") if base else ())
         print(
             "{:<28} {:>2} {:>10} {:>10} {:>6} {:>6} {:>10} {:>10} {:>6} {:>6} {:>6} {:>3} {:>6}".format(*head)
+            + "".join(f" {h:>10}" for h in head[13:])
         )
         for e in entries:
             if e["error"]:
@@ -259,6 +322,7 @@ def spots_command(args) -> int:
                     f"{_fmt(s['sigma_x_mm'], '6.3f'):>6} {_fmt(s['sigma_y_mm'], '6.3f'):>6} "
                     f"{s['peak']:>6.0f} "
                     f"{'yes' if s['saturated'] else 'no':>3} {s['area']:>6}"
+                    + "".join(f" {_fmt(s.get(k), '10.3f'):>10}" for k in ("x_base_mm", "y_base_mm") if base)
                 )
             if e["plane"]:
                 p = e["plane"]
@@ -281,7 +345,8 @@ def beam_check_command(args) -> int:
         raise VisionError(f"--laser-length must be positive, got {args.laser_length} mm")
     if args.expect != 1:
         raise VisionError("beam-check takes one spot per photo (--expect 1)")
-    results = [(e, r) for e, r in _measure_all(args) if r is not None]
+    measured, layout = _measure_all(args)
+    results = [(e, r) for e, r in measured if r is not None]
     photo_warnings = [f"{e['image']}: {w}" for e, _ in results for w in e["warnings"]]  # already printed
     warnings = []
     if len(results) < 3:
@@ -341,7 +406,7 @@ def beam_check_command(args) -> int:
         if c_mm is not None:
             print(
                 f"  circle (mm): centre = joint-7 axis on the plane ({c_mm.centre[0]:.3f}, "
-                f"{c_mm.centre[1]:.3f}) mm, "
+                f"{c_mm.centre[1]:.3f}) mm ({layout.frame} frame), "
                 f"radius {c_mm.radius:.3f} +- {_fmt(out['radius_sigma_mm'], '.3f')} mm, fit RMS "
                 f"{c_mm.rms:.3f} mm"
             )
