@@ -11,6 +11,8 @@ import numpy as np
 
 from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, number, session_robot
 
+MIN_SHEET_CAPTURES = 9  # captures from which a sheet session's own fit places the sheet (else its placement)
+
 
 def args_plan(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal plan``."""
@@ -46,6 +48,7 @@ def cmd_plan(args) -> int:
     from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.design import Coach, DesignError, posterior
     from lasercal.solver.formats.session import load_layout, load_session, session_layout
+    from lasercal.solver.identify.spot import identify_lm, in_base_frame
 
     if args.output:
         check_output(args.output, force=args.force)
@@ -54,6 +57,10 @@ def cmd_plan(args) -> int:
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
     # the session's own layout keeps its aiming hints (tilt, length), which the constraints obey
     layout = load_layout(args.layout) if args.layout else session_layout(session.meta, session.path)
+    if session.frame == "sheet":  # the sheet where the captures so far put it (or its stated placement)
+        pose = identify_lm(session).model.sheet if session.m >= MIN_SHEET_CAPTURES else layout.sheet
+        layout = layout.in_base(pose)
+        session = in_base_frame(session, pose)  # (a pose is known: in_base refused the layout without one)
     nominal = session.robot
     if session.aperture_z is not None:
         nominal = nominal.replace(aperture=np.r_[nominal.aperture[:2], session.aperture_z])

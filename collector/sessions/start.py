@@ -24,7 +24,7 @@ from lasercal.collector.sessions.capture import (
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
 from lasercal.collector.sessions.store import CaptureStore
-from lasercal.solver.errors import LasercalError
+from lasercal.solver.errors import FormatError, LasercalError
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout, load_layout
 from lasercal.solver.kinematics.model import RobotModel
@@ -95,7 +95,7 @@ class StartedCapture:
         """
         cfg, layout = self.settings.cfg, self.settings.layout
         # Built here, not at start: the coach's design takes a while, after the resume is announced.
-        coach = session_coach(self.store, self.nominal, layout, cfg) if self.coach else None
+        coach = session_coach(self.store, self.nominal, layout.in_base(), cfg) if self.coach else None
         try:
             real = cfg["backend"] != "fake"
             return run_capture(
@@ -140,7 +140,8 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     if guide.auto and cfg["backend"] != "fake":
         raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
     nominal = load_model(cfg["robot"])
-    robot = make_robot(cfg, nominal, layout, cfg["per_point"])
+    # a sheet's points where its placement says: the simulated operator's table, the coach's aim
+    robot = make_robot(cfg, nominal, layout.in_base(), cfg["per_point"])
     rangefinder = make_rangefinder(cfg, robot, layout.plane_z)
     trigger = AutoTrigger(guide.auto_pace) if guide.auto else make_trigger(cfg["trigger"], robot)
     if guide.move:  # refused before the session folder exists
@@ -261,8 +262,19 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     point = validation_point(layout, run["point"])
     model = load_model(run["model"])
     check_layout(layout, model, run["model"], point)
+    sheet = None
+    if layout.frame == "sheet":  # a printed sheet: its points where the model found the sheet (eq. S1)
+        sheet = model.sheet
+        if sheet is None:
+            raise FormatError(
+                run["model"],
+                "the layout's points are on a sheet (frame: sheet) but the model has no sheet pose: validate "
+                "a model solved from a session on that sheet",
+                field="sheet",
+            )
+        layout = layout.in_base(sheet)
     robot = make_robot(cfg, load_model(cfg["robot"]), layout)
-    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"])
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"], sheet)
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)

@@ -129,17 +129,21 @@ def measure_known_view(img: np.ndarray, name: str, view: View) -> tuple[np.ndarr
     return view.unproject(np.array([[spots[0].u, spots[0].v]]))[0], exposure and exposure.advice
 
 
-def measure_with_markers(img: np.ndarray, name: str, markers) -> tuple[np.ndarray, str | None]:
-    """The spot of a photo on the plane through the layout's fiducial markers (vision), (2,) mm, and the
-    photo's exposure advice (one line, or None)."""
+def measure_with_markers(img: np.ndarray, name: str, markers, sheet=None) -> tuple[np.ndarray, str | None]:
+    """The spot of a photo on the plane through the layout's fiducial markers (vision), (2,) mm, base frame
+    (markers on a sheet: through the sheet's pose, eq. S1), and the photo's exposure advice (one line, or
+    None)."""
     from lasercal.vision.measure import measure_photo  # imported here: only layouts with markers need it
 
     res = measure_photo(img, name, layout=markers)
     s = res.spots[0]
-    return np.array([s.x_mm, s.y_mm]), res.exposure and res.exposure.advice
+    xy = np.array([s.x_mm, s.y_mm])
+    if sheet is not None:
+        xy = sheet.to_base(xy[None], 0.0)[0, :2]
+    return xy, res.exposure and res.exposure.advice
 
 
-def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, layout_path):
+def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, layout_path, sheet=None):
     """The camera a validation photographs with, and how its photos are measured.
 
     Parameters
@@ -148,8 +152,9 @@ def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, 
         backend, else an error)
     cfg : dict, the validation settings (``backend``, ``seed``)
     robot : RobotAdapter (the fake camera renders the fake robot's true spot)
-    layout : Layout; point : str, the validation point
+    layout : Layout (base frame); point : str, the validation point
     layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
+    sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
 
     Returns
     -------
@@ -171,7 +176,7 @@ def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, 
     from lasercal.vision.plane import load_markers
 
     markers = load_markers(layout_path)
-    measure = None if markers is None else (lambda img, name: measure_with_markers(img, name, markers))
+    measure = None if markers is None else (lambda img, name: measure_with_markers(img, name, markers, sheet))
     return OpenCVCamera(int(spec) if spec.isdigit() else spec), measure
 
 

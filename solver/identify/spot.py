@@ -242,6 +242,14 @@ def base_targets(session: Session, model: RobotModel) -> np.ndarray:
     return pose.to_base(session.target[:, :2], session.target[:, 2])
 
 
+def in_base_frame(session: Session, pose: SheetPose) -> Session:
+    """A sheet session as a base-frame one, its points placed by ``pose`` (eq. S1): for what assumes the
+    points are known in the base frame (the capture coach's posterior)."""
+    points = {k: pose.to_base(v[None], session.plane_z)[0] for k, v in session.points.items()}
+    target = pose.to_base(session.target[:, :2], session.target[:, 2])
+    return replace(session, points=points, target=target, frame="base", sheet=None)
+
+
 def identify_lm(
     session: Session,
     nominal: RobotModel | None = None,
