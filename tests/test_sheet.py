@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -19,6 +18,7 @@ import pytest
 import yaml
 
 from lasercal.collector.cli.main import main
+from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout
 from lasercal.solver.kinematics.sheet import SheetPose
 from lasercal.vision.plane import load_markers
@@ -131,7 +131,7 @@ def test_bad_sheet_options_give_one_line(tmp_path, capsys, argv, message):
     assert len(err.splitlines()) == 1 and message in err
 
 
-def test_phone_photo_of_the_sheet_measured_in_sheet_and_base_mm(sheets, tmp_path, capsys, monkeypatch):
+def test_phone_photo_of_the_sheet_measured_in_sheet_and_base_mm(sheets, tmp_path, capsys):
     design, folder = sheets["A4"]
     layout = folder / "layout.yaml"
     img, xy, _ = sheet_photo(load_markers(layout), design.points, "P6", seed=3)
@@ -145,18 +145,17 @@ def test_phone_photo_of_the_sheet_measured_in_sheet_and_base_mm(sheets, tmp_path
     error = np.hypot(spot["x_mm"] - xy[0], spot["y_mm"] - xy[1])
     assert error < 0.15  # benchmarks/bench_sheet.py: 0.04 mm RMS per axis over 40 photos
 
-    # Through an identified sheet pose (eq. S1) to the base frame.
+    # Through an identified sheet pose (eq. S1) to the base frame: a model file carrying one.
     pose = SheetPose(452.3, -7.1, 3.5)
-    monkeypatch.setattr(
-        "lasercal.solver.formats.robots.load_model", lambda *a, **k: SimpleNamespace(sheet=pose)
-    )
-    assert main([*argv, "--json", "--model", "m.yaml"]) == 0
+    model = tmp_path / "m.yaml"
+    load_model("panda").replace(sheet=pose).save(model)
+    assert main([*argv, "--json", "--model", str(model)]) == 0
     spot = json.loads(capsys.readouterr().out)[0]["spots"][0]
     truth = pose.to_base(xy[None], -8)[0]
     assert np.hypot(spot["x_base_mm"] - truth[0], spot["y_base_mm"] - truth[1]) < 0.15
-    assert main([*argv, "--model", "m.yaml"]) == 0
+    assert main([*argv, "--model", str(model)]) == 0
     table = capsys.readouterr().out.splitlines()
-    assert "mm: sheet frame on the plane; bx_mm, by_mm: base frame through m.yaml" in table[0]
+    assert f"mm: sheet frame on the plane; bx_mm, by_mm: base frame through {model}" in table[0]
     assert table[1].split()[-2:] == ["bx_mm", "by_mm"]
     assert float(table[2].split()[-2]) == pytest.approx(spot["x_base_mm"], abs=1e-3)
 
