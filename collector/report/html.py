@@ -183,13 +183,19 @@ def parameter_table(ident: Identification) -> list[ParameterRow]:
     if cov is not None:
         P = LaserParams(nom)
         p = P.size
-        _, dS, _, dvp, _ = P.geometry(ident.estimate[:p])
+        # the laser robot's block by name: a sheet session holds a few of them (the gauge), with no spread
+        idx = {nm: i for i, nm in enumerate(ident.param_names)}
+        at = np.array([idx.get(nm, -1) for nm in P.names])
+        x, C = P.x0(), np.zeros((p, p))
+        x[at >= 0] = ident.estimate[at[at >= 0]]
+        C[np.ix_(at >= 0, at >= 0)] = cov[np.ix_(at[at >= 0], at[at >= 0])]
+        _, dS, _, dvp, _ = P.geometry(x)
         D = np.zeros((6 * nom.n + 6, p))
         for i, d in enumerate(dS):
             D[6 * i : 6 * i + 6, 4 * i : 4 * i + 4] = d
         D[6 * nom.n : 6 * nom.n + 3, P.slice_laser] = dvp
         D[6 * nom.n + 3 :, P.slice_M] = np.eye(3)
-        se = np.sqrt(np.clip(np.diag(D @ cov[:p, :p] @ D.T), 0, None))
+        se = np.sqrt(np.clip(np.diag(D @ C @ D.T), 0, None))
     rows = []
     for i, nm in enumerate(nom.joint_names):
         for k, (part, unit) in enumerate((("omega", ""), ("v", "mm"))):
@@ -561,12 +567,29 @@ def write_report(
         ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
         ["outliers", ", ".join(f"line {o['line']} ({o['point']})" for o in rep["outliers"]) or "none"],
     ]
-    irows += [[f"not identifiable ({k + 1})", u] for k, u in enumerate(idf["unidentifiable"])]
+    det = rep.get("determined_by")
+    if det is None:
+        irows += [["prior", "none (plain least squares)"]]
+        irows += [[f"not identifiable ({k + 1})", u] for k, u in enumerate(idf["unidentifiable"])]
+    else:
+        counts = f"{det['data']} / {det['data_and_prior']} / {det['prior']}"
+        irows += [["determined by the data / data and prior / the prior", counts]]
+        irows += [
+            [f"from the prior: {d['combination']}", f"{d['affects']} ({d['fix']})"] for d in det["from_prior"]
+        ]
     irows += [["partial: not identified", str(d)] for d in missing]
+    sh = rep.get("sheet")
+    if sh:
+        p, sd = sh["pose"], sh["std"]
+        irows += [
+            ["sheet pose (base frame)", f"x {p['x_mm']:.2f} ± {sd['x_mm']:.2f} mm, y {p['y_mm']:.2f} ± "
+             f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg"],
+        ]  # fmt: skip
     parts += [
         "<h2>Identifiability</h2>",
-        '<p class="note">SVD of the column-scaled Jacobian: combinations below the rank are held at their '
-        "start values.</p>",
+        '<p class="note">SVD of the column-scaled Jacobian (the data alone), and which combinations the '
+        "data and which the prior (the robot's manufacturing tolerances) determined: posterior / prior sigma "
+        "below 0.5, between, above 0.9 (docs/formats.md, Priors).</p>",
         _table("identifiability", ["", ""], irows),
     ]
 
