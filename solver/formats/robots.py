@@ -169,6 +169,11 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     if links and len(links) != n:
         raise FormatError(path, f"'links' must have one entry per joint ({n})", field="links")
     extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
+    nominal = d.get("nominal")
+    if nominal is not None and (not isinstance(nominal, str) or not nominal.strip()):
+        raise FormatError(
+            path, "'nominal' must name a robot: a built-in name, a model YAML or a URDF", field="nominal"
+        )
     return RobotModel(
         name=str(d.get("name", Path(str(path)).stem)),
         joint_names=tuple(names),
@@ -187,6 +192,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         extensions=dict(d.get("extensions", {}) or {}),
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
+        nominal=nominal,
     )
 
 
