@@ -15,6 +15,21 @@ from lasercal.solver.formats.session import load_layout, load_session, session_m
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 
 
+def perturbed(nominal, rng, rot=1e-3, mm=1.0):
+    """The nominal with every joint screw moved by random eta (rad, mm), a sensor 2.5 m away, 3 targets."""
+    from lasercal.collector.cli.position import default_sensor, default_targets
+    from lasercal.solver.identify.position import eta_sizes
+    from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+
+    screws = []
+    for S, k in zip(nominal.screws, eta_sizes(nominal)):
+        scale = np.array([rot, rot, mm, mm]) if k == 4 else np.array([rot, rot])
+        screws.append(screw_from_eta(link_frame(S), rng.normal(0, 1, k) * scale)[0])
+    return nominal.replace(
+        screws=np.array(screws), sensor_pose=default_sensor(), targets=default_targets(nominal, 3)
+    )
+
+
 def make_session(
     tmp: Path, truth_name: str, layout_name: str, per_point: int, noise: float, seed: int, nominal: str
 ):

@@ -84,7 +84,7 @@ def cmd_correct(args) -> int:
     if ok < len(c.ok):
         bad = np.flatnonzero(~c.ok)
         for i in bad[:5]:
-            print(f"lasercal: row {i + 1}: {c.reason[i]}", file=sys.stderr)
+            print(f"lasercal: {args.goals}, line {goals.lines[i]}: {c.reason[i]}", file=sys.stderr)
         more = f" (and {len(bad) - 5} more)" if len(bad) > 5 else ""
         print(f"lasercal: {len(bad)} goal(s) not reached{more}: ok = false (see reason)", file=sys.stderr)
         return 1

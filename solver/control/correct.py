@@ -114,7 +114,6 @@ def solve_commands(
     opts : IKOptions
     pull : bool, the seeds pull a redundant arm towards them (False: they are only where the search starts)
     """
-    joint_effect(ext)
     sol = solve_ik(model.screws, M, model.limits, seed, p_goal, R_goal, opts, pull=pull)
     q = command_angles(model, ext, sol.q)
     lo, hi = model.limits[:, 0] + opts.margin, model.limits[:, 1] - opts.margin

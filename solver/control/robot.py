@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.solver.control.correct import Commands, check, solve_commands, true_angles
+from lasercal.solver.control.correct import Commands, check, joint_effect, solve_commands, true_angles
 from lasercal.solver.control.nominal import nominal_model
 from lasercal.solver.control.tools import FLANGE, Tool, flange, identified_points, make_tool
 from lasercal.solver.errors import FormatError
@@ -80,6 +80,7 @@ class Robot:
     def __init__(self, model: RobotModel, nominal: RobotModel, options: IKOptions = DEFAULT_IK, path=None):
         self.model, self.nominal, self.options = model, nominal, options
         self.extension = extension_from_model(model.extensions, path or model.name, model.n)
+        joint_effect(self.extension)
         self.flange = flange(model)
         self.nominal_flange = flange(nominal)
 

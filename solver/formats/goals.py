@@ -44,6 +44,7 @@ class Goals:
     position : (m, 3) array or None, mm
     rotation : (m, 3) array or None, rotation vectors, rad
     q : (m, n) array or None, rad: seeds (with a position) or the program (without)
+    lines : list of int, the file's line of each row
     """
 
     header: list
@@ -51,6 +52,7 @@ class Goals:
     position: np.ndarray | None
     rotation: np.ndarray | None
     q: np.ndarray | None
+    lines: list
 
     @property
     def program(self) -> bool:
@@ -113,7 +115,7 @@ def load_goals(path, model: RobotModel) -> Goals:
             )
     if q is not None:
         check_limits(path, model, q, lines)
-    return Goals(header, [r for _, r in rows], position, rotation, q)
+    return Goals(header, [r for _, r in rows], position, rotation, q, lines)
 
 
 def write_commands(path, goals: Goals, correction, comment: str) -> None:
