@@ -191,3 +191,5 @@ def test_ik_with_an_effect_reaches_the_goal_at_the_true_angles():
     assert c.ok.all() and c.residual_mm.max() < 1e-6
     assert np.abs(robot.fk(c.q)[:, :3, 3] - goal).max() < 1e-6
     assert np.median(np.linalg.norm(Robot(base, base).fk(c.q)[:, :3, 3] - goal, axis=1)) > 1.0
+    # a configuration planned on the rigid calibrated geometry (MoveIt with the URDF), as commands
+    assert np.abs(robot.fk(robot.command(q0)) - Robot(base, base).fk(q0)).max() < 1e-9

@@ -26,7 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.solver.control.correct import Commands, check, joint_effect, solve_commands, true_angles
+from lasercal.solver.control.correct import (
+    Commands,
+    check,
+    command_angles,
+    joint_effect,
+    solve_commands,
+    true_angles,
+)
 from lasercal.solver.control.nominal import nominal_model
 from lasercal.solver.control.tools import FLANGE, Tool, flange, identified_points, make_tool
 from lasercal.solver.errors import FormatError
@@ -122,6 +129,11 @@ class Robot:
             return tool_frames(self.nominal.screws, self.tool_frame(tool, nominal=True), q)[0]
         q_true = true_angles(self.model, self.extension, q)
         return tool_frames(self.model.screws, self.tool_frame(tool), q_true)[0]
+
+    def command(self, q_true) -> np.ndarray:
+        """The joint commands (m, n) rad whose true link angles are ``q_true`` (m, n) rad: the model's effects
+        inverted (a configuration planned on the calibrated URDF, which cannot carry them, e.g. by MoveIt)."""
+        return command_angles(self.model, self.extension, self._angles(q_true))
 
     def ik(self, goal, seed=None, tool=None) -> Commands:
         """Inverse kinematics: joint angles (as commanded) putting the tool at each goal under the calibrated

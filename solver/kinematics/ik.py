@@ -251,6 +251,7 @@ def solve_ik(
     opts: IKOptions = DEFAULT_IK,
     bounds: tuple[np.ndarray, np.ndarray] | None = None,
     pull: bool = True,
+    start: np.ndarray | None = None,
 ) -> IKSolution:
     """Configurations putting the tool at each goal, nearest the seed, within the limits (module docstring).
 
@@ -265,6 +266,7 @@ def solve_ik(
     opts : IKOptions
     bounds : (lo, hi) arrays broadcastable to (m, n), optional, in place of limits +- margin
     pull : bool, the seed pulls the redundant joints (False: the seed is only where the search starts)
+    start : (m, n) array, optional, where the first start begins (default the seed)
 
     Returns
     -------
@@ -276,7 +278,8 @@ def solve_ik(
         bounds = (limits[:, 0] + opts.margin, limits[:, 1] - opts.margin)
     lo, hi = (np.broadcast_to(np.asarray(b, dtype=float), (m, n)) for b in bounds)
     q_seed = np.broadcast_to(np.asarray(q_seed, dtype=float), (m, n))
-    q = _start(screws, M, np.clip(q_seed, lo, hi), q_seed, p_goal, R_goal, lo, hi, opts, pull)
+    q0 = q_seed if start is None else np.asarray(start, dtype=float)
+    q = _start(screws, M, np.clip(q0, lo, hi), q_seed, p_goal, R_goal, lo, hi, opts, pull)
     ep, ew = _measure(screws, M, q, p_goal, R_goal)
     reached = (ep < opts.tol_mm) & (ew < opts.tol_rad)
     starts = np.ones(m, dtype=int)
