@@ -23,8 +23,7 @@ from lasercal.solver.formats.urdf import calibrated_urdf, load_urdf
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.gravity import model_torques
 from lasercal.solver.kinematics.ik import tool_frames
-from tests.conftest import perturbed
-from tests.test_ik import franka_flange
+from tests.conftest import franka_flange, perturbed
 
 DATA = Path(__file__).parent / "data"
 ARM7 = DATA / "arm7.urdf"

@@ -16,44 +16,9 @@ from lasercal.solver.formats.urdf import load_urdf
 from lasercal.solver.kinematics.effects import Combination, Extension
 from lasercal.solver.kinematics.ik import IKOptions, solve_ik, tool_frames
 from lasercal.solver.kinematics.poe import fk, poe_chain, space_jacobian
+from tests.conftest import franka_flange
 
 DATA = Path(__file__).parent / "data"
-# Franka's DH table (Craig), rows (a_{i-1}, d_i, alpha_{i-1}) in m, and the flange row (field notes)
-FRANKA_DH = [
-    (0, 0.333, 0),
-    (0, 0, -np.pi / 2),
-    (0, 0.316, np.pi / 2),
-    (0.0825, 0, np.pi / 2),
-    (-0.0825, 0.384, -np.pi / 2),
-    (0, 0, np.pi / 2),
-    (0.088, 0, np.pi / 2),
-]
-FRANKA_FLANGE_M = 0.107
-
-
-def franka_flange(q: np.ndarray) -> np.ndarray:
-    """Franka's flange (m, 4, 4) mm from the DH table: prod Rx(alpha) Tx(a) Rz(q) Tz(d), then Tz(0.107)."""
-
-    def rx(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
-
-    def rz(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-    def tr(x, z):
-        T = np.eye(4)
-        T[0, 3], T[2, 3] = 1000 * x, 1000 * z
-        return T
-
-    out = []
-    for qi in q:
-        T = np.eye(4)
-        for (a, d, alpha), qj in zip(FRANKA_DH, qi):
-            T = T @ rx(alpha) @ tr(a, 0) @ rz(qj) @ tr(0, d)
-        out.append(T @ tr(0, FRANKA_FLANGE_M))
-    return np.array(out)
 
 
 def test_tool_frames_are_the_poe_chain():
