@@ -16,7 +16,12 @@ from the goal the step shortens and near it the iteration is Gauss-Newton (quadr
 (n > task) is resolved towards the seed q_s by the null-space term of the minimum-norm solution of
 J (q' - q_s) = e + J (q - q_s): dq = dq_task + (I - J^+ J)(q_s - q) (eq. 6.7 with the pseudoinverse
 J^+ = J^T (J J^T)^-1), whose fixed point is the solution nearest the seed (a stationary point of
-|q - q_s| on the set of solutions). A step is shortened to at most ``max_step`` rad per joint.
+|q - q_s| on the set of solutions). The seed pulls once the task error is below ``pull_within_mm``
+(further away it would fight the way to the goal); within ``max_pull`` of the seed the null-space step
+is taken whole, further away halved and shortened to ``max_pull`` (whole steps there overshoot along
+the curved set of solutions and cycle). A goal still missed after ``iterations`` steps is polished by
+steps of the task alone. Without a seed to prefer (``pull=False``) the seed is only the start. A step
+is shortened to at most ``max_step`` rad per joint.
 
 Limits. Each joint is kept in [lo + margin, hi - margin] (bounds may differ per goal): after every
 step the configuration is clamped into the box, and a joint on its bound whose step points outside
