@@ -23,10 +23,10 @@ def main() -> None:
     import sys
     import tempfile
 
-    sys.path.insert(0, str(TESTS))
-    from test_position import DATA, perturbed  # the tests' truth: perturbed screws, sensor 2.5 m away
-
+    sys.path.insert(0, str(TESTS.parent))
     from lasercal.solver.formats.urdf import load_urdf
+    from tests.conftest import perturbed  # the tests' truth: perturbed screws, sensor 2.5 m away
+    from tests.test_position import DATA
 
     print(f"{'arm':9} {'noise mm':>8} {'fit RMS':>9} {'CV mean |e|':>12} {'1.596 sigma':>11} {'truth':>10}")
     for name in ("ur5", "arm7", "rail_ur5"):

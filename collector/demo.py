@@ -15,6 +15,8 @@ not model hidden in the robot:
    ``vision`` measures the photo. The extended model is validated behind a controller
    that applies its correction (:class:`Compensated`).
 5. The report (``collector.report``).
+6. The payoff: a program planned with the nominal model, commanded as planned and as ``lasercal correct``
+   corrects it with the best model (:func:`correction_payoff`), measured at the true robot's flange.
 """
 
 from __future__ import annotations
@@ -45,10 +47,13 @@ from lasercal.collector.sessions.validate import (
 )
 from lasercal.solver.analysis.diagnose import diagnose
 from lasercal.solver.analysis.stats import spot_stats
+from lasercal.solver.control.robot import Robot
+from lasercal.solver.control.robot import load_model as load_robot
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout, load_layout, load_session, session_meta
 from lasercal.solver.identify.spot import identify
+from lasercal.solver.kinematics.aim import aim
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.gravity import gravity_torques
 from lasercal.solver.kinematics.model import RobotModel
@@ -91,8 +96,8 @@ class DemoOptions:
     view_px: int = 800
 
     def units(self) -> int:
-        """Progress units of a run: captures, photos of four models, three fits and the report."""
-        return 3 * self.per_point + 4 * self.n_validation + 4
+        """Progress units of a run: captures, photos of four models, three fits, the report, the payoff."""
+        return 3 * self.per_point + 4 * self.n_validation + 5
 
 
 def encoder_reading(effect: Extension, q_true: np.ndarray, t: float, tau: np.ndarray) -> np.ndarray:
@@ -136,18 +141,22 @@ class EffectRobot(FakeRobot):
 
     def _link(self, q: np.ndarray) -> np.ndarray:
         """Where the links go when the encoders read q (the torques depend on that pose)."""
-        q = np.asarray(q, dtype=float)
-        t = np.array([self.clock.now()])
-        link = q
-        for _ in range(_FIXED_POINT):
-            link = self.effect.true_q(q[None], t, gravity_torques(self.truth, link[None]))[0]
-        return link
+        return link_angles(self.truth, self.effect, np.asarray(q, dtype=float)[None], self.clock.now())[0]
 
     def move_to(self, q: np.ndarray) -> None:
         super().move_to(self._link(q))
 
     def prompt_configuration(self, q: np.ndarray) -> None:
         super().prompt_configuration(self._link(q))
+
+
+def link_angles(truth: RobotModel, effect: Extension, q: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """Where the links of the hidden-effect robot go (m, n) when its encoders read q (m, n), rad: the fixed
+    point link = effect.true_q(q, t, tau(link)), the torques those of the bent pose."""
+    link = q
+    for _ in range(_FIXED_POINT):
+        link = effect.true_q(q, np.full(len(q), t), gravity_torques(truth, link))
+    return link
 
 
 class Compensated(RobotAdapter):
@@ -287,6 +296,41 @@ def validate_model(
     )
 
 
+def correction_payoff(
+    model_path, truth: RobotModel, layout: Layout, opts: DemoOptions, per_point: int = 15
+) -> dict:
+    """The flange error of a program planned with the nominal model, commanded as planned and corrected.
+
+    The program: ``per_point`` configurations aiming the nominal laser at each layout point (the work the
+    calibration was for). Its goals are the nominal model's flange poses; the true robot (with its hidden
+    effect) goes to the link angles of each command; the error is the distance of its flange (the nominal
+    flange carried by the true last joint, :mod:`solver.control.tools`) from the goal, mm.
+
+    Returns
+    -------
+    dict: 'configurations', 'nominal_mm' and 'corrected_mm' (mean errors), 'model' (the file that corrected)
+    """
+    robot = load_robot(model_path)
+    rng = np.random.default_rng(opts.seed)
+    program = np.vstack(
+        [aim(robot.nominal, p, per_point, rng, **layout.aim_kwargs()) for p in layout.points.values()]
+    )
+    goal = robot.fk(program, nominal=True)[:, :3, 3]
+    true_robot = Robot(truth, robot.nominal)
+
+    def error(q):
+        return np.linalg.norm(true_robot.fk(link_angles(truth, opts.effect, q))[:, :3, 3] - goal, axis=1)
+
+    corrected = robot.correct(q=program)
+    return {
+        "configurations": len(program),
+        "nominal_mm": round(float(error(program).mean()), 3),
+        "corrected_mm": round(float(error(corrected.q).mean()), 3),
+        "all_ok": bool(corrected.ok.all()),
+        "model": Path(model_path).name,
+    }
+
+
 def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     """Run the whole story, write its files under ``out`` and return the summary (also in summary.json).
 
@@ -371,6 +415,9 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
         title=f"lasercal demo: the simulated Panda with a hidden {opts.effect.effect.replace('_', ' ')}",
     )
     step("report")
+    best = out / ("model_extended.yaml" if d.extended is not None else "model_lm.yaml")
+    payoff = timed("correct", correction_payoff, best, truth, layout, opts)
+    step("correct")
     found = (
         d.extension is not None
         and d.effect == opts.effect.effect
@@ -393,6 +440,7 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
         "captures": session.m,
         "diagnosis": d.as_dict(),
         "found": bool(found),
+        "correct": payoff,
         "seconds": {**seconds, "total": round(time.perf_counter() - t_start, 2)},
         "report": str(report),
     }
@@ -454,6 +502,11 @@ def format_summary(s: dict) -> str:
             f"; P4 error mean {s['p4']['lm']['error_mean']:.3f} -> {s['p4']['extended']['error_mean']:.3f} mm"
         )
     rows.append(gain)
+    c = s["correct"]
+    rows.append(
+        f"commanded with the nominal model: {c['nominal_mm']:.2f} mm off; with `lasercal correct`: "
+        f"{c['corrected_mm']:.2f} mm (flange, {c['configurations']} configurations of a nominal program)"
+    )
     rows.append(
         f"\n{s['captures']} captures, {4 * s['options']['n_validation']} photos, {s['seconds']['total']:.1f} "
         "s"

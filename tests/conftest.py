@@ -15,6 +15,59 @@ from lasercal.solver.formats.session import load_layout, load_session, session_m
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 
 
+# Franka's DH table (Craig): rows (a_{i-1}, d_i, alpha_{i-1}) in mm; the flange 107 mm along z7 (field notes)
+FRANKA_DH = (
+    (0, 333, 0),
+    (0, 0, -np.pi / 2),
+    (0, 316, np.pi / 2),
+    (82.5, 0, np.pi / 2),
+    (-82.5, 384, -np.pi / 2),
+    (0, 0, np.pi / 2),
+    (88, 0, np.pi / 2),
+)
+FRANKA_FLANGE_MM = 107.0
+
+
+def franka_flange(q: np.ndarray) -> np.ndarray:
+    """Franka's flange (m, 4, 4) mm at q (m, 7) rad: prod Rx(alpha) Tx(a) Rz(q) Tz(d) of the rows, Tz(107)."""
+
+    def rx(a):
+        c, s = np.cos(a), np.sin(a)
+        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
+
+    def rz(a):
+        c, s = np.cos(a), np.sin(a)
+        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+    def tr(x, z):
+        T = np.eye(4)
+        T[0, 3], T[2, 3] = x, z
+        return T
+
+    out = []
+    for qi in np.atleast_2d(q):
+        T = np.eye(4)
+        for (a, d, alpha), qj in zip(FRANKA_DH, qi):
+            T = T @ rx(alpha) @ tr(a, 0) @ rz(qj) @ tr(0, d)
+        out.append(T @ tr(0, FRANKA_FLANGE_MM))
+    return np.array(out)
+
+
+def perturbed(nominal, rng, rot=1e-3, mm=1.0):
+    """The nominal with every joint screw moved by random eta (rad, mm), a sensor 2.5 m away, 3 targets."""
+    from lasercal.collector.cli.position import default_sensor, default_targets
+    from lasercal.solver.identify.position import eta_sizes
+    from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+
+    screws = []
+    for S, k in zip(nominal.screws, eta_sizes(nominal)):
+        scale = np.array([rot, rot, mm, mm]) if k == 4 else np.array([rot, rot])
+        screws.append(screw_from_eta(link_frame(S), rng.normal(0, 1, k) * scale)[0])
+    return nominal.replace(
+        screws=np.array(screws), sensor_pose=default_sensor(), targets=default_targets(nominal, 3)
+    )
+
+
 def make_session(
     tmp: Path, truth_name: str, layout_name: str, per_point: int, noise: float, seed: int, nominal: str
 ):

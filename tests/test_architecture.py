@@ -114,12 +114,31 @@ def test_help_imports_no_command_module():
 
 
 def test_pyproject_lists_every_package_and_only_lasercal():
+    """Every folder with an __init__.py is listed, named through the package-dir mappings (``lasercal``
+    itself is the folder solver/api: the repository keeps its top-level folders)."""
     conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     listed = set(conf["packages"])
+    folders = sorted(conf["package-dir"].items(), key=lambda kv: -len(kv[1]))  # the deepest mapping first
+
+    def package(folder: Path) -> str:
+        rel = folder.relative_to(ROOT).as_posix()
+        pkg, d = next((pkg, d) for pkg, d in folders if rel == d or rel.startswith(d + "/"))
+        return pkg + rel[len(d) :].replace("/", ".")
+
     on_disk = {"lasercal.data"} | {
-        "lasercal." + ".".join(p.parent.relative_to(ROOT).parts)
-        for pkg in PACKAGES.values()
-        for p in pkg.rglob("__init__.py")
+        package(p.parent) for pkg in PACKAGES.values() for p in pkg.rglob("__init__.py")
     }
     assert listed == on_disk
     assert all(p.split(".")[0] == "lasercal" for p in listed)
+    assert conf["package-dir"]["lasercal"] == "solver/api"
+
+
+def test_import_lasercal_is_lazy():
+    """``import lasercal`` (what ``lasercal --help`` does first) loads nothing; its API loads on use."""
+    code = (
+        "import sys, lasercal\n"
+        "print(sorted(m for m in sys.modules if m.startswith('lasercal')), 'numpy' in sys.modules)\n"
+        "print(lasercal.load_model.__module__, 'numpy' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines() == ["['lasercal'] False", "lasercal.solver.control.robot True"]

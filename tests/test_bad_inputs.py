@@ -608,6 +608,22 @@ def _replace_first_number(path: Path, text: str) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+# --- lasercal correct: its options, its goals file, its model ----------------------------------------------
+CORRECT = ["correct", "{d}/model.yaml", "{d}/configs.csv", "-o", "{o}"]
+for opt, values in {"--margin": ["-1", "nan", "1"], "--restarts": ["-1", "1.5"], "--tcp": ["nan"]}.items():
+    for v in values:
+        case(f"correct {opt} {v}", CORRECT + [opt] + ([v, "0", "0"] if opt == "--tcp" else [v]), None, opt)
+case("correct: program in degrees", CORRECT, _degrees("configs.csv", Q), "configs.csv")
+case("correct: program value nan", CORRECT, _cell("configs.csv", 0, "q2", "nan"), "configs.csv")
+case("correct: unknown tool", CORRECT + ["--tool", "T9"], None, "--tool")
+case(
+    "correct: no nominal",
+    CORRECT,
+    _yaml("model.yaml", _set("name", "mybot"), lambda m: m.pop("nominal"), lambda m: m.pop("identification")),
+    "nominal",
+)
+
+
 @pytest.fixture
 def watchdog():
     """A hang becomes a failure after WATCHDOG_S seconds."""

@@ -149,6 +149,19 @@ def test_demo_prints_the_summary_and_a_progress_bar(demo):
     assert "validate extended" in stderr and "%|" in stderr  # tqdm's bar, on stderr
 
 
+def test_demo_ends_with_the_payoff_of_lasercal_correct(demo):
+    """A program planned with the nominal model (15 laser-aiming configurations at each of P1-P4), commanded
+    as planned and corrected with the extended model: measured at the true robot's flange."""
+    _, stdout, _, out = demo
+    c = json.loads((out / "summary.json").read_text())["correct"]
+    assert c["configurations"] == 60 and c["all_ok"] and c["model"] == "model_extended.yaml"
+    assert c["nominal_mm"] > 3 and c["corrected_mm"] < c["nominal_mm"] / 4
+    assert (
+        f"commanded with the nominal model: {c['nominal_mm']:.2f} mm off; with `lasercal correct`: "
+        f"{c['corrected_mm']:.2f} mm" in stdout
+    )
+
+
 def test_demo_refuses_a_folder_in_use(demo, capsys):
     out = demo[3]
     before = sorted(p.name for p in out.iterdir())

@@ -10,6 +10,7 @@ from lasercal.solver.formats.robots import load_model
 from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
 from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, exp6, inv_T, log6, poe_chain, space_jacobian
+from tests.conftest import franka_flange
 
 finite = st.floats(-3, 3, allow_nan=False)
 
@@ -114,40 +115,12 @@ def test_screw_from_eta_derivative_and_constraints():
 
 def test_panda_nominal_equals_franka_dh_table():
     """Thesis Table 4.3 nominal screws reproduce Franka's (Craig) DH table to round-off."""
-    dh = [
-        (0, 333, 0),
-        (0, 0, -np.pi / 2),
-        (0, 316, np.pi / 2),
-        (82.5, 0, np.pi / 2),
-        (-82.5, 384, -np.pi / 2),
-        (0, 0, np.pi / 2),
-        (88, 0, np.pi / 2),
-    ]
-
-    def Rx(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
-
-    def Rz(t):
-        c, s = np.cos(t), np.sin(t)
-        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-    def Tr(x, y, z):
-        T = np.eye(4)
-        T[:3, 3] = x, y, z
-        return T
-
     model = load_model("panda")
     rng = np.random.default_rng(3)
     q = rng.uniform(model.limits[:, 0], model.limits[:, 1], (20, 7))
-    M = Tr(88, 0, 926) @ Rx(np.pi)  # flange at q = 0, z down
-    chain = poe_chain(model.screws, q)
-    for k in range(20):
-        T = np.eye(4)
-        for (a, d, al), th in zip(dh, q[k]):
-            T = T @ Rx(al) @ Tr(a, 0, 0) @ Rz(th) @ Tr(0, 0, d)
-        T = T @ Tr(0, 0, 107)
-        assert np.allclose(chain[k, -1] @ M, T, atol=1e-9)
+    M = np.diag([1.0, -1.0, -1.0, 1.0])  # flange at q = 0: (88, 0, 926) mm, z down
+    M[:3, 3] = 88, 0, 926
+    assert np.allclose(poe_chain(model.screws, q)[:, -1] @ M, franka_flange(q), atol=1e-9)
 
 
 def test_space_jacobian_by_finite_differences():

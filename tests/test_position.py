@@ -12,7 +12,6 @@ import pytest
 import yaml
 
 from lasercal.collector.cli.main import main
-from lasercal.collector.cli.position import default_sensor, default_targets
 from lasercal.solver.analysis.simulate import random_configs, simulate_positions
 from lasercal.solver.analysis.stats import cross_validate
 from lasercal.solver.errors import FormatError
@@ -21,22 +20,11 @@ from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_session
 from lasercal.solver.formats.urdf import calibrated_urdf, load_urdf
 from lasercal.solver.identify.measurement import fit
-from lasercal.solver.identify.position import eta_sizes, sensor_points
+from lasercal.solver.identify.position import sensor_points
 from lasercal.solver.identify.prior import robot_tolerances
-from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
+from tests.conftest import perturbed
 
 DATA = Path(__file__).parent / "data"
-
-
-def perturbed(nominal, rng, rot=1e-3, mm=1.0):
-    """The nominal with every joint screw moved by random eta (rad, mm), a sensor 2.5 m away, targets."""
-    screws = []
-    for S, k in zip(nominal.screws, eta_sizes(nominal)):
-        scale = np.array([rot, rot, mm, mm]) if k == 4 else np.array([rot, rot])
-        screws.append(screw_from_eta(link_frame(S), rng.normal(0, 1, k) * scale)[0])
-    return nominal.replace(
-        screws=np.array(screws), sensor_pose=default_sensor(), targets=default_targets(nominal, 3)
-    )
 
 
 def session(tmp, name, m, noise, seed, urdf_ref=None):

@@ -168,6 +168,7 @@ def report(cal: FullPoseCalibration | PointCalibration, cv, source: str) -> dict
 
 def cmd_fullpose(args) -> int:
     from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.solver.control.nominal import robot_reference
     from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
@@ -211,7 +212,8 @@ def cmd_fullpose(args) -> int:
     meta["units"] = "mm, rad"
     meta["robot"] = str(resolve_robot_path(args.robot).resolve())
     with atomic_output(args.output) as tmp:
-        cal.model.replace(identification=json.loads(json.dumps(meta))).save(tmp)
+        nominal = robot_reference(args.robot)
+        cal.model.replace(identification=json.loads(json.dumps(meta)), nominal=nominal).save(tmp)
     if args.json:
         print(json.dumps(rep, indent=2))
         return 0

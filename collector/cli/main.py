@@ -58,6 +58,12 @@ COMMANDS = (
     ),
     Command("export", "report", "cmd_export", "the calibrated model as a URDF, a DH-style table or YAML"),
     Command(
+        "correct",
+        "correct",
+        "cmd_correct",
+        "joint and Cartesian commands that reach goals on the calibrated robot (for a nominal controller)",
+    ),
+    Command(
         "predict", "solve", "cmd_predict", "where a model's beam meets the plane, for configurations in a CSV"
     ),
     Command("simulate", "solve", "cmd_simulate", "a synthetic capture session whose truth is a given robot"),

@@ -125,6 +125,7 @@ def cmd_solve(args) -> int:
     from lasercal.collector.sessions.store import atomic_output, check_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
+    from lasercal.solver.control.nominal import robot_reference
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
     from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
@@ -199,10 +200,13 @@ def cmd_solve(args) -> int:
             meta[k] = rep[k]
     # MODEL.yaml carries robot effects only: a session effect (drift, a misplaced point) was fitted so that
     # it does not bend the geometry, and is reported in identification.diagnosis, not applied at run time
+    # the nominal it calibrates, named so that it is found from anywhere (lasercal correct needs it)
+    ref = (args.robot, None) if args.robot else (session.meta["robot"], session.path)
+    nominal = robot_reference(*ref)
     with atomic_output(args.output) as tmp:
-        ident.model.replace(identification=meta, extensions=robot_extensions(ident.model.extensions)).save(
-            tmp
-        )
+        ident.model.replace(
+            identification=meta, extensions=robot_extensions(ident.model.extensions), nominal=nominal
+        ).save(tmp)
     if args.json:
         print(json.dumps(rep, indent=2))
     else:

@@ -193,6 +193,22 @@ def kinematic_frames(model: RobotModel) -> Frames:
     return Frames(prefix, base, frames, flange, laser)
 
 
+def flange_frame(model: RobotModel, frames: Frames | None = None) -> np.ndarray:
+    """The flange frame at q = 0 (4, 4) mm, carried by the model's last joint (:func:`kinematic_frames`).
+
+    Franka's flange (``panda_link8``, 107 mm along joint 7's axis) for a Panda or an FR3; for other robots
+    no flange is of record, and the last joint's frame slid along its axis to the foot of the laser
+    aperture (or tool point) stands in.
+    """
+    F = kinematic_frames(model) if frames is None else frames
+    if F.flange is not None:
+        return F.flange
+    last = F.joints[-1]
+    flange = last.copy()
+    flange[:3, 3] = _foot(last[:3, 3], last[:3, 2], model.aperture)
+    return flange
+
+
 def _num(v: float) -> str:
     """A float that round-trips exactly (repr), without a trailing '.0' noise for integers."""
     v = float(v)
@@ -310,10 +326,7 @@ def to_dh(model: RobotModel) -> str:
     F = kinematic_frames(model)
     dh = dh_parameters(F.joints, F.base)
     last = F.joints[-1]
-    flange = F.flange
-    if flange is None:  # no flange of record: the last frame slid along its axis to the aperture's foot
-        flange = last.copy()
-        flange[:3, 3] = _foot(last[:3, 3], last[:3, 2], model.aperture)
+    flange = flange_frame(model, F)
     fl = dh_parameters(flange[None], last)[0]
     r = lambda a: [float(round(float(x), 12)) for x in np.ravel(a)]  # noqa: E731
 

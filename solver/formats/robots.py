@@ -194,6 +194,11 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     prior = d.get("prior") or {}
     DEFAULTS.updated(prior, path)  # validated here too
     sheet, sheet_std = (_sheet(d, k, path) for k in ("sheet", "sheet_std"))
+    nominal = d.get("nominal")
+    if nominal is not None and (not isinstance(nominal, str) or not nominal.strip()):
+        raise FormatError(
+            path, "'nominal' must name a robot: a built-in name, a model YAML or a URDF", field="nominal"
+        )
     return RobotModel(
         name=str(d.get("name", Path(str(path)).stem)),
         joint_names=tuple(names),
@@ -215,6 +220,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         sheet_std=None if sheet_std is None else dict(zip(SHEET_KEYS, sheet_std)),
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
+        nominal=nominal,
     )
 
 

@@ -338,3 +338,17 @@ def sensor_urdf(model: RobotModel, sensor_link: str = "sensor") -> str:
     tree = ET.ElementTree(root)
     ET.indent(tree)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
+
+
+def tip_frame(model: RobotModel) -> np.ndarray:
+    """The chain's tip link at q = 0 (4, 4) mm, carried by the calibrated joints: where
+    :func:`calibrated_urdf` puts it (the nominal tip, fixed in the last joint's calibrated frame).
+
+    Parameters
+    ----------
+    model : RobotModel with ``urdf`` (from :func:`load_urdf`, identified or not)
+    """
+    path = Path(model.urdf["file"])
+    nominal = load_urdf(path, model.urdf["base_link"], model.urdf["tip_link"])
+    last = _joint_frames(nominal)[-1]
+    return calibrated_frames(model, nominal)[-1] @ inv_T(last) @ np.asarray(nominal.ee_pose)

@@ -6,6 +6,7 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
 
     format: lasercal-robot/1
     name: panda
+    nominal: panda         # optional: the nominal model this one calibrates (built-in name, YAML or URDF)
     units: {length: mm, angle: rad}
     joints:
       - {name: joint1, omega: [0, 0, 1], v: [0, 0, 0], limits: [-2.8973, 2.8973]}
@@ -83,6 +84,8 @@ class RobotModel:
     sheet_std : dict or None, its standard deviations {x_mm, y_mm, yaw_deg}
     identification : dict, metadata written by an identification
     notes : tuple of str, what was corrected on load (never silent)
+    nominal : str or None, the nominal model this one calibrates: a built-in name, or a YAML or URDF path
+        (relative to the model file's folder); what a controller that keeps the nominal model computes
     """
 
     name: str
@@ -105,6 +108,7 @@ class RobotModel:
     sheet_std: dict | None = None
     identification: dict = field(default_factory=dict)
     notes: tuple = ()
+    nominal: str | None = None
 
     @property
     def n(self) -> int:
@@ -146,8 +150,10 @@ class RobotModel:
         d: dict[str, Any] = {
             "format": FORMAT,
             "name": self.name,
-            "units": {"length": "mm", "angle": "rad", "mass": "kg"},
         }
+        if self.nominal is not None:
+            d["nominal"] = self.nominal
+        d["units"] = {"length": "mm", "angle": "rad", "mass": "kg"}
         d["joints"] = [
             {"name": nm, "omega": r(S[:3]), "v": r(S[3:]), "limits": r(lim)}
             | ({"type": "prismatic"} if pr else {})

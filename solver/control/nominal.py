@@ -1,0 +1,90 @@
+"""The nominal model a calibrated model refers to: what a controller that keeps its factory kinematics
+computes (the Cartesian commands of ``lasercal correct``, the goals of a joint-space program).
+
+Found, in this order, from:
+
+1. the model's ``nominal:`` key (a built-in name, or a model YAML or URDF path relative to the model file;
+   ``lasercal solve`` writes it);
+2. the URDF the model came from (``urdf: {file, base_link, tip_link}``);
+3. the robot of the session it was identified from (``identification.session``, when that folder exists);
+4. its name, when that is a built-in robot ('panda', 'fr3', ...).
+
+A model none of these names is refused with the key to add.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
+from lasercal.solver.kinematics.model import RobotModel
+
+
+def robot_reference(ref, base: Path | None = None) -> str:
+    """How a model file names a robot so that it is found from any folder: a built-in name as it is, a file
+    (YAML or URDF, relative to ``base`` first) as its absolute path."""
+    ref = str(ref)
+    if ref.lower().endswith(".urdf"):
+        p = Path(ref)
+        if not p.is_absolute() and base is not None and (Path(base) / p).exists():
+            p = Path(base) / p
+        return str(p.resolve())
+    path = resolve_robot_path(ref, base)
+    return path.stem if path.resolve().parent == builtin_dir("robots").resolve() else str(path.resolve())
+
+
+def _chain(model: RobotModel) -> dict:
+    return {k: model.urdf.get(k) for k in ("base_link", "tip_link")} if model.urdf else {}
+
+
+def _from_session(model: RobotModel) -> RobotModel | None:
+    folder = model.identification.get("session")
+    if not folder or not (Path(folder) / "session.yaml").is_file():
+        return None
+    meta = load_yaml(Path(folder) / "session.yaml")
+    if not isinstance(meta, dict) or not meta.get("robot"):
+        return None
+    urdf = str(meta["robot"]).lower().endswith(".urdf")
+    chain = {k: meta.get(k) for k in ("base_link", "tip_link")} if urdf else {}
+    return load_model(meta["robot"], base=Path(folder), **chain)
+
+
+def nominal_model(model: RobotModel, path=None) -> RobotModel:
+    """The nominal model that ``model`` calibrates (module docstring).
+
+    Parameters
+    ----------
+    model : RobotModel, a calibrated (or nominal) model
+    path : str or Path, optional, the model's file: a relative ``nominal:`` path is relative to its folder
+
+    Returns
+    -------
+    RobotModel with the same number of joints
+    """
+    where = path if path is not None else model.name
+    if model.nominal:
+        urdf = model.nominal.lower().endswith(".urdf")
+        base = Path(path).resolve().parent if path is not None else None
+        nominal = load_model(model.nominal, base=base, **(_chain(model) if urdf else {}))
+    elif model.urdf:
+        nominal = load_model(model.urdf["file"], **_chain(model))
+    else:
+        nominal = _from_session(model)
+        if nominal is None and (builtin_dir("robots") / f"{model.name}.yaml").is_file():
+            nominal = load_model(model.name)
+    if nominal is None:
+        raise FormatError(
+            where,
+            f"cannot tell which nominal model {model.name!r} calibrates: add 'nominal: NAME' to the model "
+            "file (a built-in name, a model YAML or a URDF; a path relative to the model file)",
+            field="nominal",
+        )
+    if nominal.n != model.n:
+        raise FormatError(
+            where,
+            f"the nominal model {nominal.name!r} has {nominal.n} joints, the model {model.n}",
+            field="nominal",
+        )
+    return nominal
