@@ -54,10 +54,11 @@ FOLDS = _folds
 
 
 def chain_arguments(p: argparse.ArgumentParser, robot_help: str | None = None) -> None:
-    """``--base-link`` and ``--tip-link`` (a URDF chain's ends); ``--robot`` and ``--prior`` (a session's
-    nominal robot and the prior of its fits) when ``robot_help``."""
+    """``--base-link`` and ``--tip-link`` (a URDF chain's ends), and ``--robot`` when ``robot_help``; a
+    session's robot (``SESSION_ROBOT``) comes with ``--prior``, the prior of its fits."""
     if robot_help:
         p.add_argument("--robot", metavar="ROBOT", help=robot_help)
+    if robot_help is SESSION_ROBOT:
         prior_argument(p)
     p.add_argument(
         "--base-link", metavar="LINK", help="URDF robot: the chain's first link (default: the root)"
