@@ -44,7 +44,10 @@ def test_plan_writes_aimed_configurations_and_rejects_bad_input(tmp_path, capsys
     from lasercal.solver.analysis.design import posterior
 
     post = posterior(
-        panda.replace(aperture=np.r_[panda.aperture[:2], session.aperture_z]), session.q, session.target
+        panda.replace(aperture=np.r_[panda.aperture[:2], session.aperture_z]),
+        session.q,
+        session.target,
+        session.tolerances,  # the robot's: plan's prior
     )
     pts = [session.points[r["point"]] for r in rows]
     assert all(spot_error(post.model, qi[None], p)[0] < 0.5 for qi, p in zip(q, pts))

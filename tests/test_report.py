@@ -158,7 +158,12 @@ def test_points_identifiability_and_diagnosis_are_the_librarys(experiment):
     assert idf["rank"] == str(ident.identifiability.rank) and idf["parameters"] == str(
         ident.identifiability.n_params
     )
-    assert idf["not identifiable (1)"] == ident.identifiability.unidentifiable[0]
+    det = rep["determined_by"]
+    counts = idf["determined by the data / data and prior / the prior"]
+    assert counts == f"{det['data']} / {det['data_and_prior']} / {det['prior']}"
+    assert [k.removeprefix("from the prior: ") for k in idf if k.startswith("from the prior")] == [
+        d["combination"] for d in det["from_prior"]
+    ]
     assert t.pre["diagnosis"] == format_diagnosis(d)
 
 
@@ -308,8 +313,10 @@ def test_report_says_what_it_is(experiment):
             data = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
         err[name] = np.mean([np.hypot(float(r["x_mm"]) - 441, float(r["y_mm"]) - 160) for r in data])
     n = OPTS.n_validation
+    held = [d["combination"] for d in solve_report(session, ident)["determined_by"]["from_prior"]]
     assert _paragraph(text, "verdict") == (
         f"calibrated: {err['nominal']:.2g} → {err['calibrated']:.2g} mm at P4, {n} of {n} configurations"
+        + (f"; from the prior, not calibrated by the data: {', '.join(held)}" if held else "")
     )
     # corrections per joint: angle between axis directions (deg) and distance of the identified axis from the
     # nominal axis's foot point (mm), recomputed here with scipy's rotation between the two directions
@@ -336,13 +343,20 @@ def test_report_partial_validation_and_partial_fit(experiment, tmp_path):
     text = write_report(tmp_path / "o", session, ident, None, [validations[0], part]).read_text()
     n = OPTS.n_validation
     assert Tables(text).tables["validation-stats"][2][2] == f"partial: 3 of {n}"
-    assert _paragraph(text, "verdict").endswith(f"mm at P4, partial: 3 of {n} configurations")
-    # a joint that never moves: the fit is partial, the report says so and names the joint
+    assert f"mm at P4, partial: 3 of {n} configurations" in _paragraph(text, "verdict")
+    # a joint that never moves: without a prior the fit is partial, the report says so and names the joint
     q = session.q.copy()
     q[:, 3] = q[0, 3]
-    still = dataclasses.replace(session, q=q)
+    still = dataclasses.replace(session, q=q, tolerances=None)
     text = write_report(tmp_path / "p", still, identify(still, "lm")).read_text()
     assert _paragraph(text, "verdict").startswith("partial calibration")  # (inconsistent data: not converged)
     assert "not identified: joint 4's axis direction, joint 4's axis position" in _paragraph(text, "verdict")
     idf = {r[0]: r[1] for r in Tables(text).tables["identifiability"][1:]}
     assert idf["partial: not identified"].startswith("joint 4's axis")
+    # under the robot's prior nothing is left undefined: the verdict names what the prior determined
+    still = dataclasses.replace(still, tolerances=session.tolerances)
+    text = write_report(tmp_path / "q", still, identify(still, "lm")).read_text()
+    v = _paragraph(text, "verdict")
+    assert "from the prior, not calibrated by the data: " in v and "joint 4's axis direction" in v
+    idf = {r[0]: r[1] for r in Tables(text).tables["identifiability"][1:]}
+    assert "partial: not identified" not in idf and "from the prior: joint 4's axis direction" in idf

@@ -264,14 +264,15 @@ def data_kind(session: Session, validations=()) -> str:
     return f"Measured data: captured on a robot{f' ({backend} backend)' if backend else ''}."
 
 
-def verdict(session: Session, ident: Identification, validations=(), missing=()) -> str:
+def verdict(session: Session, ident: Identification, validations=(), missing=(), from_prior=()) -> str:
     """The report in one sentence, e.g. 'calibrated: 9.2 → 0.54 mm at P4, 60 of 60 configurations'.
 
     With two or more validation runs: the first run's mean error (e.g. the nominal model's) to the last
     one's, at the validation point, and how many of the last run's planned configurations were measured;
     with one: its error; with none: the RMS spot error on the calibration captures, nominal → identified
     (outliers left out). A
-    rank-deficient fit is 'partial', a fit that did not converge says so.
+    rank-deficient fit is 'partial', a fit that did not converge says so, and the combinations the
+    prior rather than the data determined (``from_prior``, names) are named.
     """
     state = "partial calibration" if missing else "calibrated"
     if not ident.converged:
@@ -297,6 +298,8 @@ def verdict(session: Session, ident: Identification, validations=(), missing=())
         )
     if missing:
         text += "; not identified: " + ", ".join(d.combination for d in missing)
+    if from_prior:
+        text += "; from the prior, not calibrated by the data: " + ", ".join(from_prior)
     return text
 
 
@@ -455,13 +458,14 @@ def write_report(
     rep = solve_report(session, ident)
     idf = rep["identifiability"]
     missing = unidentifiable(session, ident)
+    held = [d["combination"] for d in rep.get("determined_by", {}).get("from_prior", [])]
     title = title or f"lasercal report: {session.path.resolve().name}"
     parts = [
         '<!DOCTYPE html>\n<html lang="en"><head><meta '
         f'charset="utf-8"><title>{esc(title)}</title><style>{_CSS}</style></head><body>',
         f"<h1>{esc(title)}</h1>",
         f'<p id="data-kind"><b>{esc(data_kind(session, validations))}</b></p>',
-        f'<p id="verdict"><b>{esc(verdict(session, ident, validations, missing))}</b></p>',
+        f'<p id="verdict"><b>{esc(verdict(session, ident, validations, missing, held))}</b></p>',
         (
             f'<p class="note">Session {esc(str(session.path))}: {session.m} captures at '
             f"{esc(', '.join(dict.fromkeys(session.point)))}, "
