@@ -358,5 +358,7 @@ def test_report_partial_validation_and_partial_fit(experiment, tmp_path):
     text = write_report(tmp_path / "q", still, identify(still, "lm")).read_text()
     v = _paragraph(text, "verdict")
     assert "from the prior, not calibrated by the data: " in v and "joint 4's axis direction" in v
+    # (these data, a joint frozen in the file but not on the arm, fit no robot: the verdict says so)
+    assert v.startswith("NOT calibrated") and "these data do not fit this robot" in v
     idf = {r[0]: r[1] for r in Tables(text).tables["identifiability"][1:]}
     assert "partial: not identified" not in idf and "from the prior: joint 4's axis direction" in idf

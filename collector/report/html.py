@@ -264,7 +264,9 @@ def data_kind(session: Session, validations=()) -> str:
     return f"Measured data: captured on a robot{f' ({backend} backend)' if backend else ''}."
 
 
-def verdict(session: Session, ident: Identification, validations=(), missing=(), from_prior=()) -> str:
+def verdict(
+    session: Session, ident: Identification, validations=(), missing=(), from_prior=(), warning=None
+) -> str:
     """The report in one sentence, e.g. 'calibrated: 9.2 → 0.54 mm at P4, 60 of 60 configurations'.
 
     With two or more validation runs: the first run's mean error (e.g. the nominal model's) to the last
@@ -274,7 +276,7 @@ def verdict(session: Session, ident: Identification, validations=(), missing=(),
     rank-deficient fit is 'partial', a fit that did not converge says so, and the combinations the
     prior rather than the data determined (``from_prior``, names) are named.
     """
-    state = "partial calibration" if missing else "calibrated"
+    state = "NOT calibrated" if warning else "partial calibration" if missing else "calibrated"
     if not ident.converged:
         state += " (NOT converged)"
     if len(validations) >= 2:
@@ -300,6 +302,8 @@ def verdict(session: Session, ident: Identification, validations=(), missing=(),
         text += "; not identified: " + ", ".join(d.combination for d in missing)
     if from_prior:
         text += "; from the prior, not calibrated by the data: " + ", ".join(from_prior)
+    if warning:
+        text += f"; {warning}"
     return text
 
 
@@ -459,13 +463,14 @@ def write_report(
     idf = rep["identifiability"]
     missing = unidentifiable(session, ident)
     held = [d["combination"] for d in rep.get("determined_by", {}).get("from_prior", [])]
+    warning = rep.get("warning")
     title = title or f"lasercal report: {session.path.resolve().name}"
     parts = [
         '<!DOCTYPE html>\n<html lang="en"><head><meta '
         f'charset="utf-8"><title>{esc(title)}</title><style>{_CSS}</style></head><body>',
         f"<h1>{esc(title)}</h1>",
         f'<p id="data-kind"><b>{esc(data_kind(session, validations))}</b></p>',
-        f'<p id="verdict"><b>{esc(verdict(session, ident, validations, missing, held))}</b></p>',
+        f'<p id="verdict"><b>{esc(verdict(session, ident, validations, missing, held, warning))}</b></p>',
         (
             f'<p class="note">Session {esc(str(session.path))}: {session.m} captures at '
             f"{esc(', '.join(dict.fromkeys(session.point)))}, "

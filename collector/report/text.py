@@ -97,6 +97,8 @@ def format_solve(rep: dict) -> str:
         f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number "
         f"{idf['condition']:.3g}\n"
     )
+    if rep.get("warning"):
+        w(f"WARNING: {rep['warning']}\n")
     det = rep.get("determined_by")
     if det is None:
         for u in idf["unidentifiable"]:

@@ -70,6 +70,7 @@ def per_point(model: RobotModel, session: Session, mask: np.ndarray | None = Non
     return {nm: spot_stats(spots[names == nm], target[names == nm][0]) for nm in dict.fromkeys(names)}
 
 
+MISFIT = 10.0  # a noise estimate this many times the prior's: the data do not fit the model at all
 POSE_TOL_RAD = 1e-4  # rad: revolute readings this close are one pose (a still robot read again)
 POSE_TOL_MM = 1e-2  # mm: the same for a prismatic joint
 
@@ -415,6 +416,14 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
     det = determined_by(session, ident)
     if det is not None:
         rep["determined_by"] = det.as_dict()
+        s0 = session.tolerances.noise(session.measurement)
+        # (a 3-D sensor's noise spans three orders, a tracker's 0.01 mm to a camera's 1 mm: no such check)
+        if session.measurement != "position" and ident.sigma_mm > MISFIT * s0:
+            rep["warning"] = (
+                f"the fit leaves {ident.rms_mm:.3g} mm RMS, a noise of {ident.sigma_mm:.3g} mm per axis "
+                f"against the prior's {s0:g} mm: these data do not fit this robot (a wrong robot or layout, "
+                "swapped or frozen columns, wrong units?)"
+            )
     if cv is not None:
         rep["cross_validation"] = cv.as_dict()
     return rep
