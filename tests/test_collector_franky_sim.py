@@ -280,7 +280,9 @@ def capture_scenario(workdir: str, host: str) -> dict:
         start = probe.read().q
         probe.close()
         # --hold 1: the simulator's position control settles within a second of a move
+        # the simulator is an FR3: the coach must keep its suggestions inside the FR3's joint limits
         common = ["capture", "--backend", "franky", "--host", host, "--layout", "thesis", "--per-point", "1",
+                  "--robot", "fr3",
                   "--guide", "move", "--max-step", "0.4", "--dynamics", "0.3",
                   "--speed-threshold", "0.5", "--hold", "1.0"]  # fmt: skip
         sys.stdin = open(os.devnull)  # no terminal
