@@ -33,10 +33,11 @@ and keeps the more convincing.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from scipy.ndimage import map_coordinates
 from scipy.optimize import least_squares
 
 from lasercal.vision.errors import NoSpotError, SpotCountError, VisionError
@@ -57,8 +58,22 @@ MAX_CANDIDATES = 50
 FIT_STRAY = 1.0  # px
 CLIP = 0.985  # a recorded value at or above this fraction of full scale is clipped
 LUMA_CLIP = 0.97  # the same for the luma: JPEG ringing wobbles a white core by a few DN
-HALO_MIN = 1.04  # halo colour ratio below which light is white, not laser light (white glare: <= 1.01)
 HALO_CAP = 20.0
+# The rim-shift rule (see _rim_shift): white light, whatever the paper, gives <= 1 in theory; real
+# cameras' tone curves (a shoulder that compresses the brighter channel) and a light whose colour
+# temperature differs from the white balance push it to ~2 (measured: 1.85 for a white LED torch on
+# brown paper, 1.75 for glare on red clips, 1.0 for the renderer's glare). Laser rims give 4.7-20
+# (real photos and the renderer's spots up to 30x clipping).
+SHIFT_MIN = 2.5
+# A surround whose laser channel outshines the others this much (linear) is no paper under room
+# light: the laser's own halo fills the view (a tight crop), and the clipped core in it is the spot.
+MONO = 20.0
+# Laser light adds light: the luma rises by at least half the laser channel's weight in it times the
+# channel's rise (a colour matrix leaks a little away). Red objects and sensor defects redden a
+# patch while its other channels fall.
+LIGHT_SHARE = 0.5
+MIN_FILL = 0.5  # a blob's area over its moment ellipse's: 1 for an ellipse, ~0.95 for a cut one
+MAX_ASPECT = 4.0  # a beam at 75 deg from the normal
 
 
 @dataclass(frozen=True)
@@ -79,6 +94,8 @@ class Candidate:
 REASONS = {
     "dim": "not brighter than the paper (printed marks?)",
     "white": "white, not laser-coloured (reflections?)",
+    "shape": "not a compact ellipse (a wire, a frame or an object's edge?)",
+    "unlit": "coloured but adds too little light (a red object, ink or a sensor defect?)",
     "fringe": "a faint coloured fringe beside ink or a ring (JPEG artefact)",
     "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
 }
@@ -136,9 +153,14 @@ def _highpass(small: np.ndarray, tile: int = 24) -> np.ndarray:
 
 
 def find_candidates(
-    img: np.ndarray, colour: str = "red", reference: np.ndarray | None = None, k_sigma: float = 6.0
+    img: np.ndarray,
+    colour: str = "red",
+    reference: np.ndarray | None = None,
+    k_sigma: float = 6.0,
+    shrunk: dict | None = None,
 ) -> list[Candidate]:
-    """Regions of laser-coloured light brighter than their surroundings.
+    """Regions of laser-coloured light brighter than their surroundings, at two scales, and
+    clipped white blobs (a spot's core, whose colour survives only in its rim).
 
     Parameters
     ----------
@@ -146,36 +168,118 @@ def find_candidates(
     colour : "red" or "green"
     reference : array like ``img`` or None, the same view with the laser off
     k_sigma : float, threshold in robust sigmas of the background
+    shrunk : dict or None, shrunk copies of the photo by factor, shared between calls on one photo
 
     Returns
     -------
     list of Candidate, strongest first, at most 50
     """
+    shrunk = {} if shrunk is None else shrunk
     h, w = img.shape[:2]
-    ch = CHANNEL[colour]
     src = cv2.subtract(img, reference) if reference is not None else img
     f = max(1, min(h, w) // 750)  # block size: ~750 rows keep spots of sigma >= 1 px visible
-    floor = 0.03 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
     # Block-average first: the colour excess of block means is close enough for finding
     # spots, and it spares full-resolution passes over 12-megapixel photos.
-    small = cv2.resize(src, (w // f, h // f), interpolation=cv2.INTER_AREA) if f > 1 else src
+    small = _shrink(src, f) if reference is not None else _cached(shrunk, img, f)
+    floor = 0.03 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
+
+    def noise_level(x):
+        return max(k_sigma * _robust_sigma(x), floor)
+
+    fine = _candidates_at(small, f, (h, w), colour, _highpass, noise_level)
+    # A spot wider than the paper-level tiles lifts the paper level with it: look again on a
+    # coarse copy (~64 rows) for spots tens to hundreds of px wide. There the scene, not noise,
+    # sets the spread, so such a spot must rise over the photo's median by half the headroom left.
+    big = max(1, min(h, w) // 64)
+    coarse = []
+    if big >= 4 * f:
+        tiny = _shrink(small, big // f) if reference is not None else _cached(shrunk, small, big // f, f)
+
+        def headroom(x):
+            return max(0.5 * (full_scale(img) - float(np.median(tiny[..., CHANNEL[colour]]))), floor)
+
+        coarse = _candidates_at(tiny, big // f * f, (h, w), colour, _median_pass, headroom, 3)
+    white = _white_candidates(small, f, (h, w)) if src.ndim == 3 and reference is None else []
+    return (coarse + white + fine)[:MAX_CANDIDATES]  # the few large ones first: fine ones abound
+
+
+def _cached(shrunk: dict, img: np.ndarray, f: int, base: int = 1) -> np.ndarray:
+    """``img`` (itself shrunk by ``base``) shrunk by ``f``, computed once per photo in ``shrunk``."""
+    if base * f not in shrunk:
+        shrunk[base * f] = _shrink(img, f)
+    return shrunk[base * f]
+
+
+def _shrink(img: np.ndarray, f: int) -> np.ndarray:
+    """Block average by ``f`` (INTER_AREA), or the image itself for ``f`` = 1."""
+    h, w = img.shape[:2]
+    if f <= 1:
+        return img
+    return cv2.resize(img, (max(w // f, 1), max(h // f, 1)), interpolation=cv2.INTER_AREA)
+
+
+def _median_pass(small: np.ndarray) -> np.ndarray:
+    """Subtract the photo's median: the paper level for spots too large for :func:`_highpass`."""
+    return small - np.float32(np.median(small))
+
+
+def _candidates_at(
+    small: np.ndarray,
+    f: int,
+    shape: tuple[int, int],
+    colour: str,
+    paper_level,
+    threshold,
+    min_px: int = 1,
+) -> list[Candidate]:
+    """Candidates found on a copy of the photo shrunk by ``f`` (see :func:`find_candidates`).
+
+    Parameters
+    ----------
+    small : (h/f, w/f[, 3]) array, the shrunk photo
+    f : int, the shrink factor; shape : (h, w) of the full photo, px
+    paper_level : callable, (h, w) float32 array -> the same with the paper level removed
+    threshold : callable, that array -> the rise that stands out, DN
+    min_px : int, smallest component kept, px of ``small``
+
+    Returns
+    -------
+    list of Candidate (full-resolution boxes), strongest first
+    """
+    ch = CHANNEL[colour]
     laser, excess = _channels(small, ch)
-    strength = _highpass(excess.astype(np.float32))
-    if src.ndim == 2:
-        mask = strength > max(k_sigma * _robust_sigma(strength), floor)
+    strength = paper_level(excess.astype(np.float32))
+    if small.ndim == 2:
+        mask = strength > threshold(strength)
     else:
         # Laser light is both coloured and brighter than its surroundings; JPEG colour
         # fringes at ink edges are coloured but not brighter, red ink neither.
-        bright = _highpass(laser.astype(np.float32))
-        lit = bright > max(k_sigma * _robust_sigma(bright), floor)
+        bright = paper_level(laser.astype(np.float32))
+        lit = bright > threshold(bright)
         # A clipped spot is coloured only in a thin halo around its white core, and only faintly
         # when the photo is bright: a region of bright pixels is a candidate as a whole when a few
         # of its pixels are laser-coloured, at a third of the threshold.
-        faint = lit & (strength > max(k_sigma * _robust_sigma(strength), floor) / 3)
+        faint = lit & (strength > threshold(strength) / 3)
         n, labels = cv2.connectedComponents(lit.astype(np.uint8), connectivity=8)
         hit = np.bincount(labels[faint], minlength=n) >= 2
         hit[0] = False
         mask = hit[labels]
+    return _boxes(mask, strength, f, shape, min_px)
+
+
+def _white_candidates(small: np.ndarray, f: int, shape: tuple[int, int]) -> list[Candidate]:
+    """Clipped white blobs: the core of a spot exposed far past clipping, whose halo may be too
+    wide or too faint to stand out from the paper (its rim decides, in :func:`measure_spot`)."""
+    white = (small >= LUMA_CLIP * full_scale(small)).all(axis=2)
+    return _boxes(white, white.astype(np.float32), f, shape, 2)
+
+
+def _boxes(
+    mask: np.ndarray, strength: np.ndarray, f: int, shape: tuple[int, int], min_px: int
+) -> list[Candidate]:
+    """One Candidate per connected region of ``mask`` (a shrunk copy, factor ``f``), strongest
+    first: its box (3x the region, full resolution) and its centre."""
+    h, w = shape
     # Speckle and JPEG blocks break a spot's mask into pieces: join pieces a few pixels apart.
     mask = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8))
     n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
@@ -184,7 +288,8 @@ def find_candidates(
     on = labels > 0  # few pixels: a scatter-max over them is cheap
     best = np.full(n, -np.inf)
     np.maximum.at(best, labels[on], strength[on])
-    order = np.argsort(-best[1:])[:MAX_CANDIDATES] + 1
+    best[1:][stats[1:, 4] < min_px + 24] = -np.inf  # the 5x5 dilation adds 24 px to a lone pixel
+    order = [i for i in np.argsort(-best[1:])[:MAX_CANDIDATES] + 1 if np.isfinite(best[i])]
     out = []
     for i in order:
         x, y, bw, bh = stats[i, :4]
@@ -217,9 +322,7 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     background : (h, w, c) array, DN; noise : (c,) array, robust sigma of the border, DN
     """
     h, w, c = roi.shape
-    border = np.zeros((h, w), bool)
-    border[:2], border[-2:], border[:, :2], border[:, -2:] = True, True, True, True
-    yy, xx = np.nonzero(border)
+    yy, xx = _border_pixels(h, w)
     A = np.column_stack([np.ones(len(xx)), xx - w / 2, yy - h / 2])
     vals = roi[yy, xx].reshape(len(xx), c).astype(float)
     coef, *_ = np.linalg.lstsq(A, vals, rcond=None)
@@ -234,9 +337,20 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # Robust: ink fringes that survive on the border must not pass for noise. Quantisation
     # keeps at least ~0.3 DN.
     noise = np.maximum(1.4826 * np.median(np.abs(res - np.median(res, 0)), 0), 0.3)
-    Y, X = np.mgrid[:h, :w]
-    bg = coef[0] + (X - w / 2)[..., None] * coef[1] + (Y - h / 2)[..., None] * coef[2]
-    return bg.astype(np.float32), noise
+    x = (np.arange(w, dtype=np.float32) - w / 2)[None, :, None]
+    y = (np.arange(h, dtype=np.float32) - h / 2)[:, None, None]
+    bg = coef[0].astype(np.float32) + x * coef[1].astype(np.float32) + y * coef[2].astype(np.float32)
+    return bg, noise
+
+
+def _border_pixels(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a box's 2-px frame, each pixel once (no full-size mask: boxes can be large)."""
+    rows = np.unique(np.r_[0 : min(2, h), max(h - 2, 0) : h])
+    inner = np.setdiff1d(np.arange(h), rows)
+    cols = np.unique(np.r_[0 : min(2, w), max(w - 2, 0) : w])
+    yy = np.concatenate([np.repeat(rows, w), np.repeat(inner, len(cols))])
+    xx = np.concatenate([np.tile(np.arange(w), len(rows)), np.tile(cols, len(inner))])
+    return yy, xx
 
 
 def _weighted_centroid(
@@ -421,10 +535,11 @@ def _centre_sigma(
     R = np.zeros(shape, np.float32)
     M = np.zeros(shape, np.float32)
     R[yy, xx], M[yy, xx] = res.fun, 1
-    mx, my = (2 * u - xx).astype(np.float32).reshape(1, -1), (2 * v - yy).astype(np.float32).reshape(1, -1)
-    mirror = cv2.remap(R, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)[0]
-    whole = cv2.remap(M, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)[0] > 0.999
-    fx, fy = mx[0] - np.floor(mx[0]), my[0] - np.floor(my[0])
+    mx, my = 2 * u - xx, 2 * v - yy
+    # scipy, not cv2.remap: remap refuses maps over 32,767 px (a large spot's window has more).
+    mirror = map_coordinates(R, (my, mx), order=1, mode="constant")
+    whole = map_coordinates(M, (my, mx), order=1, mode="constant") > 0.999
+    fx, fy = mx - np.floor(mx), my - np.floor(my)
     w2 = ((1 - fx) ** 2 + fx**2) * ((1 - fy) ** 2 + fy**2)
     err = np.where(whole, (res.fun - mirror) / np.sqrt(1 + w2), 0)
     # Correlation sum.
@@ -495,9 +610,7 @@ def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tup
     """
     h, w = sig.shape
     Y, X = np.mgrid[:h, :w].astype(np.float32)
-    mirror = cv2.remap(
-        sig.astype(np.float32), (2 * u - X), (2 * v - Y), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    )
+    mirror = map_coordinates(sig.astype(np.float32), (2 * v - Y, 2 * u - X), order=1, mode="nearest")
     inside = wgt > 0
     odd = np.where(inside, sig - mirror, 0)
     odd2 = odd[inside] ** 2 / 2
@@ -553,7 +666,8 @@ def measure_spot(
         peak_d = float(sig.max())
         sm = cv2.GaussianBlur(sig, (0, 0), 1.0)  # single noisy border pixels are no reason to grow
         edge = max(sm[0].max(), sm[-1].max(), sm[:, 0].max(), sm[:, -1].max())
-        if edge < max(0.05 * peak_d, 3 * noise[ch]) or (x0, y0, x1, y1) == (0, 0, w, h) or attempt == 3:
+        whole = (x0, y0, x1, y1) == (0, 0, w, h) or max(x1 - x0, y1 - y0) >= GROW_MAX
+        if edge < max(0.05 * peak_d, 3 * noise[ch]) or whole or attempt == 3:
             break
         gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
         x0, y0, x1, y1 = max(x0 - gx, 0), max(y0 - gy, 0), min(x1 + gx, w), min(y1 + gy, h)
@@ -573,7 +687,7 @@ def measure_spot(
     n, labels = cv2.connectedComponents(bright, connectivity=8)
     if n <= 1:
         return Rejection(
-            "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour)
+            "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour, gamma)
         )
     # The brightest blob, unless it is another candidate's (a grown box may reach a brighter
     # neighbour, such as red ink, that is measured on its own).
@@ -590,13 +704,18 @@ def measure_spot(
     raw = plain[..., ch]
     clipped = raw >= CLIP * full
     if clipped[blob].any():
-        # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped
-        # and 8 sigma brighter than the paper is bright enough.
-        need = max(8 * noise[ch], min(contrast, 0.5 * (full - float(np.median(base[..., ch])))))
-    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
+        # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped and
+        # half the headroom (or 8 sigma) brighter than the paper is bright enough, where the paper
+        # is textured (a large spot's box holds the scene) at least 3 sigma.
+        headroom = 0.5 * (full - float(np.median(base[..., ch])))
+        need = max(3 * noise[ch], min(8 * noise[ch], contrast, headroom))
+    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma)
     # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
-    if peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < 4:
+    dim = peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < 4
+    if dim and ev.rule != "view":
         return Rejection("dim", cand.u, cand.v, ev)
+    if img.ndim == 3 and ev.light < LIGHT_SHARE * LUMA[ch] * ev.excess:
+        return Rejection("unlit", cand.u, cand.v, ev)
     # A JPEG fringe is colour without light: its luma, kept at full resolution, barely rises.
     faint = ev.clipped_px == 0 and ev.light * full < 2 * _light_need(noise, full)
     if img.ndim == 3 and reference is None and peak_d < 0.15 * full and faint:
@@ -608,8 +727,13 @@ def measure_spot(
     if img.ndim == 3:
         # A white reflection (clipped or not) is as bright in the other channels as in the laser's;
         # laser light keeps its colour in a halo around a clipped white core.
-        if ev.halo_ratio is None or ev.halo_ratio < HALO_MIN:
+        if ev.rule is None:
             return Rejection("white", cand.u, cand.v, ev)
+    # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
+    # ellipse poorly, or is longer than a beam at 75 deg makes, is a wire, a frame or an edge.
+    fill, aspect = _ellipse_fit(blob)
+    if fill < MIN_FILL or aspect > MAX_ASPECT:
+        return Rejection("shape", cand.u, cand.v, ev)
         # JPEG ringing beside black ink is faintly coloured; laser light is strongly so, except in
         # the thin halo of a clipped core (ringing never clips).
         colour_ex = cv2.blur(sig - np.max(np.delete(delta, ch, axis=2), axis=2), (3, 3))
@@ -672,9 +796,39 @@ def measure_spot(
     near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8))
     if not _label_at(near, u, v):
         return Rejection("stray", cand.u, cand.v, ev)
+    # A blob cut by the photo's edge shows only part of its light, and its centre is extrapolated.
+    cut = (x0 == 0 and blob[:, 0].any()) or (y0 == 0 and blob[0].any())
+    cut |= (x0 + blob.shape[1] == w and blob[:, -1].any()) or (y0 + blob.shape[0] == h and blob[-1].any())
     return Spot(
-        u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink, evidence=ev
+        u + x0,
+        v + y0,
+        su,
+        sv,
+        float(raw[blob].max()),
+        saturated,
+        int(blob.sum()),
+        on_ink=on_ink,
+        evidence=replace(ev, cut=bool(cut)),
     )
+
+
+def _ellipse_fit(blob: np.ndarray) -> tuple[float, float]:
+    """How well a blob fills the ellipse of its second moments, and that ellipse's aspect ratio.
+
+    A uniform ellipse of semi-axes a, b has moment eigenvalues a**2 / 4 and b**2 / 4, so the
+    ellipse of eigenvalues l1 >= l2 has area 4 pi sqrt(l1 l2).
+
+    Returns
+    -------
+    fill : float, area / (4 pi sqrt(l1 l2)) (1 for an ellipse); aspect : float, sqrt(l1 / l2)
+    """
+    m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
+    if m["m00"] < 4:
+        return 1.0, 1.0
+    a, b, c = m["mu20"] / m["m00"], m["mu11"] / m["m00"], m["mu02"] / m["m00"]
+    root = np.sqrt(((a - c) / 2) ** 2 + b**2)
+    l1, l2 = (a + c) / 2 + root, max((a + c) / 2 - root, 1 / 12)  # a 1-px line is 1/12 px**2 wide
+    return float(m["m00"] / (4 * np.pi * np.sqrt(l1 * l2))), float(np.sqrt(l1 / l2))
 
 
 def _label_at(labels: np.ndarray, x: float, y: float) -> int:
@@ -707,6 +861,7 @@ def _evidence(
     peak_d: float,
     need: float,
     colour: str,
+    gamma: float = 2.2,
 ) -> Evidence:
     """Measure what a candidate looks like (see :class:`Evidence`).
 
@@ -745,8 +900,24 @@ def _evidence(
                 halo = total / max(float(np.maximum(other[ring], 0).sum()), total / HALO_CAP)
             else:
                 halo = 1.0  # all white: nothing says laser
+    rim = paper = shift = None
+    rule = "grey" if grey else None
+    s_colour = 1.0
+    flux = 0.0
+    if blob is not None:
+        base = plain - delta
+        flux = float(
+            (_linear(plain[..., ch][blob], full, gamma) - _linear(base[..., ch][blob], full, gamma)).sum()
+        )
+    if blob is not None and not grey:
+        rim, paper, _ = _rim_shift(plain, base, blob, ch, full, gamma, max(0.1 * peak_d, 4 * noise[ch]))
+        shift = rim / max(1.0, paper)
+        s_colour = _score(np.log(shift / SHIFT_MIN), 0.25)
+        if shift >= SHIFT_MIN:
+            rule = "rim"
+        elif white and _surround(base, ch, full, gamma) >= MONO:
+            rule, s_colour = "view", 0.75
     s_excess = _score(np.log(max(peak_d, 1e-6) / need), 0.25)
-    s_halo = 1.0 if halo is None else _score(np.log(halo / HALO_MIN), 0.02)
     s_light = _score(np.log(max(light, 1e-6) / _light_need(noise, full)), 0.25)
     return Evidence(
         None if grey else colour,
@@ -758,8 +929,75 @@ def _evidence(
         clipped,
         white,
         area,
-        float(min(s_excess, s_halo, s_light)),
+        float(min(s_excess, s_colour, s_light) if rule != "view" else s_colour),
+        rim,
+        paper,
+        shift,
+        rule,
+        flux,
     )
+
+
+def _rim_shift(
+    plain: np.ndarray, base: np.ndarray, blob: np.ndarray, ch: int, full: float, gamma: float, thr: float
+) -> tuple[float, float, int]:
+    """Colour of the light a candidate adds, against the colour of the paper under it (linear light).
+
+    White light, whatever the surface, adds light in the surface's own colour (diffuse) or in the
+    light's own colour, white (specular): the laser channel's share of the added light is at most
+    ``max(1, paper ratio)``. A laser adds light in its own channel only (the others get cross-talk,
+    blooming and the colour matrix's leak), so its rim shifts towards the laser's hue whatever the
+    paper's colour. Pixels clipped in the laser's channel give a lower bound of its added light
+    (conservative); pixels clipped in another channel carry no ratio and are left out.
+
+    Parameters
+    ----------
+    plain, base : (h, w, 3) arrays, the photo and the local background (paper) in the box, DN
+    blob : (h, w) bool array, the candidate's pixels
+    ch : int, the laser's channel; full : float, full scale, DN; gamma : float, encoding gamma
+    thr : float, excess of the laser's channel (DN, encoded) a rim pixel needs
+
+    Returns
+    -------
+    added : float, laser channel's added light over the brighter other channel's (summed over the
+        rim, linear; capped at HALO_CAP)
+    paper : float, the same ratio of the background light under the rim (median)
+    n : int, rim pixels used
+    """
+    others = [c for c in range(3) if c != ch]
+    rim = cv2.dilate(blob.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    rim &= (plain[..., others] < CLIP * full).all(axis=2) & (plain[..., ch] - base[..., ch] > thr)
+    # Where the laser's channel is clipped its added light is only a lower bound (a loose one for a
+    # spot far past clipping): measure on the unclipped rim where there is one.
+    free = rim & (plain[..., ch] < CLIP * full)
+    if free.sum() >= 6:
+        rim = free
+    n = int(rim.sum())
+    if n < 3:
+        return 1.0, 1.0, n
+    lp, lb = _linear(plain[rim], full, gamma), _linear(np.maximum(base[rim], 0.5), full, gamma)
+    add = (lp - lb).sum(0)
+    best = (0.0, 1.0, 1.0)
+    for o in others:
+        added = min(float(add[ch] / max(add[o], add[ch] / HALO_CAP, 1e-9)), HALO_CAP)
+        paper = float(np.median(lb[:, ch] / np.maximum(lb[:, o], 1e-6)))
+        best = max(best, (added / max(1.0, paper), added, paper))
+    return best[1], best[2], n
+
+
+def _surround(base: np.ndarray, ch: int, full: float, gamma: float) -> float:
+    """How much the laser's channel outshines the brighter other one in the box's surround (median
+    of the 2-px border of the background, linear light)."""
+    border = np.concatenate(
+        [
+            base[:2].reshape(-1, 3),
+            base[-2:].reshape(-1, 3),
+            base[:, :2].reshape(-1, 3),
+            base[:, -2:].reshape(-1, 3),
+        ]
+    )
+    lin = _linear(np.median(np.maximum(border, 0.5), axis=0), full, gamma)
+    return float(lin[ch] / max(np.delete(lin, ch).max(), 1e-6))
 
 
 def _light_need(noise: np.ndarray, full: float) -> float:
@@ -773,10 +1011,15 @@ def _score(x: float, scale: float) -> float:
     return float(1 / (1 + np.exp(-np.clip(x / scale, -50, 50))))
 
 
+def _strength(s: Spot) -> float:
+    """How convincing a spot is, to rank it against others (see :attr:`Evidence.strength`)."""
+    return 0.0 if s.evidence is None else s.evidence.strength
+
+
 def _dedupe(spots: list[Spot]) -> list[Spot]:
     """Drop spots found twice: two candidates of one spot converge within its radius."""
     out: list[Spot] = []
-    for s in sorted(spots, key=lambda s: -s.peak * s.area):
+    for s in sorted(spots, key=_strength, reverse=True):
         if all(np.hypot(s.u - o.u, s.v - o.v) > max(3.0, np.sqrt(max(s.area, o.area) / np.pi)) for o in out):
             out.append(s)
     return out
@@ -846,13 +1089,8 @@ def detect_spots(
             detail += f"; best candidate {best.describe()}"
         raise NoSpotError(f"{name}: no {colour} laser spot found{detail}{_white_blobs(img)}")
     if expect is not None and len(spots) > expect:
-        where = ", ".join(f"({s.u:.1f}, {s.v:.1f})" for s in spots[:6])
-        raise SpotCountError(
-            f"{name}: {len(spots)} spots found where {expect} "
-            f"{'is' if expect == 1 else 'are'} expected, at px {where}"
-            f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several "
-            "spots)"
-        )
+        spots, note = _keep_strongest(spots, expect, name)
+        warnings.append(note)
     for sp in spots:
         if sp.on_ink:
             warnings.append(
@@ -877,6 +1115,40 @@ def detect_spots(
     return sorted(spots, key=lambda s: (round(s.v), s.u)), warnings
 
 
+CLOSE = 0.5  # a runner-up this close to the weakest kept spot, in strength, is not ruled out
+
+
+def _keep_strongest(spots: list[Spot], expect: int, name: str) -> tuple[list[Spot], str]:
+    """The ``expect`` most convincing spots, and a warning naming the others.
+
+    One laser makes spots of about the same light (flux) wherever it lands; glints, LEDs and red
+    objects that pass every rule are mostly far weaker. When the runner-up comes within
+    :data:`CLOSE` of the weakest kept spot the photo cannot say which is the laser: both are named,
+    with their confidence, and the photo is lost.
+
+    Raises
+    ------
+    SpotCountError
+        The runner-up is close in strength to the weakest kept spot.
+    """
+    ranked = sorted(spots, key=_strength, reverse=True)
+    kept, rest = ranked[:expect], ranked[expect:]
+
+    def where(s: Spot) -> str:
+        return (
+            f"({s.u:.1f}, {s.v:.1f}) px (confidence {s.evidence.confidence:.2f}, strength {_strength(s):.3g})"
+        )
+
+    if _strength(rest[0]) >= CLOSE * _strength(kept[-1]):
+        raise SpotCountError(
+            f"{name}: {len(spots)} spots found where {expect} {'is' if expect == 1 else 'are'} expected, "
+            f"close in evidence: {'; '.join(where(s) for s in ranked[:6])}{' ...' if len(spots) > 6 else ''} "
+            "(use --expect N for photos with several spots)"
+        )
+    others = "; ".join(where(s) for s in rest[:3]) + (" ..." if len(rest) > 3 else "")
+    return kept, f"kept the {expect} most convincing spot{'s' * (expect > 1)}; weaker candidates: {others}"
+
+
 def _white_blobs(img: np.ndarray, min_px: int = 20) -> str:
     """A note on clipped white blobs, for a photo without a spot: a laser spot exposed far beyond
     clipping can lose the last of its colour and look like a reflection."""
@@ -896,15 +1168,63 @@ def _white_blobs(img: np.ndarray, min_px: int = 20) -> str:
 
 
 def _find(
-    img: np.ndarray, colour: str, reference: np.ndarray | None, gamma: float, luma: bool
+    img: np.ndarray,
+    colour: str,
+    reference: np.ndarray | None,
+    gamma: float,
+    luma: bool,
+    shrunk: dict | None = None,
 ) -> tuple[list[Spot], list[Rejection]]:
     """Spots of one laser colour, and the candidates rejected."""
-    cands = find_candidates(img, colour, reference)
+    shrunk = {} if shrunk is None else shrunk
+    refs: dict[int, np.ndarray] = {}
+    cands = find_candidates(img, colour, reference, shrunk=shrunk)
     found, rejected = [], []
     for c in cands:
-        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c], gamma, luma)
+        others = [o for o in cands if o is not c]
+        k = -(-max(c.box[2] - c.box[0], c.box[3] - c.box[1]) // MEASURE_SIDE)
+        if k <= 1:
+            r = measure_spot(img, c, colour, reference, others, gamma, luma)
+        else:
+            # A spot tens to hundreds of px wide is measured on a shrunk copy of the photo: its
+            # centre is known to a fraction of its width anyway, and the fit stays small and fast.
+            # It is fitted in the luma: the laser's channel of so large a spot is clipped over a
+            # wide, speckle-ragged plateau, while the others still draw its profile.
+            small = _cached(shrunk, img, k)
+            if reference is not None and k not in refs:
+                refs[k] = _shrink(reference, k)
+            ref = refs.get(k)
+            r = _grown(
+                measure_spot(small, _shrunk(c, k), colour, ref, [_shrunk(o, k) for o in others], gamma, True),
+                k,
+            )
         (rejected if isinstance(r, Rejection) else found).append(r)
     return _dedupe(found), rejected
+
+
+MEASURE_SIDE = 160  # px: a candidate's box wider than this is measured on a shrunk copy
+GROW_MAX = 4 * MEASURE_SIDE  # px: a box grows no further (larger spots are the coarse pass's)
+
+
+def _shrunk(c: Candidate, k: int) -> Candidate:
+    """A candidate in a copy of the photo shrunk by ``k`` (pixel centres: (u + 0.5) / k - 0.5)."""
+    return Candidate(tuple(int(b) // k for b in c.box), (c.u + 0.5) / k - 0.5, (c.v + 0.5) / k - 0.5)
+
+
+def _grown(r: Spot | Rejection, k: int) -> Spot | Rejection:
+    """A spot or rejection measured on a copy shrunk by ``k``, in the full photo's pixels."""
+    u, v = (r.u + 0.5) * k - 0.5, (r.v + 0.5) * k - 0.5
+    if isinstance(r, Rejection):
+        return replace(r, u=u, v=v)
+    su = None if r.sigma_u is None else r.sigma_u * k
+    sv = None if r.sigma_v is None else r.sigma_v * k
+    ev = r.evidence
+    if ev is not None:
+        k2 = k * k
+        ev = replace(
+            ev, clipped_px=ev.clipped_px * k2, white_px=ev.white_px * k2, area=ev.area * k2, flux=ev.flux * k2
+        )
+    return replace(r, u=u, v=v, sigma_u=su, sigma_v=sv, area=r.area * k * k, evidence=ev)
 
 
 def _auto_colour(
@@ -920,8 +1240,9 @@ def _auto_colour(
     """
     if img.ndim == 2:
         return "red", *_find(img, "red", reference, gamma, luma), None  # one channel: colour is moot
-    tries = {c: _find(img, c, reference, gamma, luma) for c in CHANNEL}
-    score = {c: sum(s.evidence.confidence for s in spots) for c, (spots, _) in tries.items()}
+    shrunk: dict[int, np.ndarray] = {}  # one photo, two colours: shrink it once
+    tries = {c: _find(img, c, reference, gamma, luma, shrunk) for c in CHANNEL}
+    score = {c: max((_strength(s) for s in spots), default=0.0) for c, (spots, _) in tries.items()}
     best = max(score, key=score.get)
     if score[best] == 0:
         return "red or green", [], tries["red"][1] + tries["green"][1], None

@@ -42,6 +42,18 @@ class Evidence:
     white_px: int
     area: int
     confidence: float
+    rim_ratio: float | None = None
+    paper_ratio: float | None = None
+    rim_shift: float | None = None
+    rule: str | None = None
+    flux: float = 0.0
+    cut: bool = False
+
+    @property
+    def strength(self) -> float:
+        """How convincing the spot is against other spots of the same photo: its flux times its
+        confidence, halved when the photo's edge cuts it (it may be an object running out of view)."""
+        return self.flux * self.confidence * (0.5 if self.cut else 1.0)
 
     @property
     def clipped_fraction(self) -> float:
@@ -65,11 +77,11 @@ class Evidence:
 
     def describe(self) -> str:
         """One line of the evidence, for messages."""
-        halo = "" if self.halo_ratio is None else f"halo colour ratio {self.halo_ratio:.2f}, "
+        rim = "" if self.rim_shift is None else f"rim shift {self.rim_shift:.2f}, "
+        rule = "" if self.rule is None else f"rule {self.rule}, "
         return (
-            f"{halo}excess {self.excess:.2f} of full scale ({self.snr:.0f} sigma), "
-            f"luma {self.light:+.2f}, "
-            f"{self.clipped_px} px clipped, confidence {self.confidence:.2f}"
+            f"{rule}{rim}excess {self.excess:.2f} of full scale ({self.snr:.0f} sigma), "
+            f"luma {self.light:+.2f}, {self.clipped_px} px clipped, confidence {self.confidence:.2f}"
         )
 
 
