@@ -68,12 +68,15 @@ SHIFT_MIN = 2.5
 # A surround whose laser channel outshines the others this much (linear) is no paper under room
 # light: the laser's own halo fills the view (a tight crop), and the clipped core in it is the spot.
 MONO = 20.0
-# Laser light adds light: the luma rises by at least half the laser channel's weight in it times the
-# channel's rise (a colour matrix leaks a little away). Red objects and sensor defects redden a
-# patch while its other channels fall.
-LIGHT_SHARE = 0.5
+# Laser light adds light: the luma rises by at least a quarter of the laser channel's weight in it
+# times the channel's rise (a phone's colour matrix leaks up to half of it away: 0.48 measured for
+# green on the renderer). Red objects and ink redden a patch while its other channels fall.
+LIGHT_SHARE = 0.25
+# A lens and demosaicing blur any spot by sigma >= 1 px: its blob (>= 15 % of its peak after the
+# sigma-1 smoothing) covers >= 24 px. A hot photosite (one red 2x2 block) covers ~12.
+MIN_BLOB = 20
 MIN_FILL = 0.5  # a blob's area over its moment ellipse's: 1 for an ellipse, ~0.95 for a cut one
-MAX_ASPECT = 4.0  # a beam at 75 deg from the normal
+MAX_ASPECT = 2.5  # a beam 66 deg off the normal: far past any pose that aims a laser at a sheet
 
 
 @dataclass(frozen=True)
@@ -677,6 +680,8 @@ def measure_spot(
     smooth = cv2.GaussianBlur(sig, (0, 0), 1.0)  # speckle would split a spot into several blobs
     plain = img[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)  # the photo itself, not a difference
     base = plain - delta  # what the photo would show without the laser (paper, or reference + paper)
+    if img.ndim == 3 and _surround(base, ch, full, gamma) >= MONO:
+        return _core_in_halo(plain, delta, cand, (x0, y0), ch, full, noise, peak_d, colour, gamma)
     need = max(8 * noise[ch], contrast)
     thr = max(4 * noise[ch], 0.15 * peak_d)
     bright = (smooth > thr).astype(np.uint8)
@@ -711,7 +716,7 @@ def measure_spot(
         need = max(3 * noise[ch], min(8 * noise[ch], contrast, headroom))
     ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma)
     # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
-    dim = peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < 4
+    dim = peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < MIN_BLOB
     if dim and ev.rule != "view":
         return Rejection("dim", cand.u, cand.v, ev)
     if img.ndim == 3 and ev.light < LIGHT_SHARE * LUMA[ch] * ev.excess:
@@ -730,7 +735,7 @@ def measure_spot(
         if ev.rule is None:
             return Rejection("white", cand.u, cand.v, ev)
     # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
-    # ellipse poorly, or is longer than a beam at 75 deg makes, is a wire, a frame or an edge.
+    # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.
     fill, aspect = _ellipse_fit(blob)
     if fill < MIN_FILL or aspect > MAX_ASPECT:
         return Rejection("shape", cand.u, cand.v, ev)
@@ -829,6 +834,44 @@ def _ellipse_fit(blob: np.ndarray) -> tuple[float, float]:
     root = np.sqrt(((a - c) / 2) ** 2 + b**2)
     l1, l2 = (a + c) / 2 + root, max((a + c) / 2 - root, 1 / 12)  # a 1-px line is 1/12 px**2 wide
     return float(m["m00"] / (4 * np.pi * np.sqrt(l1 * l2))), float(np.sqrt(l1 / l2))
+
+
+def _core_in_halo(
+    plain: np.ndarray,
+    delta: np.ndarray,
+    cand: Candidate,
+    origin: tuple[int, int],
+    ch: int,
+    full: float,
+    noise: np.ndarray,
+    peak_d: float,
+    colour: str,
+    gamma: float,
+) -> Spot | Rejection:
+    """A spot whose own halo fills the box (a tight crop): its clipped white core, in a surround of
+    nearly monochromatic laser light (see :data:`MONO`), is the spot; the centre is the core's.
+
+    The surround is the laser's light, so the rim rule has no paper to compare with and the laser's
+    channel is clipped over the core and most of the halo: only the core's outline is left. The
+    sigma is a floor, the pixel quantisation of a disc's outline: each of its ~2 pi r edge pixels
+    is in or out (variance 1/12) at a lever r cos(theta), so var = pi r**3 / (12 N**2) = 1 / (12 pi r)
+    for N = pi r**2 pixels; speckle on the core's edge adds to it.
+    """
+    white = (plain >= LUMA_CLIP * full).all(axis=2).astype(np.uint8)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
+    if n <= 1 or stats[1:, 4].max() < 4:
+        return Rejection("dim", cand.u, cand.v, None)
+    i = 1 + int(np.argmax(stats[1:, 4]))
+    blob = labels == i
+    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, peak_d, colour, gamma)
+    if ev.rule != "view":
+        return Rejection("white", cand.u, cand.v, ev)
+    area = int(stats[i, 4])
+    sigma = float(1 / np.sqrt(12 * np.pi * np.sqrt(area / np.pi)))
+    u, v = cents[i]
+    x0, y0 = origin
+    raw = plain[..., ch]
+    return Spot(u + x0, v + y0, sigma, sigma, float(raw[blob].max()), True, area, evidence=ev)
 
 
 def _label_at(labels: np.ndarray, x: float, y: float) -> int:
