@@ -953,7 +953,7 @@ def _evidence(
             (_linear(plain[..., ch][blob], full, gamma) - _linear(base[..., ch][blob], full, gamma)).sum()
         )
     if blob is not None and not grey:
-        rim, paper, _ = _rim_shift(plain, base, blob, ch, full, gamma, max(0.1 * peak_d, 4 * noise[ch]))
+        rim, paper, _ = _rim_shift(plain, base, blob, ch, full, gamma, max(0.03 * peak_d, 4 * noise[ch]))
         shift = rim / max(1.0, paper)
         s_colour = _score(np.log(shift / SHIFT_MIN), 0.25)
         if shift >= SHIFT_MIN:
@@ -987,11 +987,16 @@ def _rim_shift(
     """Colour of the light a candidate adds, against the colour of the paper under it (linear light).
 
     White light, whatever the surface, adds light in the surface's own colour (diffuse) or in the
-    light's own colour, white (specular): the laser channel's share of the added light is at most
-    ``max(1, paper ratio)``. A laser adds light in its own channel only (the others get cross-talk,
-    blooming and the colour matrix's leak), so its rim shifts towards the laser's hue whatever the
-    paper's colour. Pixels clipped in the laser's channel give a lower bound of its added light
-    (conservative); pixels clipped in another channel carry no ratio and are left out.
+    light's own colour, white (specular): the laser channel's share of the added light, over
+    ``max(1, paper ratio)``, is at most 1. A laser adds light in its own channel only (the others get
+    cross-talk, blooming and the colour matrix's leak), so its rim shifts towards the laser's hue
+    whatever the paper's colour. Pixels clipped in another channel carry no ratio and are left out;
+    so are those clipped in the laser's channel (a lower bound only), where enough others remain.
+
+    Two parts of the rim are measured and the larger shift kept: the whole unclipped rim, and its
+    faint outer part (the lower half of the headroom over the paper), where neither the tone curve's
+    shoulder (which squeezes the brighter channel) nor blooming (which whitens the rim of a spot far
+    past clipping) tilts the ratio, but which is thin and noisy on a bright paper.
 
     Parameters
     ----------
@@ -1002,30 +1007,29 @@ def _rim_shift(
 
     Returns
     -------
-    added : float, laser channel's added light over the brighter other channel's (summed over the
-        rim, linear; capped at HALO_CAP)
-    paper : float, the same ratio of the background light under the rim (median)
+    added : float, laser channel's added light over another channel's, summed over the rim (linear,
+        capped at HALO_CAP), for the other channel and rim part that shift most
+    paper : float, the same ratio of the background light under that rim (median)
     n : int, rim pixels used
     """
-    others = [c for c in range(3) if c != ch]
-    rim = cv2.dilate(blob.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
-    rim &= (plain[..., others] < CLIP * full).all(axis=2) & (plain[..., ch] - base[..., ch] > thr)
-    # Where the laser's channel is clipped its added light is only a lower bound (a loose one for a
-    # spot far past clipping): measure on the unclipped rim where there is one.
+    rim = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
+    rim &= (np.delete(plain, ch, axis=2) < CLIP * full).all(axis=2) & (plain[..., ch] - base[..., ch] > thr)
     free = rim & (plain[..., ch] < CLIP * full)
     if free.sum() >= 6:
         rim = free
-    n = int(rim.sum())
-    if n < 3:
-        return 1.0, 1.0, n
-    lp, lb = _linear(plain[rim], full, gamma), _linear(np.maximum(base[rim], 0.5), full, gamma)
-    add = (lp - lb).sum(0)
+    low = rim & (plain.max(axis=2) < 0.5 * (full + base.max(axis=2)))
+    parts = [rim, low] if low.sum() >= 6 else [rim]
     best = (0.0, 1.0, 1.0)
-    for o in others:
-        added = min(float(add[ch] / max(add[o], add[ch] / HALO_CAP, 1e-9)), HALO_CAP)
-        paper = float(np.median(lb[:, ch] / np.maximum(lb[:, o], 1e-6)))
-        best = max(best, (added / max(1.0, paper), added, paper))
-    return best[1], best[2], n
+    for part in parts:
+        if part.sum() < 3:
+            continue
+        lp, lb = _linear(plain[part], full, gamma), _linear(np.maximum(base[part], 0.5), full, gamma)
+        add = (lp - lb).sum(0)
+        for o in (c for c in range(3) if c != ch):
+            added = min(float(add[ch] / max(add[o], add[ch] / HALO_CAP, 1e-9)), HALO_CAP)
+            paper = float(np.median(lb[:, ch] / np.maximum(lb[:, o], 1e-6)))
+            best = max(best, (added / max(1.0, paper), added, paper))
+    return best[1], best[2], int(rim.sum())
 
 
 def _surround(base: np.ndarray, ch: int, full: float, gamma: float) -> float:
