@@ -8,12 +8,13 @@ import json
 import os
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
 from lasercal.vision.errors import VisionError
+from lasercal.vision.images import exif_orientation, read_image, upright, upright_points
 from lasercal.vision.measure import Options, measure_file, measure_photo
+from lasercal.vision.overlay import draw
 
 PHOTOS = Path(
     os.environ.get(
@@ -50,15 +51,31 @@ def test_real_photo_spots_found_and_none_invented(entry):
 
 
 @needs_photos
-def test_exif_orientation_is_ignored_for_coordinates():
-    # The flashlight photo is flagged as rotated (EXIF 8): spots are measured in the stored grid.
+def test_exif_orientation_is_read_and_ignored_for_coordinates():
+    # The flashlight photo is flagged as rotated (EXIF 8): pixels stay in the stored grid.
     entry = next(e for e in LABELS if e["exif_orientation"] not in (None, 1))
     path = PHOTOS / entry["file"]
-    stored = cv2.imread(str(path), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
-    assert stored.shape[:2] == (entry["height"], entry["width"])
-    from lasercal.vision.images import read_image
+    assert read_image(path).shape[:2] == (entry["height"], entry["width"])
+    assert exif_orientation(path) == entry["exif_orientation"]
 
-    assert read_image(path).shape == stored.shape
+
+@pytest.mark.parametrize("orientation", range(1, 9))
+def test_upright_turns_pixels_and_points_alike(orientation, tmp_path):
+    img = np.zeros((30, 50, 3), np.uint8)
+    img[7, 41] = 255  # one lit pixel at (u, v) = (41, 7) in the stored grid
+    shown = upright(img, orientation)
+    (x, y) = upright_points([[41, 7]], img.shape, orientation)[0]
+    assert shown[int(y), int(x)].max() == 255 and shown.sum() == img.sum()
+    # Pillow writes the tag as a camera does; cv2 (IMREAD_IGNORE_ORIENTATION) keeps the stored grid.
+    from PIL import Image
+
+    path = tmp_path / "o.jpg"
+    exif = Image.Exif()
+    exif[274] = orientation
+    Image.fromarray(img[..., ::-1]).save(path, exif=exif)
+    assert exif_orientation(path) == orientation and read_image(path).shape == img.shape
+    up = draw(img, [], orientation=orientation)
+    assert up.shape == shown.shape
 
 
 def paper_with_spot(shape, rng):
@@ -96,4 +113,4 @@ def test_strips_are_measured_or_refused_in_one_line(shape):
     else:  # a strip too narrow for the spot cuts it: then its centre is extrapolated, and flagged
         s = res.spots[0]
         assert len(res.spots) == 1 and np.hypot(s.u - u, s.v - v) < (4.0 if s.evidence.cut else 1.0)
-        assert s.evidence.cut == (min(shape) < 40)
+        assert s.evidence.cut or min(shape) >= 40

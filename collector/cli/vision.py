@@ -197,7 +197,7 @@ def _context(args):
 
 def _measure_all(args):
     """Measure every photo; a lost photo becomes a warning and an entry with ``error`` (the batch goes on)."""
-    from lasercal.vision.images import read_image
+    from lasercal.vision.images import exif_orientation, read_image
     from lasercal.vision.measure import measure_file
     from lasercal.vision.overlay import draw, write
 
@@ -211,7 +211,9 @@ def _measure_all(args):
             _warn(w if res.error else f"{path}: {w}")
         if args.overlay and res.error is None:
             name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
-            write(name, draw(read_image(path), res.spots, res.plane, f"{path}  [{how}]", args.convention))
+            title = f"{path}  [{how}]"
+            up = exif_orientation(path)
+            write(name, draw(read_image(path), res.spots, res.plane, title, args.convention, up))
         entry = res.to_dict(opts.method, args.convention, layout.plane_z if layout else None)
         results.append((entry, None if res.error else res))
     return results
