@@ -59,12 +59,13 @@ FIT_STRAY = 1.0  # px
 CLIP = 0.985  # a recorded value at or above this fraction of full scale is clipped
 LUMA_CLIP = 0.97  # the same for the luma: JPEG ringing wobbles a white core by a few DN
 HALO_CAP = 20.0
-# The rim-shift rule (see _rim_shift): white light, whatever the paper, gives <= 1 in theory; real
-# cameras' tone curves (a shoulder that compresses the brighter channel) and a light whose colour
-# temperature differs from the white balance push it to ~2 (measured: 1.85 for a white LED torch on
-# brown paper, 1.75 for glare on red clips, 1.0 for the renderer's glare). Laser rims give 4.7-20
-# (real photos and the renderer's spots up to 30x clipping).
-SHIFT_MIN = 2.5
+# The rim-shift rule (see _rim_shift): white light, whatever the paper, gives <= 1 in theory; a light
+# whose colour temperature differs from the white balance, and the tone curve's shoulder, push it
+# up: 1.92 measured for a white LED torch on brown paper (as a green laser), 1.75 for glare on red
+# clips, up to 1.6 for glints in a lab, 1.0 for the renderer's glare. Laser rims: 2.6-20 on the real
+# photos (the lowest, 2.6-2.8, an orange-rendered spot on beige paper), 2.35-20 on the renderer's
+# spots from 10x to 30x clipping on bright paper (its white disks, whose rim holds no colour, less).
+SHIFT_MIN = 2.2
 # A surround whose laser channel outshines the others this much (linear) is no paper under room
 # light: the laser's own halo fills the view (a tight crop), and the clipped core in it is the spot.
 MONO = 20.0
@@ -714,10 +715,13 @@ def measure_spot(
         # is textured (a large spot's box holds the scene) at least 3 sigma.
         headroom = 0.5 * (full - float(np.median(base[..., ch])))
         need = max(3 * noise[ch], min(8 * noise[ch], contrast, headroom))
+    if peak_d < need or blob.sum() < MIN_BLOB:  # dim or tiny: no need to weigh its colour
+        return Rejection(
+            "dim", cand.u, cand.v, _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
+        )
     ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma)
     # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
-    dim = peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < MIN_BLOB
-    if dim and ev.rule != "view":
+    if ev.light * full < _light_need(noise, full):
         return Rejection("dim", cand.u, cand.v, ev)
     if img.ndim == 3 and ev.light < LIGHT_SHARE * LUMA[ch] * ev.excess:
         return Rejection("unlit", cand.u, cand.v, ev)
@@ -904,7 +908,7 @@ def _evidence(
     peak_d: float,
     need: float,
     colour: str,
-    gamma: float = 2.2,
+    gamma: float | None = None,
 ) -> Evidence:
     """Measure what a candidate looks like (see :class:`Evidence`).
 
@@ -918,6 +922,8 @@ def _evidence(
     peak_d : float, peak excess of the laser's channel, DN
     need : float, the excess a spot needs, DN
     colour : str, the laser colour tried
+    gamma : float or None, the photo's encoding gamma; None skips the colour rule and the flux (a
+        candidate already rejected as dim)
     """
     area = 0 if blob is None else int(blob.sum())
     grey = plain.shape[2] == 1
@@ -947,12 +953,12 @@ def _evidence(
     rule = "grey" if grey else None
     s_colour = 1.0
     flux = 0.0
-    if blob is not None:
+    if blob is not None and gamma is not None:
         base = plain - delta
         flux = float(
             (_linear(plain[..., ch][blob], full, gamma) - _linear(base[..., ch][blob], full, gamma)).sum()
         )
-    if blob is not None and not grey:
+    if blob is not None and not grey and gamma is not None:
         rim, paper, _ = _rim_shift(plain, base, blob, ch, full, gamma, max(0.03 * peak_d, 4 * noise[ch]))
         shift = rim / max(1.0, paper)
         s_colour = _score(np.log(shift / SHIFT_MIN), 0.25)
@@ -1012,6 +1018,10 @@ def _rim_shift(
     paper : float, the same ratio of the background light under that rim (median)
     n : int, rim pixels used
     """
+    ys, xs = np.nonzero(blob)  # work on the blob's bounding box (grown by the rim): boxes can be large
+    y0, x0 = max(ys.min() - 5, 0), max(xs.min() - 5, 0)
+    win = (slice(y0, ys.max() + 6), slice(x0, xs.max() + 6))
+    plain, base, blob = plain[win], base[win], blob[win]
     rim = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
     rim &= (np.delete(plain, ch, axis=2) < CLIP * full).all(axis=2) & (plain[..., ch] - base[..., ch] > thr)
     free = rim & (plain[..., ch] < CLIP * full)
@@ -1250,7 +1260,7 @@ def _find(
 
 
 MEASURE_SIDE = 160  # px: a candidate's box wider than this is measured on a shrunk copy
-GROW_MAX = 4 * MEASURE_SIDE  # px: a box grows no further (larger spots are the coarse pass's)
+GROW_MAX = 2 * MEASURE_SIDE  # px: a box grows no further (larger spots are the coarse pass's)
 
 
 def _shrunk(c: Candidate, k: int) -> Candidate:
