@@ -76,7 +76,7 @@ LIGHT_SHARE = 0.25
 # A lens and demosaicing blur any spot by sigma >= 1 px: its blob (>= 15 % of its peak after the
 # sigma-1 smoothing) covers >= 24 px. A hot photosite (one red 2x2 block) covers ~12.
 MIN_BLOB = 20
-MIN_FILL = 0.5  # a blob's area over its moment ellipse's: 1 for an ellipse, ~0.95 for a cut one
+MIN_FILL = 0.8  # area over the moment ellipse: 1 for an ellipse, ~0.95 cut, >= 0.91 for real spots
 MAX_ASPECT = 2.5  # a beam 66 deg off the normal: far past any pose that aims a laser at a sheet
 
 
