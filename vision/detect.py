@@ -37,7 +37,6 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
-from scipy.ndimage import map_coordinates
 from scipy.optimize import least_squares
 
 from lasercal.vision.errors import NoSpotError, SpotCountError, VisionError
@@ -204,7 +203,13 @@ def find_candidates(
 
         coarse = _candidates_at(tiny, big // f * f, (h, w), colour, _median_pass, headroom, 3)
     white = _white_candidates(small, f, (h, w)) if src.ndim == 3 and reference is None else []
+    white = [c for c in white if not any(_inside(c, o) for o in fine)]  # a core already found
     return (coarse + white + fine)[:MAX_CANDIDATES]  # the few large ones first: fine ones abound
+
+
+def _inside(c: Candidate, o: Candidate) -> bool:
+    """Whether ``c``'s centre lies in ``o``'s box."""
+    return o.box[0] <= c.u < o.box[2] and o.box[1] <= c.v < o.box[3]
 
 
 def _cached(shrunk: dict, img: np.ndarray, f: int, base: int = 1) -> np.ndarray:
@@ -341,10 +346,9 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # Robust: ink fringes that survive on the border must not pass for noise. Quantisation
     # keeps at least ~0.3 DN.
     noise = np.maximum(1.4826 * np.median(np.abs(res - np.median(res, 0)), 0), 0.3)
-    x = (np.arange(w, dtype=np.float32) - w / 2)[None, :, None]
-    y = (np.arange(h, dtype=np.float32) - h / 2)[:, None, None]
-    bg = coef[0].astype(np.float32) + x * coef[1].astype(np.float32) + y * coef[2].astype(np.float32)
-    return bg, noise
+    x, y = (np.arange(w) - w / 2)[None, :, None], (np.arange(h) - h / 2)[:, None, None]
+    bg = coef[0] + x * coef[1] + y * coef[2]
+    return bg.astype(np.float32), noise
 
 
 def _border_pixels(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
@@ -354,7 +358,8 @@ def _border_pixels(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     cols = np.unique(np.r_[0 : min(2, w), max(w - 2, 0) : w])
     yy = np.concatenate([np.repeat(rows, w), np.repeat(inner, len(cols))])
     xx = np.concatenate([np.tile(np.arange(w), len(rows)), np.tile(cols, len(inner))])
-    return yy, xx
+    order = np.lexsort((xx, yy))  # row by row, as np.nonzero of a mask gives them
+    return yy[order], xx[order]
 
 
 def _weighted_centroid(
@@ -539,10 +544,9 @@ def _centre_sigma(
     R = np.zeros(shape, np.float32)
     M = np.zeros(shape, np.float32)
     R[yy, xx], M[yy, xx] = res.fun, 1
-    mx, my = 2 * u - xx, 2 * v - yy
-    # scipy, not cv2.remap: remap refuses maps over 32,767 px (a large spot's window has more).
-    mirror = map_coordinates(R, (my, mx), order=1, mode="constant")
-    whole = map_coordinates(M, (my, mx), order=1, mode="constant") > 0.999
+    mx, my = (2 * u - xx).astype(np.float32), (2 * v - yy).astype(np.float32)
+    mirror = _remap_points(R, mx, my)
+    whole = _remap_points(M, mx, my) > 0.999
     fx, fy = mx - np.floor(mx), my - np.floor(my)
     w2 = ((1 - fx) ** 2 + fx**2) * ((1 - fy) ** 2 + fy**2)
     err = np.where(whole, (res.fun - mirror) / np.sqrt(1 + w2), 0)
@@ -573,6 +577,30 @@ def _centre_sigma(
     var_lag = LAG_SCALE**2 * np.maximum(var_lag, 0.25 * lag0)
     su, sv = (var_sum * var_lag) ** 0.25
     return float(su), float(sv)
+
+
+REMAP_ROW = 32_000  # cv2.remap refuses maps (and images) of 32,767 px or more on a side
+
+
+def _remap_points(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``img`` at points (x, y), px, 0 outside (``cv2.remap`` with
+    ``BORDER_CONSTANT``), for any number of points: the point list is folded into rows short
+    enough for remap (a large spot's window has more than 32,767 pixels).
+
+    Parameters
+    ----------
+    img : (h, w) float32 array, h and w < 32,767; x, y : (n,) float32 arrays, px
+
+    Returns
+    -------
+    (n,) float32 array
+    """
+    n = len(x)
+    rows = -(-n // REMAP_ROW)
+    pad = rows * REMAP_ROW - n
+    mx = np.pad(x, (0, pad), constant_values=-1).reshape(rows, -1)
+    my = np.pad(y, (0, pad), constant_values=-1).reshape(rows, -1)
+    return cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).ravel()[:n]
 
 
 def _correlation_sum(res: np.ndarray, reach: int) -> float:
@@ -614,7 +642,9 @@ def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tup
     """
     h, w = sig.shape
     Y, X = np.mgrid[:h, :w].astype(np.float32)
-    mirror = map_coordinates(sig.astype(np.float32), (2 * v - Y, 2 * u - X), order=1, mode="nearest")
+    mirror = cv2.remap(
+        sig.astype(np.float32), (2 * u - X), (2 * v - Y), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
     inside = wgt > 0
     odd = np.where(inside, sig - mirror, 0)
     odd2 = odd[inside] ** 2 / 2
@@ -1076,7 +1106,8 @@ def _strength(s: Spot) -> float:
 def _dedupe(spots: list[Spot]) -> list[Spot]:
     """Drop spots found twice: two candidates of one spot converge within its radius."""
     out: list[Spot] = []
-    for s in sorted(spots, key=_strength, reverse=True):
+    # Of two measurements of one spot, keep the one whose blob holds more of its light.
+    for s in sorted(spots, key=lambda s: -s.peak * s.area):
         if all(np.hypot(s.u - o.u, s.v - o.v) > max(3.0, np.sqrt(max(s.area, o.area) / np.pi)) for o in out):
             out.append(s)
     return out
