@@ -114,3 +114,18 @@ def test_strips_are_measured_or_refused_in_one_line(shape):
         s = res.spots[0]
         assert len(res.spots) == 1 and np.hypot(s.u - u, s.v - v) < (4.0 if s.evidence.cut else 1.0)
         assert s.evidence.cut or min(shape) >= 40
+
+
+def test_a_fault_inside_the_measurement_is_one_line_naming_photo_and_stage(tmp_path, monkeypatch):
+    import cv2
+
+    from lasercal.vision import measure
+
+    def broken(*args, **kwargs):
+        raise cv2.error("OpenCV(5.0.0) imgwarp.cpp:1427: error: (-215:Assertion failed) dst.cols < SHRT_MAX")
+
+    cv2.imwrite(str(tmp_path / "p.png"), paper_with_spot((120, 160), np.random.default_rng(3))[1])
+    monkeypatch.setattr(measure, "detect_spots", broken)
+    res = measure_file(tmp_path / "p.png")
+    assert res.error.startswith(f"{tmp_path / 'p.png'}: could not be measured: internal error while finding")
+    assert "dst.cols < SHRT_MAX" in res.error and "\n" not in res.error and not res.spots

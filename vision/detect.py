@@ -4,20 +4,25 @@ Coordinates are pixels in OpenCV's convention (pixel centres at integer coordina
 right, ``v`` down); intensities are digital numbers (DN) of the photo. ImageJ reports the same
 point at ``(u + 0.5, v + 0.5)``.
 
-Detection, of a red (or green) laser on white paper under room light as a phone records it:
-from a dim coloured spot to a white clipped core whose colour survives only in a thin, pink
-(or pale green) halo.
+Detection, of a red (or green) laser on paper, cardboard or a wall as real cameras record it:
+from a dim coloured spot to a white clipped core whose colour survives only in a red, orange,
+pink (or pale green) rim, and spots hundreds of pixels wide.
 
 1. candidates: on a 1/f-size block average (fast on 12-megapixel photos), the paper level (a
    tile percentile, so black markers do not sink it) is removed from the laser's channel and
    from its *colour excess* (the channel minus the brighter other one: ~0 on white paper, black
    ink and white glare alike). A region brighter than the paper in the laser's channel is a
    candidate as a whole when a few of its pixels are laser-coloured (the halo of a white core).
-2. each candidate, at full resolution, with a plane fitted to the box border as the local
-   background, is measured (:class:`Evidence`) and rejected when it is not brighter than the
-   paper in the laser's channel *and* in the luma (red ink: a phone's colour correction lifts
-   its red above the paper's, but it takes light away), when its halo is white (glare), or
-   when it is a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre).
+   The same on a coarse copy (~64 rows) finds spots too wide for the tiles, and clipped white
+   blobs are candidates too (the cores of spots far past clipping).
+2. each candidate, with a plane fitted to the box border as the local background (a box over
+   :data:`MEASURE_SIDE` px on a shrunk copy), is measured (:class:`Evidence`) and rejected when
+   it is not brighter than the paper in the laser's channel *and* in the luma (red ink: a
+   phone's colour correction lifts its red above the paper's, but it takes light away), when
+   its rim does not shift towards the laser's hue relative to the paper (white light of any
+   kind, see :func:`_rim_shift`), when it is smaller than any lens-blurred spot, not a compact
+   ellipse, or a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre).
+   The spots left are ranked by the light they add (:attr:`Evidence.strength`).
 3. centroid (``precise``): an elliptical profile fitted in linear light to the spot and its
    flanks; clipped pixels only bound the profile from below, so the centre of a clipped spot
    comes from the plateau's edge and the unclipped flanks (see :func:`_fit_profile`). In a
