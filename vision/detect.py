@@ -1185,6 +1185,11 @@ def detect_spots(
         spots, note = _keep_strongest(spots, expect, name)
         warnings.append(note)
     for sp in spots:
+        if sp.evidence is not None and sp.evidence.cut:
+            warnings.append(
+                f"spot at ({sp.u:.1f}, {sp.v:.1f}) px is cut by the photo's edge: its centre is extrapolated "
+                "from the part in view, and its sigma does not count that"
+            )
         if sp.on_ink:
             warnings.append(
                 f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
@@ -1343,8 +1348,8 @@ def _auto_colour(
     note = None
     if tries[other][0]:
         note = (
-            f"both red and green spots found: measured {best} (confidence {score[best]:.2f} against "
-            f"{score[other]:.2f}); give --color to choose"
+            f"both red and green spots found: measured {best} (strength {score[best]:.3g} against "
+            f"{score[other]:.3g}); give --color to choose"
         )
     return best, *tries[best], note
 
