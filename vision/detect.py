@@ -224,6 +224,14 @@ def _cached(shrunk: dict, img: np.ndarray, f: int, base: int = 1) -> np.ndarray:
     return shrunk[base * f]
 
 
+def _octave(shrunk: dict, img: np.ndarray, k: int) -> np.ndarray:
+    """``img`` shrunk by ``k``, a power of 2, each octave from the one before (kept in ``shrunk``
+    under the key ``-k``, apart from :func:`_cached`'s)."""
+    if -k not in shrunk:
+        shrunk[-k] = _shrink(img if k == 2 else _octave(shrunk, img, k // 2), 2)
+    return shrunk[-k]
+
+
 def _shrink(img: np.ndarray, f: int) -> np.ndarray:
     """Block average by ``f`` (INTER_AREA), or the image itself for ``f`` = 1."""
     h, w = img.shape[:2]
@@ -1280,7 +1288,8 @@ def _find(
     found, rejected = [], []
     for c in cands:
         others = [o for o in cands if o is not c]
-        k = -(-max(c.box[2] - c.box[0], c.box[3] - c.box[1]) // MEASURE_SIDE)
+        side = max(c.box[2] - c.box[0], c.box[3] - c.box[1])
+        k = 1 if side <= MEASURE_SIDE else 2 ** int(np.ceil(np.log2(side / MEASURE_SIDE)))  # a pyramid
         if k <= 1:
             r = measure_spot(img, c, colour, reference, others, gamma, luma)
         else:
@@ -1288,7 +1297,7 @@ def _find(
             # centre is known to a fraction of its width anyway, and the fit stays small and fast.
             # It is fitted in the luma: the laser's channel of so large a spot is clipped over a
             # wide, speckle-ragged plateau, while the others still draw its profile.
-            small = _cached(shrunk, img, k)
+            small = _octave(shrunk, img, k)
             if reference is not None and k not in refs:
                 refs[k] = _shrink(reference, k)
             ref = refs.get(k)
