@@ -8,10 +8,12 @@ import json
 import os
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
-from lasercal.vision.errors import VisionError
+from lasercal.vision.detect import detect_spots
+from lasercal.vision.errors import NoSpotError, VisionError
 from lasercal.vision.images import exif_orientation, read_image, upright, upright_points
 from lasercal.vision.measure import Options, measure_file, measure_photo
 from lasercal.vision.overlay import draw
@@ -117,8 +119,6 @@ def test_strips_are_measured_or_refused_in_one_line(shape):
 
 
 def test_a_fault_inside_the_measurement_is_one_line_naming_photo_and_stage(tmp_path, monkeypatch):
-    import cv2
-
     from lasercal.vision import measure
 
     def broken(*args, **kwargs):
@@ -129,3 +129,45 @@ def test_a_fault_inside_the_measurement_is_one_line_naming_photo_and_stage(tmp_p
     res = measure_file(tmp_path / "p.png")
     assert res.error.startswith(f"{tmp_path / 'p.png'}: could not be measured: internal error while finding")
     assert "dst.cols < SHRT_MAX" in res.error and "\n" not in res.error and not res.spots
+
+
+PAPERS = {  # BGR, linear reflectance x light: the surfaces of the issue's photos
+    "white": (0.80, 0.80, 0.80),
+    "yellow": (0.25, 0.65, 0.75),
+    "beige": (0.45, 0.55, 0.65),
+    "grey": (0.30, 0.30, 0.30),
+    "cardboard": (0.18, 0.30, 0.45),
+    "blue": (0.55, 0.30, 0.15),
+}
+
+
+def lit_paper(paper, light, seed):
+    """A 4:2:0 JPEG of paper (linear BGR) with ``light`` (BGR, linear, at the peak) added in a
+    Gaussian spot of sigma 4 px at a known place, clipped and gamma-encoded as a camera does."""
+    rng = np.random.default_rng(seed)
+    u, v = 101.3 + rng.uniform(-5, 5), 77.6 + rng.uniform(-5, 5)
+    yy, xx = np.mgrid[:160, :200]
+    g = np.exp(-((xx - u) ** 2 + (yy - v) ** 2) / 32.0)[..., None]
+    lin = np.array(paper) * (1 + 0.01 * rng.standard_normal((160, 200, 3))) + g * np.array(light)
+    img = np.clip(255 * np.clip(lin, 0, 1) ** (1 / 2.2), 0, 255).astype(np.uint8)
+    return (u, v), cv2.imdecode(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1], 1)
+
+
+@pytest.mark.parametrize("paper", PAPERS)
+def test_rim_shift_tells_laser_light_from_white_light_on_any_paper(paper):
+    p = np.array(PAPERS[paper])
+    for seed, amp in enumerate((3.0, 30.0)):  # the spot's peak light over the paper's
+        # A red laser (its light leaks a little into green and blue) is found, by its rim.
+        (u, v), img = lit_paper(p, amp * p.max() * np.array([0.03, 0.06, 1.0]), seed)
+        spots, _ = detect_spots(img, colour="auto", luma=True)
+        assert len(spots) == 1 and np.hypot(spots[0].u - u, spots[0].v - v) < 0.5
+        assert spots[0].evidence.rule == "rim" and spots[0].evidence.colour == "red"
+        # Light off the white balance on the same paper (diffuse, so in the paper's colour): a
+        # bluish torch, a warm lamp (red 1.5x green, 2.5x blue), a cool lamp; and a specular white
+        # glare and a warm one: none of these is a red or a green laser.
+        tints = ([1.3, 1.0, 0.8], [0.6, 1.0, 1.5], [1.6, 1.1, 0.7])
+        lights = [amp * p * np.array(t) for t in tints]
+        lights += [amp * p.max() * np.ones(3), amp * p.max() * np.array([0.6, 1.0, 1.5])]
+        for light in lights:
+            with pytest.raises(NoSpotError):
+                detect_spots(lit_paper(p, light, seed)[1], colour="auto", luma=True, expect=None)

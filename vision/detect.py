@@ -70,6 +70,16 @@ HALO_CAP = 20.0
 # photos (the lowest, 2.6-2.8, an orange-rendered spot on beige paper), 2.35-20 on the renderer's
 # spots from 10x to 30x clipping on bright paper (its white disks, whose rim holds no colour, less).
 SHIFT_MIN = 2.2
+# The channels a laser's rim is weighed against: its neighbours in wavelength. Broadband light of
+# any colour temperature moves neighbouring channels least against each other (a tungsten lamp
+# under a daylight white balance adds red ~1.5x green but ~2.5x blue), while a laser is far from
+# them. Red: green only (blue is a channel away, and some cameras render a red laser magenta,
+# blue rising with it). Green: red or blue, whichever shifts more (both are its neighbours).
+NEIGHBOURS = {2: (1,), 1: (2, 0)}
+# A green rim must shift against both neighbours by this much: broadband light of any colour
+# temperature shifts green against one of them by <= 1 (a warm lamp's light is redder, a cool one's
+# bluer than green); the renderer's green spots clear it up to 30x clipping.
+SIDE_MIN = 1.2
 # A surround whose laser channel outshines the others this much (linear) is no paper under room
 # light: the laser's own halo fills the view (a tight crop), and the clipped core in it is the spot.
 MONO = 20.0
@@ -1042,6 +1052,7 @@ def _rim_shift(
     whatever the paper's colour. Pixels clipped in another channel carry no ratio and are left out;
     so are those clipped in the laser's channel (a lower bound only), where enough others remain.
 
+    The laser's channel is weighed against its neighbours in wavelength (:data:`NEIGHBOURS`).
     Two parts of the rim are measured and the larger shift kept: the whole unclipped rim, and its
     faint outer part (the lower half of the headroom over the paper), where neither the tone curve's
     shoulder (which squeezes the brighter channel) nor blooming (which whitens the rim of a spot far
@@ -1056,8 +1067,8 @@ def _rim_shift(
 
     Returns
     -------
-    added : float, laser channel's added light over another channel's, summed over the rim (linear,
-        capped at HALO_CAP), for the other channel and rim part that shift most
+    added : float, laser channel's added light over a neighbouring channel's, summed over the rim
+        (linear, capped at HALO_CAP), for the rim part that shifts most
     paper : float, the same ratio of the background light under that rim (median)
     n : int, rim pixels used
     """
@@ -1078,10 +1089,15 @@ def _rim_shift(
             continue
         lp, lb = _linear(plain[part], full, gamma), _linear(np.maximum(base[part], 0.5), full, gamma)
         add = (lp - lb).sum(0)
-        for o in (c for c in range(3) if c != ch):
+        shifts = []
+        for o in NEIGHBOURS[ch]:
             added = min(float(add[ch] / max(add[o], add[ch] / HALO_CAP, 1e-9)), HALO_CAP)
             paper = float(np.median(lb[:, ch] / np.maximum(lb[:, o], 1e-6)))
-            best = max(best, (added / max(1.0, paper), added, paper))
+            shifts.append((added / max(1.0, paper), added, paper))
+        # Broadband light shifts green against one neighbour at most (warm light towards red, cool
+        # towards blue); a green laser shifts against both.
+        side = min(shifts)
+        best = max(best, *shifts) if side[0] >= SIDE_MIN else max(best, side)
     return best[1], best[2], int(rim.sum())
 
 
