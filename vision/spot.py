@@ -33,9 +33,9 @@ class Evidence:
     rim_ratio : float or None, the light the candidate adds in the laser's channel over what it adds
         in another channel, summed over its rim, in linear light (capped at 20)
     paper_ratio : float or None, the same ratio of the paper's own light under that rim
-    rim_shift : float or None, ``rim_ratio / max(1, paper_ratio)``, the larger over the two other
-        channels: <= 1 for white light on any paper in theory, ~2 at most on real cameras; a spot
-        needs 2.2 (``detect.SHIFT_MIN``)
+    rim_shift : float or None, ``rim_ratio / max(1, paper_ratio)`` against the laser's neighbours in
+        wavelength (red: green; green: red and blue, both shifted by at least 1.2): <= 1 for white
+        light on any paper in theory, ~2 at most measured; a spot needs 2.2 (``detect.SHIFT_MIN``)
     rule : str or None, which rule took the candidate for laser light: "rim" (its rim shifts towards
         the laser's hue), "view" (a clipped core in a surround of nearly monochromatic laser light: the
         spot's own halo fills the view), "grey" (a grey photo: brightness only); None when none did
