@@ -115,6 +115,16 @@ def test_two_spots_where_one_is_expected_is_an_error_naming_the_photo():
     assert len(spots) == 2 and "2 spots found where 3 are expected" in warnings[0]
 
 
+def test_a_far_weaker_second_spot_is_named_not_chosen():
+    # One laser adds about the same light wherever it lands: a candidate with a tenth of the
+    # light is not the laser, and is named in a warning rather than making the photo ambiguous.
+    strong, weak = LaserSpot(80.3, 80.6, 2.5, 6.0), LaserSpot(240.4, 160.2, 1.5, 0.6)
+    img = render(Photo(VIEW, spots=(strong, weak), paper=0.5), 0)
+    spots, warnings = detect_spots(img, name="p.jpg", expect=1)
+    assert len(spots) == 1 and np.hypot(spots[0].u - 80.3, spots[0].v - 80.6) < 0.2
+    assert "weaker candidates: (240." in warnings[0] and "confidence" in warnings[0]
+
+
 def test_no_spot_is_an_error():
     img = render(Photo(VIEW, prints=(cross_print((450, 0), 12),), paper=0.5, jpeg=90, gamma=2.2), 0)
     with pytest.raises(NoSpotError, match=r"empty\.jpg: no red laser spot found"):

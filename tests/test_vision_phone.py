@@ -8,7 +8,7 @@ import pytest
 
 from lasercal.vision import detect
 from lasercal.vision.camera import Camera
-from lasercal.vision.detect import HALO_MIN, detect_spots
+from lasercal.vision.detect import SHIFT_MIN, detect_spots
 from lasercal.vision.errors import NoSpotError
 from lasercal.vision.exposure import exposure_advice
 from lasercal.vision.measure import Options, measure_batch
@@ -71,7 +71,8 @@ def test_every_spot_found_over_the_exposure_sweep_with_colour_auto(colour):
             assert len(spots) == 1 and s.evidence.colour == colour, (exposure, seed)
             assert np.hypot(s.u - u, s.v - v) < 0.5
             assert s.saturated == (s.evidence.clipped_px > 0)
-            assert s.evidence.confidence > 0.5 and s.evidence.halo_ratio > HALO_MIN
+            ev = s.evidence
+            assert ev.confidence > 0.5 and ev.rim_shift >= SHIFT_MIN and ev.rule == "rim"
             if exposure >= 30:
                 assert s.saturated and s.evidence.white_px > 0  # a white core, accepted by its halo
 
@@ -135,9 +136,9 @@ def test_white_glare_is_rejected_with_its_evidence(peak):
         assert "no red or green laser spot found" in msg
         if peak >= 30:  # the reason names the white blob and what to do if it was the laser
             assert "white clipped blob without laser colour" in msg and "lower the exposure" in msg
-        if "white, not laser-coloured" in msg:
-            ratio = float(msg.split("halo colour ratio ")[1].split(",")[0])
-            assert ratio < HALO_MIN
+        if "white, not laser-coloured" in msg and "rim shift " in msg:
+            shift = float(msg.split("rim shift ")[1].split(",")[0])
+            assert shift < SHIFT_MIN
 
 
 def test_red_and_green_ink_and_crosses_make_no_spots():
@@ -241,5 +242,6 @@ def test_bad_photos_give_one_line_each_and_the_batch_goes_on(tmp_path):
 def test_results_say_why_in_json():
     spots, _ = detect_spots(photo("green", 10.0, 3)[1], colour="auto", luma=True)
     d = spots[0].to_dict()["evidence"]
-    assert d["colour"] == "green" and d["clipped_px"] > 0 and d["halo_ratio"] > HALO_MIN
-    assert set(d) >= {"confidence", "excess", "light", "halo_ratio", "clipped_fraction", "white_px"}
+    assert d["colour"] == "green" and d["clipped_px"] > 0 and d["rim_shift"] >= SHIFT_MIN
+    assert d["rule"] == "rim" and d["cut"] is False
+    assert set(d) >= {"confidence", "excess", "light", "rim_shift", "flux", "clipped_fraction", "white_px"}

@@ -4,20 +4,25 @@ Coordinates are pixels in OpenCV's convention (pixel centres at integer coordina
 right, ``v`` down); intensities are digital numbers (DN) of the photo. ImageJ reports the same
 point at ``(u + 0.5, v + 0.5)``.
 
-Detection, of a red (or green) laser on white paper under room light as a phone records it:
-from a dim coloured spot to a white clipped core whose colour survives only in a thin, pink
-(or pale green) halo.
+Detection, of a red (or green) laser on paper, cardboard or a wall as real cameras record it:
+from a dim coloured spot to a white clipped core whose colour survives only in a red, orange,
+pink (or pale green) rim, and spots hundreds of pixels wide.
 
 1. candidates: on a 1/f-size block average (fast on 12-megapixel photos), the paper level (a
    tile percentile, so black markers do not sink it) is removed from the laser's channel and
    from its *colour excess* (the channel minus the brighter other one: ~0 on white paper, black
    ink and white glare alike). A region brighter than the paper in the laser's channel is a
    candidate as a whole when a few of its pixels are laser-coloured (the halo of a white core).
-2. each candidate, at full resolution, with a plane fitted to the box border as the local
-   background, is measured (:class:`Evidence`) and rejected when it is not brighter than the
-   paper in the laser's channel *and* in the luma (red ink: a phone's colour correction lifts
-   its red above the paper's, but it takes light away), when its halo is white (glare), or
-   when it is a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre).
+   The same on a coarse copy (~64 rows) finds spots too wide for the tiles, and clipped white
+   blobs are candidates too (the cores of spots far past clipping).
+2. each candidate, with a plane fitted to the box border as the local background (a box over
+   :data:`MEASURE_SIDE` px on a shrunk copy), is measured (:class:`Evidence`) and rejected when
+   it is not brighter than the paper in the laser's channel *and* in the luma (red ink: a
+   phone's colour correction lifts its red above the paper's, but it takes light away), when
+   its rim does not shift towards the laser's hue relative to the paper (white light of any
+   kind, see :func:`_rim_shift`), when it is smaller than any lens-blurred spot, not a compact
+   ellipse, or a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre).
+   The spots left are ranked by the light they add (:attr:`Evidence.strength`).
 3. centroid (``precise``): an elliptical profile fitted in linear light to the spot and its
    flanks; clipped pixels only bound the profile from below, so the centre of a clipped spot
    comes from the plateau's edge and the unclipped flanks (see :func:`_fit_profile`). In a
@@ -33,7 +38,7 @@ and keeps the more convincing.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -57,8 +62,36 @@ MAX_CANDIDATES = 50
 FIT_STRAY = 1.0  # px
 CLIP = 0.985  # a recorded value at or above this fraction of full scale is clipped
 LUMA_CLIP = 0.97  # the same for the luma: JPEG ringing wobbles a white core by a few DN
-HALO_MIN = 1.04  # halo colour ratio below which light is white, not laser light (white glare: <= 1.01)
 HALO_CAP = 20.0
+# The rim-shift rule (see _rim_shift): white light, whatever the paper, gives <= 1 in theory; a light
+# whose colour temperature differs from the white balance, and the tone curve's shoulder, push it
+# up: 1.92 measured for a white LED torch on brown paper (as a green laser), 1.75 for glare on red
+# clips, up to 1.6 for glints in a lab, 1.0 for the renderer's glare. Laser rims: 2.6-20 on the real
+# photos (the lowest, 2.6-2.8, an orange-rendered spot on beige paper), 2.35-20 on the renderer's
+# spots from 10x to 30x clipping on bright paper (its white disks, whose rim holds no colour, less).
+SHIFT_MIN = 2.2
+# The channels a laser's rim is weighed against: its neighbours in wavelength. Broadband light of
+# any colour temperature moves neighbouring channels least against each other (a tungsten lamp
+# under a daylight white balance adds red ~1.5x green but ~2.5x blue), while a laser is far from
+# them. Red: green only (blue is a channel away, and some cameras render a red laser magenta,
+# blue rising with it). Green: red or blue, whichever shifts more (both are its neighbours).
+NEIGHBOURS = {2: (1,), 1: (2, 0)}
+# A green rim must shift against both neighbours by this much: broadband light of any colour
+# temperature shifts green against one of them by <= 1 (a warm lamp's light is redder, a cool one's
+# bluer than green); the renderer's green spots clear it up to 30x clipping.
+SIDE_MIN = 1.2
+# A surround whose laser channel outshines the others this much (linear) is no paper under room
+# light: the laser's own halo fills the view (a tight crop), and the clipped core in it is the spot.
+MONO = 20.0
+# Laser light adds light: the luma rises by at least a quarter of the laser channel's weight in it
+# times the channel's rise (a phone's colour matrix leaks up to half of it away: 0.48 measured for
+# green on the renderer). Red objects and ink redden a patch while its other channels fall.
+LIGHT_SHARE = 0.25
+# A lens and demosaicing blur any spot by sigma >= 1 px: its blob (>= 15 % of its peak after the
+# sigma-1 smoothing) covers >= 24 px. A hot photosite (one red 2x2 block) covers ~12.
+MIN_BLOB = 20
+MIN_FILL = 0.8  # area over the moment ellipse: 1 for an ellipse, ~0.95 cut, >= 0.91 for real spots
+MAX_ASPECT = 2.5  # a beam 66 deg off the normal: far past any pose that aims a laser at a sheet
 
 
 @dataclass(frozen=True)
@@ -79,6 +112,8 @@ class Candidate:
 REASONS = {
     "dim": "not brighter than the paper (printed marks?)",
     "white": "white, not laser-coloured (reflections?)",
+    "shape": "not a compact ellipse (a wire, a frame or an object's edge?)",
+    "unlit": "coloured but adds too little light (a red object, ink or a sensor defect?)",
     "fringe": "a faint coloured fringe beside ink or a ring (JPEG artefact)",
     "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
 }
@@ -136,9 +171,14 @@ def _highpass(small: np.ndarray, tile: int = 24) -> np.ndarray:
 
 
 def find_candidates(
-    img: np.ndarray, colour: str = "red", reference: np.ndarray | None = None, k_sigma: float = 6.0
+    img: np.ndarray,
+    colour: str = "red",
+    reference: np.ndarray | None = None,
+    k_sigma: float = 6.0,
+    shrunk: dict | None = None,
 ) -> list[Candidate]:
-    """Regions of laser-coloured light brighter than their surroundings.
+    """Regions of laser-coloured light brighter than their surroundings, at two scales, and
+    clipped white blobs (a spot's core, whose colour survives only in its rim).
 
     Parameters
     ----------
@@ -146,36 +186,132 @@ def find_candidates(
     colour : "red" or "green"
     reference : array like ``img`` or None, the same view with the laser off
     k_sigma : float, threshold in robust sigmas of the background
+    shrunk : dict or None, shrunk copies of the photo by factor, shared between calls on one photo
 
     Returns
     -------
     list of Candidate, strongest first, at most 50
     """
+    shrunk = {} if shrunk is None else shrunk
     h, w = img.shape[:2]
-    ch = CHANNEL[colour]
     src = cv2.subtract(img, reference) if reference is not None else img
     f = max(1, min(h, w) // 750)  # block size: ~750 rows keep spots of sigma >= 1 px visible
-    floor = 0.03 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
     # Block-average first: the colour excess of block means is close enough for finding
     # spots, and it spares full-resolution passes over 12-megapixel photos.
-    small = cv2.resize(src, (w // f, h // f), interpolation=cv2.INTER_AREA) if f > 1 else src
+    small = _shrink(src, f) if reference is not None else _cached(shrunk, img, f)
+    floor = 0.03 * full_scale(img)  # JPEG flattens paper to a noise-free level: keep a floor
+
+    def noise_level(x):
+        return max(k_sigma * _robust_sigma(x), floor)
+
+    fine = _candidates_at(small, f, (h, w), colour, _highpass, noise_level)
+    # A spot wider than the paper-level tiles lifts the paper level with it: look again on a
+    # coarse copy (~64 rows) for spots tens to hundreds of px wide. There the scene, not noise,
+    # sets the spread, so such a spot must rise over the photo's median by half the headroom left.
+    big = max(1, min(h, w) // 64)
+    coarse = []
+    if big >= 4 * f:
+        tiny = _shrink(small, big // f) if reference is not None else _cached(shrunk, small, big // f, f)
+
+        def headroom(x):
+            return max(0.5 * (full_scale(img) - float(np.median(tiny[..., CHANNEL[colour]]))), floor)
+
+        coarse = _candidates_at(tiny, big // f * f, (h, w), colour, _median_pass, headroom, 3)
+    white = _white_candidates(small, f, (h, w)) if src.ndim == 3 and reference is None else []
+    white = [c for c in white if not any(_inside(c, o) for o in fine)]  # a core already found
+    return (coarse + white + fine)[:MAX_CANDIDATES]  # the few large ones first: fine ones abound
+
+
+def _inside(c: Candidate, o: Candidate) -> bool:
+    """Whether ``c``'s centre lies in ``o``'s box."""
+    return o.box[0] <= c.u < o.box[2] and o.box[1] <= c.v < o.box[3]
+
+
+def _cached(shrunk: dict, img: np.ndarray, f: int, base: int = 1) -> np.ndarray:
+    """``img`` (itself shrunk by ``base``) shrunk by ``f``, computed once per photo in ``shrunk``."""
+    if base * f not in shrunk:
+        shrunk[base * f] = _shrink(img, f)
+    return shrunk[base * f]
+
+
+def _octave(shrunk: dict, img: np.ndarray, k: int) -> np.ndarray:
+    """``img`` shrunk by ``k``, a power of 2, each octave from the one before (kept in ``shrunk``
+    under the key ``-k``, apart from :func:`_cached`'s)."""
+    if -k not in shrunk:
+        shrunk[-k] = _shrink(img if k == 2 else _octave(shrunk, img, k // 2), 2)
+    return shrunk[-k]
+
+
+def _shrink(img: np.ndarray, f: int) -> np.ndarray:
+    """Block average by ``f`` (INTER_AREA), or the image itself for ``f`` = 1."""
+    h, w = img.shape[:2]
+    if f <= 1:
+        return img
+    return cv2.resize(img, (max(w // f, 1), max(h // f, 1)), interpolation=cv2.INTER_AREA)
+
+
+def _median_pass(small: np.ndarray) -> np.ndarray:
+    """Subtract the photo's median: the paper level for spots too large for :func:`_highpass`."""
+    return small - np.float32(np.median(small))
+
+
+def _candidates_at(
+    small: np.ndarray,
+    f: int,
+    shape: tuple[int, int],
+    colour: str,
+    paper_level,
+    threshold,
+    min_px: int = 1,
+) -> list[Candidate]:
+    """Candidates found on a copy of the photo shrunk by ``f`` (see :func:`find_candidates`).
+
+    Parameters
+    ----------
+    small : (h/f, w/f[, 3]) array, the shrunk photo
+    f : int, the shrink factor; shape : (h, w) of the full photo, px
+    paper_level : callable, (h, w) float32 array -> the same with the paper level removed
+    threshold : callable, that array -> the rise that stands out, DN
+    min_px : int, smallest component kept, px of ``small``
+
+    Returns
+    -------
+    list of Candidate (full-resolution boxes), strongest first
+    """
+    ch = CHANNEL[colour]
     laser, excess = _channels(small, ch)
-    strength = _highpass(excess.astype(np.float32))
-    if src.ndim == 2:
-        mask = strength > max(k_sigma * _robust_sigma(strength), floor)
+    strength = paper_level(excess.astype(np.float32))
+    if small.ndim == 2:
+        mask = strength > threshold(strength)
     else:
         # Laser light is both coloured and brighter than its surroundings; JPEG colour
         # fringes at ink edges are coloured but not brighter, red ink neither.
-        bright = _highpass(laser.astype(np.float32))
-        lit = bright > max(k_sigma * _robust_sigma(bright), floor)
+        bright = paper_level(laser.astype(np.float32))
+        lit = bright > threshold(bright)
         # A clipped spot is coloured only in a thin halo around its white core, and only faintly
         # when the photo is bright: a region of bright pixels is a candidate as a whole when a few
         # of its pixels are laser-coloured, at a third of the threshold.
-        faint = lit & (strength > max(k_sigma * _robust_sigma(strength), floor) / 3)
+        faint = lit & (strength > threshold(strength) / 3)
         n, labels = cv2.connectedComponents(lit.astype(np.uint8), connectivity=8)
         hit = np.bincount(labels[faint], minlength=n) >= 2
         hit[0] = False
         mask = hit[labels]
+    return _boxes(mask, strength, f, shape, min_px)
+
+
+def _white_candidates(small: np.ndarray, f: int, shape: tuple[int, int]) -> list[Candidate]:
+    """Clipped white blobs: the core of a spot exposed far past clipping, whose halo may be too
+    wide or too faint to stand out from the paper (its rim decides, in :func:`measure_spot`)."""
+    white = (small >= LUMA_CLIP * full_scale(small)).all(axis=2)
+    return _boxes(white, white.astype(np.float32), f, shape, 2)
+
+
+def _boxes(
+    mask: np.ndarray, strength: np.ndarray, f: int, shape: tuple[int, int], min_px: int
+) -> list[Candidate]:
+    """One Candidate per connected region of ``mask`` (a shrunk copy, factor ``f``), strongest
+    first: its box (3x the region, full resolution) and its centre."""
+    h, w = shape
     # Speckle and JPEG blocks break a spot's mask into pieces: join pieces a few pixels apart.
     mask = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8))
     n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
@@ -184,7 +320,8 @@ def find_candidates(
     on = labels > 0  # few pixels: a scatter-max over them is cheap
     best = np.full(n, -np.inf)
     np.maximum.at(best, labels[on], strength[on])
-    order = np.argsort(-best[1:])[:MAX_CANDIDATES] + 1
+    best[1:][stats[1:, 4] < min_px + 24] = -np.inf  # the 5x5 dilation adds 24 px to a lone pixel
+    order = [i for i in np.argsort(-best[1:])[:MAX_CANDIDATES] + 1 if np.isfinite(best[i])]
     out = []
     for i in order:
         x, y, bw, bh = stats[i, :4]
@@ -217,9 +354,7 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     background : (h, w, c) array, DN; noise : (c,) array, robust sigma of the border, DN
     """
     h, w, c = roi.shape
-    border = np.zeros((h, w), bool)
-    border[:2], border[-2:], border[:, :2], border[:, -2:] = True, True, True, True
-    yy, xx = np.nonzero(border)
+    yy, xx = _border_pixels(h, w)
     A = np.column_stack([np.ones(len(xx)), xx - w / 2, yy - h / 2])
     vals = roi[yy, xx].reshape(len(xx), c).astype(float)
     coef, *_ = np.linalg.lstsq(A, vals, rcond=None)
@@ -234,9 +369,20 @@ def _plane_background(roi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # Robust: ink fringes that survive on the border must not pass for noise. Quantisation
     # keeps at least ~0.3 DN.
     noise = np.maximum(1.4826 * np.median(np.abs(res - np.median(res, 0)), 0), 0.3)
-    Y, X = np.mgrid[:h, :w]
-    bg = coef[0] + (X - w / 2)[..., None] * coef[1] + (Y - h / 2)[..., None] * coef[2]
+    x, y = (np.arange(w) - w / 2)[None, :, None], (np.arange(h) - h / 2)[:, None, None]
+    bg = coef[0] + x * coef[1] + y * coef[2]
     return bg.astype(np.float32), noise
+
+
+def _border_pixels(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a box's 2-px frame, each pixel once (no full-size mask: boxes can be large)."""
+    rows = np.unique(np.r_[0 : min(2, h), max(h - 2, 0) : h])
+    inner = np.setdiff1d(np.arange(h), rows)
+    cols = np.unique(np.r_[0 : min(2, w), max(w - 2, 0) : w])
+    yy = np.concatenate([np.repeat(rows, w), np.repeat(inner, len(cols))])
+    xx = np.concatenate([np.tile(np.arange(w), len(rows)), np.tile(cols, len(inner))])
+    order = np.lexsort((xx, yy))  # row by row, as np.nonzero of a mask gives them
+    return yy[order], xx[order]
 
 
 def _weighted_centroid(
@@ -421,10 +567,10 @@ def _centre_sigma(
     R = np.zeros(shape, np.float32)
     M = np.zeros(shape, np.float32)
     R[yy, xx], M[yy, xx] = res.fun, 1
-    mx, my = (2 * u - xx).astype(np.float32).reshape(1, -1), (2 * v - yy).astype(np.float32).reshape(1, -1)
-    mirror = cv2.remap(R, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)[0]
-    whole = cv2.remap(M, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)[0] > 0.999
-    fx, fy = mx[0] - np.floor(mx[0]), my[0] - np.floor(my[0])
+    mx, my = (2 * u - xx).astype(np.float32), (2 * v - yy).astype(np.float32)
+    mirror = _remap_points(R, mx, my)
+    whole = _remap_points(M, mx, my) > 0.999
+    fx, fy = mx - np.floor(mx), my - np.floor(my)
     w2 = ((1 - fx) ** 2 + fx**2) * ((1 - fy) ** 2 + fy**2)
     err = np.where(whole, (res.fun - mirror) / np.sqrt(1 + w2), 0)
     # Correlation sum.
@@ -454,6 +600,30 @@ def _centre_sigma(
     var_lag = LAG_SCALE**2 * np.maximum(var_lag, 0.25 * lag0)
     su, sv = (var_sum * var_lag) ** 0.25
     return float(su), float(sv)
+
+
+REMAP_ROW = 32_000  # cv2.remap refuses maps (and images) of 32,767 px or more on a side
+
+
+def _remap_points(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``img`` at points (x, y), px, 0 outside (``cv2.remap`` with
+    ``BORDER_CONSTANT``), for any number of points: the point list is folded into rows short
+    enough for remap (a large spot's window has more than 32,767 pixels).
+
+    Parameters
+    ----------
+    img : (h, w) float32 array, h and w < 32,767; x, y : (n,) float32 arrays, px
+
+    Returns
+    -------
+    (n,) float32 array
+    """
+    n = len(x)
+    rows = -(-n // REMAP_ROW)
+    pad = rows * REMAP_ROW - n
+    mx = np.pad(x, (0, pad), constant_values=-1).reshape(rows, -1)
+    my = np.pad(y, (0, pad), constant_values=-1).reshape(rows, -1)
+    return cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).ravel()[:n]
 
 
 def _correlation_sum(res: np.ndarray, reach: int) -> float:
@@ -553,7 +723,8 @@ def measure_spot(
         peak_d = float(sig.max())
         sm = cv2.GaussianBlur(sig, (0, 0), 1.0)  # single noisy border pixels are no reason to grow
         edge = max(sm[0].max(), sm[-1].max(), sm[:, 0].max(), sm[:, -1].max())
-        if edge < max(0.05 * peak_d, 3 * noise[ch]) or (x0, y0, x1, y1) == (0, 0, w, h) or attempt == 3:
+        whole = (x0, y0, x1, y1) == (0, 0, w, h) or max(x1 - x0, y1 - y0) >= GROW_MAX
+        if edge < max(0.05 * peak_d, 3 * noise[ch]) or whole or attempt == 3:
             break
         gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
         x0, y0, x1, y1 = max(x0 - gx, 0), max(y0 - gy, 0), min(x1 + gx, w), min(y1 + gy, h)
@@ -563,6 +734,8 @@ def measure_spot(
     smooth = cv2.GaussianBlur(sig, (0, 0), 1.0)  # speckle would split a spot into several blobs
     plain = img[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)  # the photo itself, not a difference
     base = plain - delta  # what the photo would show without the laser (paper, or reference + paper)
+    if img.ndim == 3 and _surround(base, ch, full, gamma) >= MONO:
+        return _core_in_halo(plain, delta, cand, (x0, y0), ch, full, noise, peak_d, colour, gamma)
     need = max(8 * noise[ch], contrast)
     thr = max(4 * noise[ch], 0.15 * peak_d)
     bright = (smooth > thr).astype(np.uint8)
@@ -573,7 +746,7 @@ def measure_spot(
     n, labels = cv2.connectedComponents(bright, connectivity=8)
     if n <= 1:
         return Rejection(
-            "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour)
+            "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour, gamma)
         )
     # The brightest blob, unless it is another candidate's (a grown box may reach a brighter
     # neighbour, such as red ink, that is measured on its own).
@@ -590,13 +763,21 @@ def measure_spot(
     raw = plain[..., ch]
     clipped = raw >= CLIP * full
     if clipped[blob].any():
-        # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped
-        # and 8 sigma brighter than the paper is bright enough.
-        need = max(8 * noise[ch], min(contrast, 0.5 * (full - float(np.median(base[..., ch])))))
-    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
+        # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped and
+        # half the headroom (or 8 sigma) brighter than the paper is bright enough, where the paper
+        # is textured (a large spot's box holds the scene) at least 3 sigma.
+        headroom = 0.5 * (full - float(np.median(base[..., ch])))
+        need = max(3 * noise[ch], min(8 * noise[ch], contrast, headroom))
+    if peak_d < need or blob.sum() < MIN_BLOB:  # dim or tiny: no need to weigh its colour
+        return Rejection(
+            "dim", cand.u, cand.v, _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
+        )
+    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma)
     # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
-    if peak_d < need or ev.light * full < _light_need(noise, full) or blob.sum() < 4:
+    if ev.light * full < _light_need(noise, full):
         return Rejection("dim", cand.u, cand.v, ev)
+    if img.ndim == 3 and ev.light < LIGHT_SHARE * LUMA[ch] * ev.excess:
+        return Rejection("unlit", cand.u, cand.v, ev)
     # A JPEG fringe is colour without light: its luma, kept at full resolution, barely rises.
     faint = ev.clipped_px == 0 and ev.light * full < 2 * _light_need(noise, full)
     if img.ndim == 3 and reference is None and peak_d < 0.15 * full and faint:
@@ -608,8 +789,13 @@ def measure_spot(
     if img.ndim == 3:
         # A white reflection (clipped or not) is as bright in the other channels as in the laser's;
         # laser light keeps its colour in a halo around a clipped white core.
-        if ev.halo_ratio is None or ev.halo_ratio < HALO_MIN:
+        if ev.rule is None:
             return Rejection("white", cand.u, cand.v, ev)
+    # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
+    # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.
+    fill, aspect = _ellipse_fit(blob)
+    if fill < MIN_FILL or aspect > MAX_ASPECT:
+        return Rejection("shape", cand.u, cand.v, ev)
         # JPEG ringing beside black ink is faintly coloured; laser light is strongly so, except in
         # the thin halo of a clipped core (ringing never clips).
         colour_ex = cv2.blur(sig - np.max(np.delete(delta, ch, axis=2), axis=2), (3, 3))
@@ -672,9 +858,77 @@ def measure_spot(
     near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8))
     if not _label_at(near, u, v):
         return Rejection("stray", cand.u, cand.v, ev)
+    # A blob cut by the photo's edge shows only part of its light, and its centre is extrapolated.
+    cut = (x0 == 0 and blob[:, 0].any()) or (y0 == 0 and blob[0].any())
+    cut |= (x0 + blob.shape[1] == w and blob[:, -1].any()) or (y0 + blob.shape[0] == h and blob[-1].any())
     return Spot(
-        u + x0, v + y0, su, sv, float(raw[blob].max()), saturated, int(blob.sum()), on_ink=on_ink, evidence=ev
+        u + x0,
+        v + y0,
+        su,
+        sv,
+        float(raw[blob].max()),
+        saturated,
+        int(blob.sum()),
+        on_ink=on_ink,
+        evidence=replace(ev, cut=bool(cut)),
     )
+
+
+def _ellipse_fit(blob: np.ndarray) -> tuple[float, float]:
+    """How well a blob fills the ellipse of its second moments, and that ellipse's aspect ratio.
+
+    A uniform ellipse of semi-axes a, b has moment eigenvalues a**2 / 4 and b**2 / 4, so the
+    ellipse of eigenvalues l1 >= l2 has area 4 pi sqrt(l1 l2).
+
+    Returns
+    -------
+    fill : float, area / (4 pi sqrt(l1 l2)) (1 for an ellipse); aspect : float, sqrt(l1 / l2)
+    """
+    m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
+    if m["m00"] < 4:
+        return 1.0, 1.0
+    a, b, c = m["mu20"] / m["m00"], m["mu11"] / m["m00"], m["mu02"] / m["m00"]
+    root = np.sqrt(((a - c) / 2) ** 2 + b**2)
+    l1, l2 = (a + c) / 2 + root, max((a + c) / 2 - root, 1 / 12)  # a 1-px line is 1/12 px**2 wide
+    return float(m["m00"] / (4 * np.pi * np.sqrt(l1 * l2))), float(np.sqrt(l1 / l2))
+
+
+def _core_in_halo(
+    plain: np.ndarray,
+    delta: np.ndarray,
+    cand: Candidate,
+    origin: tuple[int, int],
+    ch: int,
+    full: float,
+    noise: np.ndarray,
+    peak_d: float,
+    colour: str,
+    gamma: float,
+) -> Spot | Rejection:
+    """A spot whose own halo fills the box (a tight crop): its clipped white core, in a surround of
+    nearly monochromatic laser light (see :data:`MONO`), is the spot; the centre is the core's.
+
+    The surround is the laser's light, so the rim rule has no paper to compare with and the laser's
+    channel is clipped over the core and most of the halo: only the core's outline is left. The
+    sigma is a floor, the pixel quantisation of a disc's outline: each of its ~2 pi r edge pixels
+    is in or out (variance 1/12) at a lever r cos(theta), so var = pi r**3 / (12 N**2) = 1 / (12 pi r)
+    for N = pi r**2 pixels; speckle on the core's edge adds to it.
+    """
+    white = (plain >= LUMA_CLIP * full).all(axis=2).astype(np.uint8)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
+    if n <= 1 or stats[1:, 4].max() < 4:
+        return Rejection("dim", cand.u, cand.v, None)
+    i = 1 + int(np.argmax(stats[1:, 4]))
+    blob = labels == i
+    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, peak_d, colour, gamma)
+    if ev.rule != "view":
+        return Rejection("white", cand.u, cand.v, ev)
+    area = int(stats[i, 4])
+    sigma = float(1 / np.sqrt(12 * np.pi * np.sqrt(area / np.pi)))
+    u, v = cents[i]
+    x0, y0 = origin
+    raw = plain[..., ch]
+    return Spot(u + x0, v + y0, sigma, sigma, float(raw[blob].max()), True, area, evidence=ev)
 
 
 def _label_at(labels: np.ndarray, x: float, y: float) -> int:
@@ -707,6 +961,7 @@ def _evidence(
     peak_d: float,
     need: float,
     colour: str,
+    gamma: float | None = None,
 ) -> Evidence:
     """Measure what a candidate looks like (see :class:`Evidence`).
 
@@ -720,6 +975,8 @@ def _evidence(
     peak_d : float, peak excess of the laser's channel, DN
     need : float, the excess a spot needs, DN
     colour : str, the laser colour tried
+    gamma : float or None, the photo's encoding gamma; None skips the colour rule and the flux (a
+        candidate already rejected as dim)
     """
     area = 0 if blob is None else int(blob.sum())
     grey = plain.shape[2] == 1
@@ -745,8 +1002,24 @@ def _evidence(
                 halo = total / max(float(np.maximum(other[ring], 0).sum()), total / HALO_CAP)
             else:
                 halo = 1.0  # all white: nothing says laser
+    rim = paper = shift = None
+    rule = "grey" if grey else None
+    s_colour = 1.0
+    flux = 0.0
+    if blob is not None and gamma is not None:
+        base = plain - delta
+        flux = float(
+            (_linear(plain[..., ch][blob], full, gamma) - _linear(base[..., ch][blob], full, gamma)).sum()
+        )
+    if blob is not None and not grey and gamma is not None:
+        rim, paper, _ = _rim_shift(plain, base, blob, ch, full, gamma, max(0.03 * peak_d, 4 * noise[ch]))
+        shift = rim / max(1.0, paper)
+        s_colour = _score(np.log(shift / SHIFT_MIN), 0.25)
+        if shift >= SHIFT_MIN:
+            rule = "rim"
+        elif white and _surround(base, ch, full, gamma) >= MONO:
+            rule, s_colour = "view", 0.75
     s_excess = _score(np.log(max(peak_d, 1e-6) / need), 0.25)
-    s_halo = 1.0 if halo is None else _score(np.log(halo / HALO_MIN), 0.02)
     s_light = _score(np.log(max(light, 1e-6) / _light_need(noise, full)), 0.25)
     return Evidence(
         None if grey else colour,
@@ -758,8 +1031,89 @@ def _evidence(
         clipped,
         white,
         area,
-        float(min(s_excess, s_halo, s_light)),
+        float(min(s_excess, s_colour, s_light) if rule != "view" else s_colour),
+        rim,
+        paper,
+        shift,
+        rule,
+        flux,
     )
+
+
+def _rim_shift(
+    plain: np.ndarray, base: np.ndarray, blob: np.ndarray, ch: int, full: float, gamma: float, thr: float
+) -> tuple[float, float, int]:
+    """Colour of the light a candidate adds, against the colour of the paper under it (linear light).
+
+    White light, whatever the surface, adds light in the surface's own colour (diffuse) or in the
+    light's own colour, white (specular): the laser channel's share of the added light, over
+    ``max(1, paper ratio)``, is at most 1. A laser adds light in its own channel only (the others get
+    cross-talk, blooming and the colour matrix's leak), so its rim shifts towards the laser's hue
+    whatever the paper's colour. Pixels clipped in another channel carry no ratio and are left out;
+    so are those clipped in the laser's channel (a lower bound only), where enough others remain.
+
+    The laser's channel is weighed against its neighbours in wavelength (:data:`NEIGHBOURS`).
+    Two parts of the rim are measured and the larger shift kept: the whole unclipped rim, and its
+    faint outer part (the lower half of the headroom over the paper), where neither the tone curve's
+    shoulder (which squeezes the brighter channel) nor blooming (which whitens the rim of a spot far
+    past clipping) tilts the ratio, but which is thin and noisy on a bright paper.
+
+    Parameters
+    ----------
+    plain, base : (h, w, 3) arrays, the photo and the local background (paper) in the box, DN
+    blob : (h, w) bool array, the candidate's pixels
+    ch : int, the laser's channel; full : float, full scale, DN; gamma : float, encoding gamma
+    thr : float, excess of the laser's channel (DN, encoded) a rim pixel needs
+
+    Returns
+    -------
+    added : float, laser channel's added light over a neighbouring channel's, summed over the rim
+        (linear, capped at HALO_CAP), for the rim part that shifts most
+    paper : float, the same ratio of the background light under that rim (median)
+    n : int, rim pixels used
+    """
+    ys, xs = np.nonzero(blob)  # work on the blob's bounding box (grown by the rim): boxes can be large
+    y0, x0 = max(ys.min() - 5, 0), max(xs.min() - 5, 0)
+    win = (slice(y0, ys.max() + 6), slice(x0, xs.max() + 6))
+    plain, base, blob = plain[win], base[win], blob[win]
+    rim = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
+    rim &= (np.delete(plain, ch, axis=2) < CLIP * full).all(axis=2) & (plain[..., ch] - base[..., ch] > thr)
+    free = rim & (plain[..., ch] < CLIP * full)
+    if free.sum() >= 6:
+        rim = free
+    low = rim & (plain.max(axis=2) < 0.5 * (full + base.max(axis=2)))
+    parts = [rim, low] if low.sum() >= 6 else [rim]
+    best = (0.0, 1.0, 1.0)
+    for part in parts:
+        if part.sum() < 3:
+            continue
+        lp, lb = _linear(plain[part], full, gamma), _linear(np.maximum(base[part], 0.5), full, gamma)
+        add = (lp - lb).sum(0)
+        shifts = []
+        for o in NEIGHBOURS[ch]:
+            added = min(float(add[ch] / max(add[o], add[ch] / HALO_CAP, 1e-9)), HALO_CAP)
+            paper = float(np.median(lb[:, ch] / np.maximum(lb[:, o], 1e-6)))
+            shifts.append((added / max(1.0, paper), added, paper))
+        # Broadband light shifts green against one neighbour at most (warm light towards red, cool
+        # towards blue); a green laser shifts against both.
+        side = min(shifts)
+        best = max(best, *shifts) if side[0] >= SIDE_MIN else max(best, side)
+    return best[1], best[2], int(rim.sum())
+
+
+def _surround(base: np.ndarray, ch: int, full: float, gamma: float) -> float:
+    """How much the laser's channel outshines the brighter other one in the box's surround (median
+    of the 2-px border of the background, linear light)."""
+    border = np.concatenate(
+        [
+            base[:2].reshape(-1, 3),
+            base[-2:].reshape(-1, 3),
+            base[:, :2].reshape(-1, 3),
+            base[:, -2:].reshape(-1, 3),
+        ]
+    )
+    lin = _linear(np.median(np.maximum(border, 0.5), axis=0), full, gamma)
+    return float(lin[ch] / max(np.delete(lin, ch).max(), 1e-6))
 
 
 def _light_need(noise: np.ndarray, full: float) -> float:
@@ -773,9 +1127,15 @@ def _score(x: float, scale: float) -> float:
     return float(1 / (1 + np.exp(-np.clip(x / scale, -50, 50))))
 
 
+def _strength(s: Spot) -> float:
+    """How convincing a spot is, to rank it against others (see :attr:`Evidence.strength`)."""
+    return 0.0 if s.evidence is None else s.evidence.strength
+
+
 def _dedupe(spots: list[Spot]) -> list[Spot]:
     """Drop spots found twice: two candidates of one spot converge within its radius."""
     out: list[Spot] = []
+    # Of two measurements of one spot, keep the one whose blob holds more of its light.
     for s in sorted(spots, key=lambda s: -s.peak * s.area):
         if all(np.hypot(s.u - o.u, s.v - o.v) > max(3.0, np.sqrt(max(s.area, o.area) / np.pi)) for o in out):
             out.append(s)
@@ -846,14 +1206,14 @@ def detect_spots(
             detail += f"; best candidate {best.describe()}"
         raise NoSpotError(f"{name}: no {colour} laser spot found{detail}{_white_blobs(img)}")
     if expect is not None and len(spots) > expect:
-        where = ", ".join(f"({s.u:.1f}, {s.v:.1f})" for s in spots[:6])
-        raise SpotCountError(
-            f"{name}: {len(spots)} spots found where {expect} "
-            f"{'is' if expect == 1 else 'are'} expected, at px {where}"
-            f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several "
-            "spots)"
-        )
+        spots, note = _keep_strongest(spots, expect, name)
+        warnings.append(note)
     for sp in spots:
+        if sp.evidence is not None and sp.evidence.cut:
+            warnings.append(
+                f"spot at ({sp.u:.1f}, {sp.v:.1f}) px is cut by the photo's edge: its centre is extrapolated "
+                "from the part in view, and its sigma does not count that"
+            )
         if sp.on_ink:
             warnings.append(
                 f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
@@ -877,6 +1237,40 @@ def detect_spots(
     return sorted(spots, key=lambda s: (round(s.v), s.u)), warnings
 
 
+CLOSE = 0.5  # a runner-up this close to the weakest kept spot, in strength, is not ruled out
+
+
+def _keep_strongest(spots: list[Spot], expect: int, name: str) -> tuple[list[Spot], str]:
+    """The ``expect`` most convincing spots, and a warning naming the others.
+
+    One laser makes spots of about the same light (flux) wherever it lands; glints, LEDs and red
+    objects that pass every rule are mostly far weaker. When the runner-up comes within
+    :data:`CLOSE` of the weakest kept spot the photo cannot say which is the laser: both are named,
+    with their confidence, and the photo is lost.
+
+    Raises
+    ------
+    SpotCountError
+        The runner-up is close in strength to the weakest kept spot.
+    """
+    ranked = sorted(spots, key=_strength, reverse=True)
+    kept, rest = ranked[:expect], ranked[expect:]
+
+    def where(s: Spot) -> str:
+        return (
+            f"({s.u:.1f}, {s.v:.1f}) px (confidence {s.evidence.confidence:.2f}, strength {_strength(s):.3g})"
+        )
+
+    if _strength(rest[0]) >= CLOSE * _strength(kept[-1]):
+        raise SpotCountError(
+            f"{name}: {len(spots)} spots found where {expect} {'is' if expect == 1 else 'are'} expected, "
+            f"close in evidence: {'; '.join(where(s) for s in ranked[:6])}{' ...' if len(spots) > 6 else ''} "
+            "(use --expect N for photos with several spots)"
+        )
+    others = "; ".join(where(s) for s in rest[:3]) + (" ..." if len(rest) > 3 else "")
+    return kept, f"kept the {expect} most convincing spot{'s' * (expect > 1)}; weaker candidates: {others}"
+
+
 def _white_blobs(img: np.ndarray, min_px: int = 20) -> str:
     """A note on clipped white blobs, for a photo without a spot: a laser spot exposed far beyond
     clipping can lose the last of its colour and look like a reflection."""
@@ -896,15 +1290,64 @@ def _white_blobs(img: np.ndarray, min_px: int = 20) -> str:
 
 
 def _find(
-    img: np.ndarray, colour: str, reference: np.ndarray | None, gamma: float, luma: bool
+    img: np.ndarray,
+    colour: str,
+    reference: np.ndarray | None,
+    gamma: float,
+    luma: bool,
+    shrunk: dict | None = None,
 ) -> tuple[list[Spot], list[Rejection]]:
     """Spots of one laser colour, and the candidates rejected."""
-    cands = find_candidates(img, colour, reference)
+    shrunk = {} if shrunk is None else shrunk
+    refs: dict[int, np.ndarray] = {}
+    cands = find_candidates(img, colour, reference, shrunk=shrunk)
     found, rejected = [], []
     for c in cands:
-        r = measure_spot(img, c, colour, reference, [o for o in cands if o is not c], gamma, luma)
+        others = [o for o in cands if o is not c]
+        side = max(c.box[2] - c.box[0], c.box[3] - c.box[1])
+        k = 1 if side <= MEASURE_SIDE else 2 ** int(np.ceil(np.log2(side / MEASURE_SIDE)))  # a pyramid
+        if k <= 1:
+            r = measure_spot(img, c, colour, reference, others, gamma, luma)
+        else:
+            # A spot tens to hundreds of px wide is measured on a shrunk copy of the photo: its
+            # centre is known to a fraction of its width anyway, and the fit stays small and fast.
+            # It is fitted in the luma: the laser's channel of so large a spot is clipped over a
+            # wide, speckle-ragged plateau, while the others still draw its profile.
+            small = _octave(shrunk, img, k)
+            if reference is not None and k not in refs:
+                refs[k] = _shrink(reference, k)
+            ref = refs.get(k)
+            r = _grown(
+                measure_spot(small, _shrunk(c, k), colour, ref, [_shrunk(o, k) for o in others], gamma, True),
+                k,
+            )
         (rejected if isinstance(r, Rejection) else found).append(r)
     return _dedupe(found), rejected
+
+
+MEASURE_SIDE = 160  # px: a candidate's box wider than this is measured on a shrunk copy
+GROW_MAX = 2 * MEASURE_SIDE  # px: a box grows no further (larger spots are the coarse pass's)
+
+
+def _shrunk(c: Candidate, k: int) -> Candidate:
+    """A candidate in a copy of the photo shrunk by ``k`` (pixel centres: (u + 0.5) / k - 0.5)."""
+    return Candidate(tuple(int(b) // k for b in c.box), (c.u + 0.5) / k - 0.5, (c.v + 0.5) / k - 0.5)
+
+
+def _grown(r: Spot | Rejection, k: int) -> Spot | Rejection:
+    """A spot or rejection measured on a copy shrunk by ``k``, in the full photo's pixels."""
+    u, v = (r.u + 0.5) * k - 0.5, (r.v + 0.5) * k - 0.5
+    if isinstance(r, Rejection):
+        return replace(r, u=u, v=v)
+    su = None if r.sigma_u is None else r.sigma_u * k
+    sv = None if r.sigma_v is None else r.sigma_v * k
+    ev = r.evidence
+    if ev is not None:
+        k2 = k * k
+        ev = replace(
+            ev, clipped_px=ev.clipped_px * k2, white_px=ev.white_px * k2, area=ev.area * k2, flux=ev.flux * k2
+        )
+    return replace(r, u=u, v=v, sigma_u=su, sigma_v=sv, area=r.area * k * k, evidence=ev)
 
 
 def _auto_colour(
@@ -920,8 +1363,9 @@ def _auto_colour(
     """
     if img.ndim == 2:
         return "red", *_find(img, "red", reference, gamma, luma), None  # one channel: colour is moot
-    tries = {c: _find(img, c, reference, gamma, luma) for c in CHANNEL}
-    score = {c: sum(s.evidence.confidence for s in spots) for c, (spots, _) in tries.items()}
+    shrunk: dict[int, np.ndarray] = {}  # one photo, two colours: shrink it once
+    tries = {c: _find(img, c, reference, gamma, luma, shrunk) for c in CHANNEL}
+    score = {c: max((_strength(s) for s in spots), default=0.0) for c, (spots, _) in tries.items()}
     best = max(score, key=score.get)
     if score[best] == 0:
         return "red or green", [], tries["red"][1] + tries["green"][1], None
@@ -929,8 +1373,8 @@ def _auto_colour(
     note = None
     if tries[other][0]:
         note = (
-            f"both red and green spots found: measured {best} (confidence {score[best]:.2f} against "
-            f"{score[other]:.2f}); give --color to choose"
+            f"both red and green spots found: measured {best} (strength {score[best]:.3g} against "
+            f"{score[other]:.3g}); give --color to choose"
         )
     return best, *tries[best], note
 

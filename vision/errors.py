@@ -43,3 +43,8 @@ class SheetError(VisionError):
 
 class CalibrationError(VisionError):
     """Camera calibration or a circle fit could not be carried out."""
+
+
+class MeasureFault(VisionError):
+    """A fault inside the measurement of one photo (a library's assertion, a numerical failure),
+    reported as one line naming the photo and the stage instead of a traceback."""

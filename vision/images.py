@@ -2,9 +2,11 @@
 
 Images are kept as OpenCV reads them: BGR (or grey) arrays of uint8 or uint16,
 pixel (row v, column u), OpenCV pixel convention (pixel centres at integer
-coordinates). EXIF orientation is ignored on purpose: the camera model, the
-markers and ImageJ all work in the sensor's own frame, and a phone that flags
-some photos as rotated would otherwise mix two frames.
+coordinates). EXIF orientation is ignored on purpose: every coordinate is in the
+stored pixel grid, the sensor's own frame, which the camera model, the markers and
+ImageJ all work in; a phone that flags some photos as rotated would otherwise mix two
+frames. Only what a person looks at (the overlay) is turned upright, with
+:func:`exif_orientation` and :func:`upright`.
 """
 
 from __future__ import annotations
@@ -91,3 +93,68 @@ def chroma_subsampled(path) -> bool:
                 fh.seek(size - 2, 1)
     except (OSError, IndexError):
         return False
+
+
+def exif_orientation(path) -> int:
+    """The EXIF orientation tag (274) of a photo file: 1 (upright, also when absent) to 8.
+
+    Read with Pillow (a dependency of matplotlib), header only.
+    """
+    try:
+        from PIL import Image
+
+        with Image.open(path) as im:
+            o = int(im.getexif().get(274, 1))
+    except (ImportError, OSError, ValueError, SyntaxError):
+        return 1
+    return o if 1 <= o <= 8 else 1
+
+
+def upright(img: np.ndarray, orientation: int) -> np.ndarray:
+    """The photo as a viewer shows it: the stored grid turned as its EXIF orientation says.
+
+    Parameters
+    ----------
+    img : (h, w[, c]) array in the stored grid; orientation : int, EXIF tag 274 (1-8)
+
+    Returns
+    -------
+    array, (h, w[, c]) for 1-4 and (w, h[, c]) for 5-8
+    """
+    turn = {
+        2: lambda a: cv2.flip(a, 1),
+        3: lambda a: cv2.rotate(a, cv2.ROTATE_180),
+        4: lambda a: cv2.flip(a, 0),
+        5: lambda a: cv2.transpose(a),
+        6: lambda a: cv2.rotate(a, cv2.ROTATE_90_CLOCKWISE),
+        7: lambda a: cv2.flip(cv2.rotate(a, cv2.ROTATE_90_CLOCKWISE), 0),
+        8: lambda a: cv2.rotate(a, cv2.ROTATE_90_COUNTERCLOCKWISE),
+    }.get(orientation)
+    return img if turn is None else turn(img)
+
+
+def upright_points(uv: np.ndarray, shape: tuple, orientation: int) -> np.ndarray:
+    """Where points of the stored grid land in :func:`upright`'s image.
+
+    Parameters
+    ----------
+    uv : (n, 2) array, px in the stored grid (pixel centres at integers); shape : (h, w, ...) stored
+    orientation : int, EXIF tag 274
+
+    Returns
+    -------
+    (n, 2) array, px in the upright image
+    """
+    h, w = shape[:2]
+    u, v = np.asarray(uv, float).T
+    return np.column_stack(
+        {
+            2: (w - 1 - u, v),
+            3: (w - 1 - u, h - 1 - v),
+            4: (u, h - 1 - v),
+            5: (v, u),
+            6: (h - 1 - v, u),
+            7: (h - 1 - v, w - 1 - u),
+            8: (v, w - 1 - u),
+        }.get(orientation, (u, v))
+    )

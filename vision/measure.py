@@ -6,6 +6,7 @@ in the robot base frame on the layout's plane.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import cv2
@@ -13,7 +14,7 @@ import numpy as np
 
 from lasercal.vision.camera import Camera
 from lasercal.vision.detect import detect_spots
-from lasercal.vision.errors import VisionError
+from lasercal.vision.errors import MeasureFault, VisionError
 from lasercal.vision.exposure import Exposure, exposure_advice
 from lasercal.vision.images import chroma_subsampled, full_scale, read_image, to_gray
 from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane
@@ -119,19 +120,20 @@ def measure_photo(
     if camera is not None:
         camera.check_size(size, name)
     luma = opts.channel == "luma" or (opts.channel == "auto" and subsampled)
-    spots, warnings = detect_spots(
-        img,
-        name,
-        opts.colour,
-        reference,
-        opts.expect,
-        opts.method,
-        opts.imagej_mode,
-        opts.imagej_threshold,
-        opts.imagej_box,
-        opts.gamma,
-        luma,
-    )
+    with stage(name, "finding the laser spot"):
+        spots, warnings = detect_spots(
+            img,
+            name,
+            opts.colour,
+            reference,
+            opts.expect,
+            opts.method,
+            opts.imagej_mode,
+            opts.imagej_threshold,
+            opts.imagej_box,
+            opts.gamma,
+            luma,
+        )
     exposure = exposure_advice(spots, reference is not None) if opts.method == "precise" else None
     if exposure is not None and exposure.advice:
         warnings.append(exposure.advice)
@@ -140,8 +142,10 @@ def measure_photo(
     )
     plane = None
     if layout is not None:
-        fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
-        plane = fit_plane(fid, layout, camera, size, name)
+        with stage(name, "finding the markers"):
+            fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
+        with stage(name, "fitting the plane"):
+            plane = fit_plane(fid, layout, camera, size, name)
         if fid.unknown_ids:
             warnings.append(f"markers not in the layout ignored: ids {', '.join(map(str, fid.unknown_ids))}")
         if (~plane.inliers).any():
@@ -164,6 +168,25 @@ def measure_photo(
                 f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated"
             )
     return PhotoResult(name, spots, warnings, plane, colour, exposure)
+
+
+@contextmanager
+def stage(name: str, what: str):
+    """Turn a fault inside one stage of the measurement into a one-line :class:`MeasureFault`.
+
+    A photo that OpenCV decodes must never end in a traceback: whatever a library raises on it
+    (an assertion on an odd size, a numerical failure) becomes one line naming the photo and the
+    stage, and the batch goes on.
+    """
+    try:
+        yield
+    except VisionError:
+        raise
+    except Exception as exc:  # any fault of ours: reported in one line, not raised raw
+        last = (str(exc).strip().splitlines() or [""])[-1][:200]
+        raise MeasureFault(
+            f"{name}: could not be measured: internal error while {what} ({type(exc).__name__}: {last})"
+        ) from exc
 
 
 MIN_SIDE = 16  # px: a smaller photo cannot hold a spot and the paper around it
@@ -211,13 +234,11 @@ def measure_file(
     """
     name = str(path)
     try:
-        img = read_image(path)
+        with stage(name, "reading the photo"):
+            img = read_image(path)
         return measure_photo(img, name, opts, layout, camera, reference, chroma_subsampled(path))
     except VisionError as exc:
         why = str(exc)
-    except (cv2.error, ValueError, ArithmeticError, IndexError) as exc:
-        # A fault of ours, not of the photo: still one line, and the batch goes on.
-        why = f"{name}: could not be measured ({type(exc).__name__}: {str(exc).strip().splitlines()[-1]})"
     return PhotoResult(name, [], [why], None, error=why)
 
 

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from lasercal.vision.detect import Spot
+from lasercal.vision.images import upright, upright_points
 from lasercal.vision.plane import PlaneMap
 
 GRID, MARKER, OUTLIER, SPOT, TEXT = (255, 160, 0), (0, 200, 0), (0, 0, 255), (255, 0, 255), (20, 20, 20)
@@ -39,25 +40,35 @@ def draw(
     plane: PlaneMap | None = None,
     title: str = "",
     convention: str = "opencv",
+    orientation: int = 1,
 ) -> np.ndarray:
-    """Return an annotated BGR uint8 copy of ``img``.
+    """Return an annotated BGR uint8 copy of ``img``, turned upright as a viewer shows it.
 
     Parameters
     ----------
-    img : (h, w, 3) BGR or (h, w) grey array, uint8 or uint16
+    img : (h, w, 3) BGR or (h, w) grey array, uint8 or uint16, in the stored pixel grid
     spots : list of Spot
     plane : PlaneMap or None, for the mm grid and the markers
     title : str, first line of the header
     convention : "opencv" or "imagej", for the pixel coordinates printed
+    orientation : int, the photo's EXIF orientation (1-8, see ``images.exif_orientation``): the
+        overlay is turned upright, while the printed coordinates stay in the stored grid
     """
     out = img if img.dtype == np.uint8 else (img >> 8).astype(np.uint8)
     out = cv2.cvtColor(out, cv2.COLOR_GRAY2BGR) if out.ndim == 2 else out.copy()
+    out = np.ascontiguousarray(upright(out, orientation))
+
+    def shown(uv) -> np.ndarray:
+        """Stored-grid px -> px in the upright overlay."""
+        return upright_points(np.reshape(uv, (-1, 2)), img.shape, orientation)
+
+    sh, sw = img.shape[:2]
     h, w = out.shape[:2]
     k = max(w, h) / 1000  # line widths and text grow with the photo
     t = max(1, int(round(k)))
     fs = 0.45 * k
     if plane is not None:
-        edge = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
+        edge = np.array([[0, 0], [sw - 1, 0], [sw - 1, sh - 1], [0, sh - 1]], float)
         xy = plane.to_plane(edge)
         lo, hi = xy.min(0), xy.max(0)
         step = _nice_step(max(hi - lo))
@@ -65,7 +76,7 @@ def draw(
             for val in np.arange(np.ceil(lo[axis] / step) * step, hi[axis] + 1e-9, step):
                 s = np.linspace(lo[1 - axis], hi[1 - axis], 100)
                 line = np.column_stack([np.full_like(s, val), s] if axis == 0 else [s, np.full_like(s, val)])
-                px = plane.to_image(line)
+                px = shown(plane.to_image(line))
                 cv2.polylines(out, [np.round(px).astype(np.int32)], False, GRID, max(1, t // 2), cv2.LINE_AA)
                 ok = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
                 if ok.any():
@@ -75,16 +86,17 @@ def draw(
                     _label(out, f"{'x' if axis == 0 else 'y'}={val:g}", org, fs, GRID)
         fid = plane.fiducials
         for mid, c in zip(fid.marker_ids, fid.marker_corners):
+            c = shown(c)
             cv2.polylines(out, [np.round(c).astype(np.int32)], True, MARKER, 2 * t, cv2.LINE_AA)
             cv2.circle(out, tuple(np.round(c[0]).astype(int)), 4 * t, MARKER, -1)  # corner 0
             _label(out, f"id {mid}", tuple(np.round(c.mean(0)).astype(int)), 1.2 * fs, MARKER)
-        for u, v in fid.image[~plane.inliers]:
+        for u, v in shown(fid.image[~plane.inliers]):
             cv2.drawMarker(
                 out, (int(round(u)), int(round(v))), OUTLIER, cv2.MARKER_TILTED_CROSS, 12 * t, 2 * t
             )
     shift = 0.5 if convention == "imagej" else 0.0
     for n, s in enumerate(spots, 1):
-        c = (int(round(s.u)), int(round(s.v)))
+        c = tuple(int(round(x)) for x in shown([s.u, s.v])[0])
         r = int(round(3 * np.sqrt(s.area / np.pi) + 6 * t))
         cv2.circle(out, c, r, SPOT, t, cv2.LINE_AA)
         cv2.drawMarker(out, c, SPOT, cv2.MARKER_CROSS, r // 2, t)
@@ -92,7 +104,7 @@ def draw(
         if s.x_mm is not None:
             txt += f"  ({s.x_mm:.2f}, {s.y_mm:.2f}) mm"
         _label(out, txt, (c[0] + r + 3 * t, c[1] - r), fs, SPOT)
-    _insets(out, img, spots, k)
+    _insets(out, upright(img, orientation), [shown([s.u, s.v])[0] for s in spots], spots, k)
     lines = [title]
     if plane is not None:
         fid = plane.fiducials
@@ -106,18 +118,20 @@ def draw(
     return out
 
 
-def _insets(out: np.ndarray, img: np.ndarray, spots: list[Spot], k: float) -> None:
-    """Zoomed crops of the spots along the top edge, centre marked at sub-pixel accuracy."""
+def _insets(out: np.ndarray, img: np.ndarray, centres: list, spots: list[Spot], k: float) -> None:
+    """Zoomed crops of the spots along the top edge, centre marked at sub-pixel accuracy.
+
+    ``img`` and ``centres`` (px) are in the overlay's (upright) frame."""
     side = int(round(180 * k)) | 1  # odd: the centre pixel is the middle one
     x = int(round(0.15 * out.shape[1]))  # clear of a marker in the top-left corner
     src = img if img.dtype == np.uint8 else (img >> 8).astype(np.uint8)
     src = cv2.cvtColor(src, cv2.COLOR_GRAY2BGR) if src.ndim == 2 else src
-    for n, s in enumerate(spots[:8], 1):
+    for n, (s, (cu, cv)) in enumerate(zip(spots[:8], centres), 1):
         half = max(8, int(round(2.5 * np.sqrt(s.area / np.pi) + 4)))
         zoom = side / (2 * half + 1)
         # Affine crop keeps the sub-pixel centre exactly in the middle of the inset.
         c = side // 2
-        M = np.float32([[zoom, 0, c - zoom * s.u], [0, zoom, c - zoom * s.v]])
+        M = np.float32([[zoom, 0, c - zoom * cu], [0, zoom, c - zoom * cv]])
         crop = cv2.warpAffine(src, M, (side, side), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
         cv2.line(crop, (c, 0), (c, side), SPOT, 1)
         cv2.line(crop, (0, c), (side, c), SPOT, 1)

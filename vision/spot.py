@@ -21,15 +21,27 @@ class Evidence:
     light : float, peak excess of the luma over the local paper level, fraction of full scale: laser
         light adds light, while red ink, whose red a phone's colour correction lifts above the
         paper's, takes it away
-    halo_ratio : float or None, colour of the spot's halo: the laser channel's excess over the brighter
-        other channel's, summed over the spot's pixels not clipped in all three channels (<= 1.01 for
-        white light; 1.07 for a laser clipped 30x with a thin halo, ~5-20 for an unclipped one;
-        capped at 20); None for a grey photo
+    halo_ratio : float or None, colour of the spot's halo in the photo's own encoding: the laser
+        channel's excess over the brighter other channel's, summed over the spot's pixels not clipped
+        in all three channels (capped at 20); None for a grey photo. Descriptive only: the rim shift
+        decides
     clipped_px : int, spot pixels clipped in the laser's channel
     white_px : int, spot pixels (nearly) clipped in all three channels, >= 97 % of full scale (a white core)
     area : int, pixels in the spot's blob
-    confidence : float in [0, 1], a score, not a probability: the lower of how far the excess and the
-        halo ratio pass their thresholds (0.5 at a threshold, -> 1 well above it)
+    confidence : float in [0, 1], a score, not a probability: the lower of how far the excess, the
+        luma's rise and the rim shift pass their thresholds (0.5 at a threshold, -> 1 well above it)
+    rim_ratio : float or None, the light the candidate adds in the laser's channel over what it adds
+        in another channel, summed over its rim, in linear light (capped at 20)
+    paper_ratio : float or None, the same ratio of the paper's own light under that rim
+    rim_shift : float or None, ``rim_ratio / max(1, paper_ratio)`` against the laser's neighbours in
+        wavelength (red: green; green: red and blue, both shifted by at least 1.2): <= 1 for white
+        light on any paper in theory, ~2 at most measured; a spot needs 2.2 (``detect.SHIFT_MIN``)
+    rule : str or None, which rule took the candidate for laser light: "rim" (its rim shifts towards
+        the laser's hue), "view" (a clipped core in a surround of nearly monochromatic laser light: the
+        spot's own halo fills the view), "grey" (a grey photo: brightness only); None when none did
+    flux : float, light the spot adds in the laser's channel, summed over its blob, linear, DN px
+        (of the full photo); one laser adds about the same wherever it lands
+    cut : bool, the photo's edge cuts the spot
     """
 
     colour: str | None
@@ -42,6 +54,19 @@ class Evidence:
     white_px: int
     area: int
     confidence: float
+    rim_ratio: float | None = None
+    paper_ratio: float | None = None
+    rim_shift: float | None = None
+    rule: str | None = None
+    flux: float = 0.0
+    cut: bool = False
+
+    @property
+    def strength(self) -> float:
+        """How convincing the spot is against other spots of the same photo: its flux times its
+        confidence, and a quarter of that when the photo's edge cuts it (its centre is extrapolated,
+        and it may be an object running out of view)."""
+        return self.flux * self.confidence * (0.25 if self.cut else 1.0)
 
     @property
     def clipped_fraction(self) -> float:
@@ -61,15 +86,21 @@ class Evidence:
             "white_px": self.white_px,
             "clipped_fraction": round(self.clipped_fraction, 3),
             "confidence": round(self.confidence, 3),
+            "rim_ratio": None if self.rim_ratio is None else round(self.rim_ratio, 2),
+            "paper_ratio": None if self.paper_ratio is None else round(self.paper_ratio, 3),
+            "rim_shift": None if self.rim_shift is None else round(self.rim_shift, 2),
+            "rule": self.rule,
+            "flux": round(self.flux, 1),
+            "cut": self.cut,
         }
 
     def describe(self) -> str:
         """One line of the evidence, for messages."""
-        halo = "" if self.halo_ratio is None else f"halo colour ratio {self.halo_ratio:.2f}, "
+        rim = "" if self.rim_shift is None else f"rim shift {self.rim_shift:.2f}, "
+        rule = "" if self.rule is None else f"rule {self.rule}, "
         return (
-            f"{halo}excess {self.excess:.2f} of full scale ({self.snr:.0f} sigma), "
-            f"luma {self.light:+.2f}, "
-            f"{self.clipped_px} px clipped, confidence {self.confidence:.2f}"
+            f"{rule}{rim}excess {self.excess:.2f} of full scale ({self.snr:.0f} sigma), "
+            f"luma {self.light:+.2f}, {self.clipped_px} px clipped, confidence {self.confidence:.2f}"
         )
 
 

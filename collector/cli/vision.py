@@ -210,7 +210,7 @@ def _measure_all(args):
     -------
     (list of (JSON entry, PhotoResult or None), MarkerLayout or None)
     """
-    from lasercal.vision.images import read_image
+    from lasercal.vision.images import exif_orientation, read_image
     from lasercal.vision.measure import measure_file
     from lasercal.vision.overlay import draw, write
 
@@ -224,7 +224,9 @@ def _measure_all(args):
             _warn(w if res.error else f"{path}: {w}")
         if args.overlay and res.error is None:
             name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
-            write(name, draw(read_image(path), res.spots, res.plane, f"{path}  [{how}]", args.convention))
+            title = f"{path}  [{how}]"
+            up = exif_orientation(path)
+            write(name, draw(read_image(path), res.spots, res.plane, title, args.convention, up))
         entry = res.to_dict(opts.method, args.convention, layout.plane_z if layout else None)
         if layout is not None:
             entry["frame"] = layout.frame
