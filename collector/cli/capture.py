@@ -5,18 +5,39 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lasercal.collector.cli.options import backend_arguments, count, motion_arguments, number
+from lasercal.collector.cli.options import (
+    INFOLDER,
+    LAYOUT,
+    backend_arguments,
+    count,
+    motion_arguments,
+    number,
+    output_argument,
+)
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 
 
 def args_capture(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal capture``."""
-    p.add_argument("--layout", help="layout YAML with the reference points")
+    p.add_argument("--layout", type=LAYOUT, help="layout YAML with the reference points")
     p.add_argument(
         "--per-point", type=count(1, 10000), metavar="N", help="captures at each calibration point"
     )
-    p.add_argument("-o", "--output", metavar="SESSION", help="new session folder")
-    p.add_argument("--resume", metavar="SESSION", help="continue an interrupted session where it stopped")
+    output_argument(
+        p,
+        "-o",
+        "--output",
+        kind="folder",
+        instead="resume it with --resume {path}",
+        metavar="SESSION",
+        help="new session folder",
+    )
+    p.add_argument(
+        "--resume",
+        type=INFOLDER,
+        metavar="SESSION",
+        help="continue an interrupted session where it stopped",
+    )
     p.add_argument(
         "--aperture-z",
         type=number(METRES_BELOW_MM, 5000, "mm"),

@@ -2,8 +2,11 @@
 
 Every subcommand is a thin handler (parse arguments, call one library function, print) in a
 module of this package. ``lasercal --help`` imports none of them, so it starts fast. Any
-:class:`~lasercal.solver.errors.LasercalError` (or ``vision``'s ``VisionError``) becomes a
-one-line message and exit code 2, never a traceback.
+:class:`~lasercal.solver.errors.LasercalError` (or ``vision``'s ``VisionError``, or an ``OSError``
+on a file the user named) becomes a one-line message and exit code 2, never a traceback; a
+:class:`~lasercal.solver.errors.LasercalWarning` becomes a line ``lasercal: warning: ...`` and the
+command goes on. Output paths (declared with :func:`options.output_argument`) are checked before
+the handler runs.
 """
 
 from __future__ import annotations
@@ -11,6 +14,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
+from contextlib import contextmanager
 from typing import NamedTuple
 
 
@@ -159,17 +164,44 @@ def _user_errors() -> tuple:
     return LasercalError, VisionError
 
 
+@contextmanager
+def warnings_as_lines():
+    """Show each :class:`LasercalWarning` as one line ``lasercal: warning: ...`` on stderr (each message
+    once); other warnings as Python shows them."""
+    from lasercal.solver.errors import LasercalWarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, LasercalWarning):
+            print(f"lasercal: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+        warnings.simplefilter("default", LasercalWarning)
+        warnings.showwarning = show
+        yield
+
+
 def main(argv=None) -> int:
     """Run ``lasercal``; returns the exit code (0 ok, 2 bad input or nothing measured)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = next((a for a in argv if not a.startswith("-")), None)
     try:
         args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
-        return int(args.func(args) or 0)
+        from lasercal.collector.cli.options import check_outputs
+
+        with warnings_as_lines():
+            check_outputs(args)
+            return int(args.func(args) or 0)
     except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported
         raise
     except _user_errors() as e:
         print(f"lasercal: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # a file or folder the user named cannot be read or written (disk full, ...)
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"lasercal: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("lasercal: interrupted", file=sys.stderr)

@@ -9,20 +9,34 @@ import sys
 
 import numpy as np
 
-from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, number, session_robot
+from lasercal.collector.cli.options import (
+    INFOLDER,
+    LAYOUT,
+    SEED,
+    SESSION_ROBOT,
+    chain_arguments,
+    count,
+    number,
+    output_argument,
+    session_robot,
+)
 
 
 def args_plan(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal plan``."""
-    p.add_argument("session", help="session folder (session.yaml + captures.csv; no captures yet is fine)")
+    p.add_argument(
+        "session", type=INFOLDER, help="session folder (session.yaml + captures.csv; no captures yet is fine)"
+    )
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
-        "--layout", help="layout YAML (default: the points, calibration and validation lists of the session)"
+        "--layout",
+        type=LAYOUT,
+        help="layout YAML (default: the points, calibration and validation lists of the session)",
     )
     p.add_argument(
         "--next", type=count(1, 1000), default=10, metavar="K", help="captures to plan (default 10)"
     )
-    p.add_argument("-o", "--output", metavar="NEXT.csv", help="write point,q1..qN,expected_mm here")
+    output_argument(p, "-o", "--output", metavar="NEXT.csv", help="write point,q1..qN,expected_mm here")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.add_argument("--json", action="store_true", help="print the plan and the prediction as JSON")
     p.add_argument(
@@ -43,12 +57,10 @@ def args_plan(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_plan(args) -> int:
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.design import Coach, DesignError, Prior, posterior
     from lasercal.solver.formats.session import load_layout, load_session, session_layout
 
-    if args.output:
-        check_output(args.output, force=args.force)
     session = load_session(args.session, **session_robot(args))
     if session.measurement != "laser":
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")

@@ -11,12 +11,18 @@ from typing import TYPE_CHECKING
 
 from lasercal.collector.cli.options import (
     FOLDS,
+    INFILE,
+    INFOLDER,
+    LAYOUT,
+    ROBOT,
     SEED,
     SESSION_ROBOT,
     chain_arguments,
     count,
     number,
+    output_argument,
     session_robot,
+    whole_numbers,
 )
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS
 
@@ -28,8 +34,8 @@ if TYPE_CHECKING:  # annotations only: the modules load when a command runs
 
 def args_solve(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal solve``."""
-    p.add_argument("session", help="session folder (session.yaml + captures.csv)")
-    p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    p.add_argument("session", type=INFOLDER, help="session folder (session.yaml + captures.csv)")
+    output_argument(p, "-o", "--output", required=True, help="identified model YAML to write")
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
         "--method",
@@ -59,8 +65,8 @@ def args_solve(p: argparse.ArgumentParser) -> None:
 
 def args_predict(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal predict``."""
-    p.add_argument("model", help="robot model YAML")
-    p.add_argument("configs", help="configurations CSV (q1..qN; t, tau1..tauN optional)")
+    p.add_argument("model", type=ROBOT, help="robot model YAML")
+    p.add_argument("configs", type=INFILE, help="configurations CSV (q1..qN; t, tau1..tauN optional)")
     p.add_argument(
         "--plane-z", type=number(-5000, 5000, "mm"), help="plane height, mm (default: the model's plane)"
     )
@@ -68,8 +74,12 @@ def args_predict(p: argparse.ArgumentParser) -> None:
 
 def args_simulate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate``."""
-    p.add_argument("truth", help="true robot model YAML, URDF (position sessions) or built-in name")
-    p.add_argument("--layout", help="layout YAML with the reference points (laser and point sessions)")
+    p.add_argument(
+        "truth", type=ROBOT, help="true robot model YAML, URDF (position sessions) or built-in name"
+    )
+    p.add_argument(
+        "--layout", type=LAYOUT, help="layout YAML with the reference points (laser and point sessions)"
+    )
     p.add_argument(
         "--measurement",
         choices=["laser", "position"],
@@ -89,7 +99,9 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument(
-        "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
+        "--robot",
+        type=ROBOT,
+        help="nominal robot the session names (default: the truth file's 'nominal' key)",
     )
     chain_arguments(p)
     p.add_argument(
@@ -98,7 +110,10 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         help="hide a non-geometric effect in the data",
     )
     p.add_argument(
-        "--effect-joints", default="2", help="1-based joints of a joint effect, comma-separated (default 2)"
+        "--effect-joints",
+        type=whole_numbers(1, 64),
+        default="2",
+        help="1-based joints of a joint effect, comma-separated (default 2)",
     )
     p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
     p.add_argument(
@@ -106,13 +121,13 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         type=number(),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
-    p.add_argument("-o", "--output", required=True, help="session folder to write")
+    output_argument(p, "-o", "--output", kind="folder", required=True, help="session folder to write")
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def cmd_solve(args) -> int:
     from lasercal.collector.report.text import format_diagnosis, format_solve
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.errors import IdentificationError
@@ -120,7 +135,6 @@ def cmd_solve(args) -> int:
     from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
     from lasercal.solver.kinematics.effects import robot_extensions
 
-    check_output(args.output, force=args.force)
     session = load_session(args.session, **session_robot(args))
     check_data(session)
     diagnosis = None
@@ -282,10 +296,7 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
             )
         phi = rng.uniform(0, 2 * np.pi)
         return Extension(args.effect, (), args.effect_point, size * np.array([np.cos(phi), np.sin(phi)]))
-    try:
-        joints = tuple(int(j) for j in str(args.effect_joints).split(","))
-    except ValueError:
-        raise FormatError("--effect-joints", "joints must be comma-separated integers") from None
+    joints = tuple(args.effect_joints)
     if any(not 1 <= j <= n for j in joints):
         raise FormatError("--effect-joints", f"joints are numbered 1..{n}")
     if args.effect == "encoder_eccentricity":
@@ -299,13 +310,12 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
 def cmd_simulate(args) -> int:
     import numpy as np
 
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
-    check_output(args.output, folder=True, force=args.force)
     path = Path(args.truth) if str(args.truth).lower().endswith(".urdf") else resolve_robot_path(args.truth)
     if args.measurement == "position":
         from lasercal.collector.cli.position import cmd_simulate_position

@@ -53,14 +53,16 @@ def _parse(path: Path):
     from urdf_parser_py.xml_reflection import core
 
     try:
-        text = path.read_text()
+        data = path.read_bytes()  # bytes: the XML parser honours the file's own encoding declaration
+    except IsADirectoryError:
+        raise FormatError(path, "is a folder (expected a URDF file)") from None
     except OSError as e:
         raise FormatError(path, f"cannot read file ({e.strerror})") from None
     messages = []
     saved = core.on_error
     core.on_error = messages.append  # the parser's warnings become our notes, not stderr noise
     try:
-        robot = U.URDF.from_xml_string(text.encode())
+        robot = U.URDF.from_xml_string(data)
     except Exception as e:  # the parser raises bare exceptions on malformed XML
         reason = " ".join(str(e).split()) or type(e).__name__
         raise FormatError(path, f"not a valid URDF ({reason})") from None
