@@ -55,9 +55,12 @@ def cmd_diagnose(args) -> int:
     from lasercal.collector.report.text import format_diagnosis
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.formats.session import load_session
+    from lasercal.solver.identify.measurement import check_data
 
+    session = load_session(args.session, **session_robot(args))
+    check_data(session)
     d = diagnose(
-        load_session(args.session, **session_robot(args)),
+        session,
         alpha=args.alpha,
         n_boot=args.bootstrap,
         seed=args.seed,

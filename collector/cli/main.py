@@ -6,7 +6,7 @@ module of this package. ``lasercal --help`` imports none of them, so it starts f
 on a file the user named) becomes a one-line message and exit code 2, never a traceback; a
 :class:`~lasercal.solver.errors.LasercalWarning` becomes a line ``lasercal: warning: ...`` and the
 command goes on. Output paths (declared with :func:`options.output_argument`) are checked before
-the handler runs.
+the handler runs (:func:`outputs_checked`).
 """
 
 from __future__ import annotations
@@ -139,6 +139,21 @@ def load(cmd: Command):
     return importlib.import_module(f"lasercal.collector.cli.{cmd.module}")
 
 
+def outputs_checked(handler):
+    """``handler`` preceded by the check of every output path its command declared
+    (:func:`options.check_outputs`): nothing runs, and nothing is written, for an output that is kept."""
+    from functools import wraps
+
+    from lasercal.collector.cli.options import check_outputs
+
+    @wraps(handler)
+    def run(args):
+        check_outputs(args)
+        return handler(args)
+
+    return run
+
+
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     """The parser: every command listed, only ``selected``'s arguments (and module) loaded."""
     parser = UsageArgumentParser(
@@ -153,7 +168,7 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
         if c.name == selected:
             mod = load(c)
             getattr(mod, "args_" + c.name.replace("-", "_"))(p)
-            p.set_defaults(func=getattr(mod, c.handler))
+            p.set_defaults(func=outputs_checked(getattr(mod, c.handler)))
     return parser
 
 
@@ -189,10 +204,7 @@ def main(argv=None) -> int:
     selected = next((a for a in argv if not a.startswith("-")), None)
     try:
         args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
-        from lasercal.collector.cli.options import check_outputs
-
         with warnings_as_lines():
-            check_outputs(args)
             return int(args.func(args) or 0)
     except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported
         raise

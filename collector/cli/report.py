@@ -70,7 +70,7 @@ def cmd_report(args) -> int:
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import fit
+    from lasercal.solver.identify.measurement import check_data, fit
 
     sessions, validations = [], []
     for f in map(Path, args.folders):
@@ -101,6 +101,7 @@ def cmd_report(args) -> int:
         raise FormatError(
             sessions[0], "the report covers laser sessions (spots on a plane)", field="measurement"
         )
+    check_data(session)
     ident = fit(session, method=args.method)
     d = diagnose(session, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
     with atomic_output(args.output, folder=True) as tmp:

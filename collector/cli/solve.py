@@ -222,7 +222,7 @@ def cmd_solve(args) -> int:
 def cmd_predict(args) -> int:
     import numpy as np
 
-    from lasercal.solver.errors import FormatError
+    from lasercal.solver.errors import FormatError, warn
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_configs
     from lasercal.solver.identify.point import tips
@@ -266,10 +266,10 @@ def cmd_predict(args) -> int:
         xy = [f"{s[0]:.6f}", f"{s[1]:.6f}"] if ok else ["", ""]
         w.writerow(row + xy + [f"{t:.6f}" if np.isfinite(t) else "", "true" if ok else "false"])
     if not valid.all():
-        print(
-            f"lasercal: {int((~valid).sum())} of {len(valid)} configurations have no spot: the beam points "
-            f"away from the plane z = {z:g} mm or runs along it (valid = false, spot left empty)",
-            file=sys.stderr,
+        where = "--plane-z" if args.plane_z is not None else f"{args.model}, field 'plane.z'"
+        warn(
+            f"{where}: {int((~valid).sum())} of {len(valid)} configurations have no spot: the beam points "
+            f"away from the plane z = {z:g} mm or runs along it (valid = false, spot left empty)"
         )
     return 0
 

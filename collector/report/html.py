@@ -31,6 +31,7 @@ from lasercal.collector.report.text import format_diagnosis
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.table import csv_rows
@@ -136,6 +137,9 @@ def load_validation(folder) -> Validation:
         raise FormatError(
             cpath, "no measured spot (x_mm, y_mm empty): measure the photos first (lasercal spots)"
         )
+    hint = metres_hint(np.c_[np.array(spots), np.zeros(len(spots))])
+    if hint:
+        raise FormatError(cpath, f"measured spots: {hint}", field="x_mm")
     simulated = bool(meta.get("simulated")) or "fake" in (meta.get("backend"), meta.get("camera"))
     return Validation(
         folder,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from lasercal.solver.errors import IdentificationError
-from lasercal.solver.formats.session import Session
+from lasercal.solver.formats.session import MIN_PER_POINT, Session
 from lasercal.solver.identify.degenerate import Deficiency, deficiencies, laser_gauge
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
@@ -63,9 +63,6 @@ def residuals(
     if ext is not None:
         target[:, :2] += ext.target_offset(session.point)
     return spot_residuals(model, q, target)
-
-
-MIN_PER_POINT = 3  # captures at one point: fewer cannot tell a point's spread from the model's error
 
 
 def check_data(session) -> None:
