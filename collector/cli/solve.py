@@ -118,7 +118,7 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
     p.add_argument(
         "--effect-size",
-        type=number(),
+        type=number(-100, 100),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
     output_argument(p, "-o", "--output", kind="folder", required=True, help="session folder to write")
