@@ -759,6 +759,36 @@ case("predict: a measured angle far beyond its limit (wrong column)", PREDICT,
      _cell("configs.csv", 0, "q1", "3.2"), "configs.csv", "culprit")  # fmt: skip
 
 
+MARKERS_M = """format: lasercal-layout/1
+markers:
+  dictionary: DICT_4X4_50
+  ids:
+    0: [[0.0, 0.02], [0.02, 0.02], [0.02, 0.0], [0.0, 0.0]]
+"""
+case("plan --workspace in metres", PLAN + ["--workspace", "0.4", "0", "0", "0.6", "0.3", "0"], None,
+     "--workspace", "silent")  # fmt: skip
+case("simulate-fullpose --step 0.35 (radians)", SIMFP + ["--step", "0.35", "-o", "{o}"], None, "--step",
+     "silent")  # fmt: skip
+case("export: tool point in metres", _argv("export"),
+     _yaml("model.yaml", _set("tool", {"point": [0.088, 0, 0.79]})), "tool.point", "silent")  # fmt: skip
+case("spots: marker corners in metres", ["spots", "{d}/val/photos/0000.png", "--layout", "{d}/m.yaml"],
+     _touch("m.yaml", MARKERS_M), "m.yaml", "silent")  # fmt: skip
+case("predict: configs.csv a header and no rows", PREDICT, _keep_only("configs.csv", 0), "configs.csv",
+     "culprit")  # fmt: skip
+case("solve: captures.csv a header and no rows", _argv("solve"), _keep_only("sess/captures.csv", 0),
+     "captures.csv", "culprit")  # fmt: skip
+case("solve --folds more than captures", SOLVE[:2] + ["--folds", "1000", "-o", "{o}"], None, "--folds",
+     "culprit")  # fmt: skip
+case("export: model number 1e308", _argv("export"),
+     _yaml("model.yaml", _set("laser", "M", [0.0, 0.0, 1e308])), "model.yaml", "culprit")  # fmt: skip
+case("report: validation point xyz blank", _argv("report"),
+     _yaml("val/validation.yaml", _set("point", "xyz", [None, None, None])), "validation.yaml",
+     "culprit")  # fmt: skip
+case("solve: captures.csv separated by semicolons", _argv("solve"),
+     lambda d: (d / "sess/captures.csv").write_text((d / "sess/captures.csv").read_text().replace(",", ";")),
+     "captures.csv", "traceback")  # fmt: skip
+
+
 # input that makes the problem degenerate, named as such before the fit
 def _copies(rel: str, point: str | None = None):
     """Every capture (at ``point``, or at each point) replaced by the first one there: copies."""

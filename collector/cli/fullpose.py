@@ -68,7 +68,7 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--step",
-        type=number(0, 120, "deg", lo_open=True),
+        type=number(1, 120, "deg"),  # below 1 deg: radians, or circles too small to fit
         default=20.0,
         help="the last joint's step, deg (default 20)",
     )

@@ -194,6 +194,7 @@ def warnings_as_lines():
     with warnings.catch_warnings():
         shown = warnings.showwarning
         warnings.simplefilter("default", LasercalWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's overflow notes: results are checked
         warnings.showwarning = show
         yield
 

@@ -41,7 +41,7 @@ def args_plan(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the plan and the prediction as JSON")
     p.add_argument(
         "--workspace",
-        type=number(-1e5, 1e5, "mm"),
+        type=number(-1e5, 1e5, "mm", metres=True),
         nargs=6,
         metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
         help="predict the error at points in this box (mm) instead of the layout's validation points",

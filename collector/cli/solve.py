@@ -137,6 +137,11 @@ def cmd_solve(args) -> int:
 
     session = load_session(args.session, **session_robot(args))
     check_data(session)
+    if args.folds > session.m:
+        raise IdentificationError(
+            f"--folds {args.folds}: more folds than the session's {session.m} captures (expected 2 .. "
+            f"{session.m}, or 0 for none)"
+        )
     diagnosis = None
     robust = not args.no_robust
     if args.extend != "none" and args.method != "lm":

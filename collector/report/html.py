@@ -94,10 +94,14 @@ def load_validation(folder) -> Validation:
     meta = load_yaml(ypath)
     try:
         point, xyz = str(meta["point"]["name"]), np.array(meta["point"]["xyz"], dtype=float).reshape(3)
+        if not np.all(np.abs(xyz) <= 1e5):  # NaN (a blank) fails too
+            raise ValueError
     except (TypeError, KeyError, ValueError):
         raise FormatError(
-            ypath, "not a lasercal validation (expected point: {name, xyz})", field="point"
+            ypath, "not a lasercal validation (expected point: {name, xyz: [x, y, z] in mm})", field="point"
         ) from None
+    if metres_hint(xyz):
+        raise FormatError(ypath, f"point xyz {xyz.tolist()}: {metres_hint(xyz)}", field="point.xyz")
     rows = csv_rows(cpath)
     if not rows or not {"x_mm", "y_mm"} <= set(rows[0][1]):
         raise FormatError(cpath, "expected a header with x_mm and y_mm", line=rows[0][0] if rows else None)

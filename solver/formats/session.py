@@ -789,6 +789,8 @@ class Configs:
 def load_configs(path, robot: RobotModel) -> Configs:
     """Load a configurations CSV (columns q1..qN, optional t and tau1..tauN; others passed through)."""
     header, rows = read_csv(path)
+    if not rows:
+        raise FormatError(path, "no configurations (a header and no rows)", line=2)
     q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
     t = _numeric_block(path, rows, header, ["t"], required=False)
     tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)

@@ -7,9 +7,11 @@ plane, (m, 2) mm), 'point' (a tool point held at fixed points; residuals (m, 3) 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from lasercal.solver.errors import IdentificationError
+from lasercal.solver.errors import FormatError, IdentificationError
 from lasercal.solver.formats.session import MIN_PER_POINT, Session
 from lasercal.solver.identify.degenerate import Deficiency, deficiencies, laser_gauge
 from lasercal.solver.identify.point import identify_point, session_targets, tips
@@ -73,6 +75,12 @@ def check_data(session) -> None:
     IdentificationError
         Naming the point or points, what cannot be identified and what data would fix it.
     """
+    if session.m == 0:
+        raise FormatError(
+            Path(session.path) / "captures.csv",
+            "no captures (a header and no rows): nothing to identify",
+            line=2,
+        )
     names, counts = np.unique(np.asarray(session.point, dtype=str), return_counts=True)
     few = [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
     if few:
