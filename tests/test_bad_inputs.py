@@ -789,6 +789,17 @@ case("solve: captures.csv separated by semicolons", _argv("solve"),
      "captures.csv", "traceback")  # fmt: skip
 
 
+case("capture --trigger unknown (unused with --auto, checked all the same)",
+     _argv("capture") + ["--trigger", "foot"], None, "--trigger", "culprit")  # fmt: skip
+case("capture --aperture-z 200 mm from the model's", _argv("capture") + ["--aperture-z", "625"], None,
+     "--aperture-z", "silent")  # fmt: skip
+case("validate --camera frames that are not there", _argv("validate") + ["--camera", "{d}/frames/%04d.png"],
+     None, "frames/%04d.png", "culprit")  # fmt: skip
+PHOTO = "{d}/val/photos/0000.png"
+case("beam-check: the same photo twice", ["beam-check", PHOTO, "{d}/val/photos/0001.png", PHOTO], None,
+     "same photo", "degenerate")  # fmt: skip
+
+
 # input that makes the problem degenerate, named as such before the fit
 def _copies(rel: str, point: str | None = None):
     """Every capture (at ``point``, or at each point) replaced by the first one there: copies."""

@@ -130,6 +130,13 @@ def existing(kind: str = "file", names: str | None = None):
     return parse
 
 
+def trigger(text: str) -> str:
+    """An argparse ``type`` for ``--trigger``: enter, serial:URL or pilot (checked even where unused)."""
+    if text in ("enter", "pilot") or (text.startswith("serial:") and len(text) > len("serial:")):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r}: expected enter, serial:URL or pilot")
+
+
 INFILE = existing("file")
 INFOLDER = existing("folder")
 ROBOT = existing("file", "robots")
@@ -273,6 +280,7 @@ def backend_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--trigger",
+        type=trigger,
         metavar="enter|serial:URL|pilot",
         help="enter (default), serial:URL (button box / foot pedal, pyserial URL) or pilot",
     )

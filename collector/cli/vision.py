@@ -300,6 +300,13 @@ def beam_check_command(args) -> int:
             f"beam-check needs at least 3 photos with a spot, {len(results)} of {len(args.images)} had one"
         )
     uv = np.array([[r.spots[0].u, r.spots[0].v] for _, r in results])
+    d = np.linalg.norm(uv[:, None] - uv[None], axis=2) + np.eye(len(uv))
+    if d.min() < 1e-3:  # a photo given twice (or taken twice at one angle) is no second point of the circle
+        i, j = sorted(np.unravel_index(np.argmin(d), d.shape))
+        raise CalibrationError(
+            f"{results[i][0]['image']} and {results[j][0]['image']} show the same spot ({uv[i, 0]:.2f}, "
+            f"{uv[i, 1]:.2f}) px: the same photo twice? (expected one photo per joint-7 angle)"
+        )
     c_px = fit_circle(uv)
     mm = all(r.plane is not None for _, r in results)
     c_mm = fit_circle(np.array([[r.spots[0].x_mm, r.spots[0].y_mm] for _, r in results])) if mm else None

@@ -40,6 +40,19 @@ from lasercal.vision.render import LaserSpot, Photo, View, look_down, render
 VALIDATION_FORMAT = "lasercal-validation/1"
 
 
+def _absent(device) -> bool:
+    """A camera that surely is not there: a Linux device index without /dev/videoN, or a frame-file
+    pattern (frames/%04d.png) with none of its first files."""
+    if isinstance(device, int):
+        return sys.platform.startswith("linux") and not Path(f"/dev/video{device}").exists()
+    if "%" not in device or "://" in device:
+        return False
+    try:
+        return not any(Path(device % i).exists() for i in range(5))  # OpenCV starts at 0 .. 4
+    except (TypeError, ValueError):  # not a printf pattern: let OpenCV judge
+        return False
+
+
 class OpenCVCamera:
     """A camera through ``cv2.VideoCapture``.
 
@@ -53,6 +66,11 @@ class OpenCVCamera:
 
     def __init__(self, device, flush: int = 3):
         self.device, self.flush = device, flush
+        if _absent(device):  # checked here: OpenCV would print lines of its own before failing
+            raise DeviceError(
+                f"camera: no device or frame files {device!r} (a device index such as 0, a stream URL, or "
+                "frames/%04d.png)"
+            )
         self._cap = cv2.VideoCapture(device)
         if not self._cap.isOpened():
             raise DeviceError(

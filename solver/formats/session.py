@@ -553,6 +553,23 @@ def check_repeats(path, point, q: np.ndarray, lines) -> None:
     )
 
 
+def check_aperture(where, aperture_z: float, robot: RobotModel, field: str | None = None) -> None:
+    """A measured aperture height p_Mz (mm) within :data:`APERTURE_TOL_MM` of the nominal model's.
+
+    Raises
+    ------
+    FormatError
+        Naming ``where`` (a file and ``field``, or an option such as ``--aperture-z``).
+    """
+    if not abs(aperture_z - robot.aperture[2]) <= APERTURE_TOL_MM:
+        raise FormatError(
+            where,
+            f"aperture_z = {aperture_z:g} mm is not within {APERTURE_TOL_MM:g} mm of the {robot.name} "
+            f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
+            field=field,
+        )
+
+
 def session_clock(meta: dict, path) -> str:
     """What the session's ``t`` column is: ``seconds`` (a clock, the default) or ``order`` (row order)."""
     clock = meta.get("clock", "seconds")
@@ -643,13 +660,7 @@ def load_session(folder, robot=None, base_link: str | None = None, tip_link: str
             raise FormatError(
                 ypath, "laser.aperture_z must be a number (mm)", field="laser.aperture_z"
             ) from None
-        if not abs(aperture_z - robot.aperture[2]) <= APERTURE_TOL_MM:
-            raise FormatError(
-                ypath,
-                f"aperture_z = {aperture_z:g} mm is not within {APERTURE_TOL_MM:g} mm of the {robot.name} "
-                f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
-                field="laser.aperture_z",
-            )
+        check_aperture(ypath, aperture_z, robot, "laser.aperture_z")
     header, rows = read_csv(cpath)
     n = robot.n
     if header[:2] != ["point", "t"]:
