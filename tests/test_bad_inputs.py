@@ -800,6 +800,14 @@ case("beam-check: the same photo twice", ["beam-check", PHOTO, "{d}/val/photos/0
      "same photo", "degenerate")  # fmt: skip
 
 
+FAR = [2521.0, 160.0, -8.0]  # 2.5 m from the base: no Panda reaches it
+for cmd, argv, pt in (("simulate", _argv("simulate"), "P1"), ("capture", _argv("capture"), "P2"),
+                      ("validate", ["validate", "panda"] + _argv("validate")[2:], "P4"),
+                      ("plan", PLAN + ["--layout", "{d}/layout.yaml"], "P4")):  # fmt: skip
+    case(f"{cmd}: layout point {pt} out of reach", argv, _yaml("layout.yaml", _set("points", pt, FAR)),
+         f"layout.yaml, point {pt}", "culprit")  # fmt: skip
+
+
 # input that makes the problem degenerate, named as such before the fit
 def _copies(rel: str, point: str | None = None):
     """Every capture (at ``point``, or at each point) replaced by the first one there: copies."""

@@ -307,6 +307,14 @@ class CaptureStore:
         self.q.pop()
         return self.point.pop()
 
+    def remove_empty(self) -> None:
+        """Remove a session that holds no capture (session.yaml, the header and the folder if then empty):
+        a new session that could not start leaves nothing behind."""
+        for name in ("captures.csv", "session.yaml"):
+            (self.folder / name).unlink(missing_ok=True)
+        if not any(self.folder.iterdir()):
+            self.folder.rmdir()
+
     def counts(self, names) -> dict:
         """Captures on disk per point name."""
         return {nm: self.point.count(nm) for nm in names}

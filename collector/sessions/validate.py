@@ -30,7 +30,6 @@ from lasercal.collector.sessions.store import CsvLog, write_atomic, write_atomic
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.table import csv_rows
-from lasercal.solver.kinematics.aim import aim
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
@@ -366,7 +365,7 @@ def run_validation(
     folder = Path(folder)
     if not resume and (folder / "validation.csv").exists():
         raise SessionError(f"{folder} already holds a validation run: resume it with --resume {folder}")
-    planned = aim(model, p, opts.n, np.random.default_rng(opts.seed), **layout.aim_kwargs())
+    planned = layout.aim_at(model, point, opts.n, np.random.default_rng(opts.seed))
     guided = opts.guide or not robot.can_move
     if guided and trigger is None:
         raise DeviceError(

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from lasercal.solver.errors import FormatError, warn
+from lasercal.solver.errors import AimingError, FormatError, warn
 from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
@@ -108,6 +108,22 @@ class Layout:
             f"{self.path}, point {name} {np.round(self.points[name], 1).tolist()} mm: out of reach (no "
             "configuration within the joint limits, the aiming range and the table clearance aims at it)"
         )
+
+    def aim_at(self, model: RobotModel, name: str, n: int, rng: np.random.Generator) -> np.ndarray:
+        """Configurations (n, N) of ``model`` aiming at point ``name`` under the layout's hints
+        (:func:`solver.kinematics.aim.aim`).
+
+        Raises
+        ------
+        AimingError
+            Naming the layout file and the point: the aiming IK knows only coordinates.
+        """
+        from lasercal.solver.kinematics.aim import aim
+
+        try:
+            return aim(model, self.points[name], n, rng, **self.aim_kwargs())
+        except AimingError as e:
+            raise AimingError(f"{self.path}, point {name}: {e}") from None
 
     def aim_kwargs(self) -> dict:
         """Keyword arguments for :func:`solver.aim.aim` from the ``aiming`` hints."""
