@@ -808,6 +808,10 @@ for cmd, argv, pt in (("simulate", _argv("simulate"), "P1"), ("capture", _argv("
          f"layout.yaml, point {pt}", "culprit")  # fmt: skip
 
 
+case("solve: URDF lengths in mm", SOLVE_POS, _urdf_text('xyz="0 0 0.089159"', 'xyz="0 0 89.159"'), "arm.urdf",
+     "silent")  # fmt: skip
+
+
 # input that makes the problem degenerate, named as such before the fit
 def _copies(rel: str, point: str | None = None):
     """Every capture (at ``point``, or at each point) replaced by the first one there: copies."""
@@ -856,6 +860,8 @@ DEGENERATE = [
     ("solve", ["solve", "{d}/pt", "--folds", "0"], "known distance from a point to itself",
      _yaml("pt/session.yaml", lambda d: d["constraints"]["distances"][0].__setitem__(1, "front/hole_0")),
      "itself"),
+    ("solve", ["solve", "{d}/pt", "--folds", "0"], "unknown points and no known distance",
+     _yaml("pt/session.yaml", _set("constraints", {})), "no known distance"),
 ]  # fmt: skip
 for cmd, argv, cid, setup, needle in DEGENERATE:
     argv = argv + ([OUT[cmd], "{o}"] if cmd in OUT and OUT[cmd] not in argv else [])

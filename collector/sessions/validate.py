@@ -67,8 +67,8 @@ class OpenCVCamera:
         self.device, self.flush = device, flush
         if _absent(device):  # checked here: OpenCV would print lines of its own before failing
             raise DeviceError(
-                f"camera: no device or frame files {device!r} (a device index such as 0, a stream URL, or "
-                "frames/%04d.png)"
+                f"camera: cannot open {device!r}: no such device or frame files (a device index such as 0, a "
+                "stream URL, or frames/%04d.png)"
             )
         self._cap = cv2.VideoCapture(device)
         if not self._cap.isOpened():

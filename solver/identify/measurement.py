@@ -81,6 +81,15 @@ def check_data(session) -> None:
             "no captures (a header and no rows): nothing to identify",
             line=2,
         )
+    unknown = [nm for nm, xyz in session.points.items() if xyz is None]
+    if session.measurement == "point" and unknown and not session.distances:
+        raise FormatError(
+            Path(session.path) / "session.yaml",
+            f"points {', '.join(unknown[:4])}{' ...' if len(unknown) > 4 else ''} are unknown (null) and no "
+            "known distance fixes the scale: a scaled robot fits as well (add constraints: {distances: "
+            "[[A, B, mm]]}, or give a point's coordinates)",
+            field="constraints.distances",
+        )
     names, counts = np.unique(np.asarray(session.point, dtype=str), return_counts=True)
     few = [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
     if few:
