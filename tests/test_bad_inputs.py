@@ -902,6 +902,20 @@ for cmd in BASE:
                 case(f"{cmd} {flag} a folder in use", out("{d}/kept"), _mkdir("kept"), "kept", "output")
 
 
+# an output that is one of the inputs, or the other output, is refused even with --force
+for cmd, argv, needle in (
+    ("fullpose", FULLPOSE + ["-o", "{d}/fp.csv", "--force"], "replace the input"),
+    ("export", EXPORT + ["--format", "yaml", "-o", "{d}/model.yaml", "--force"], "replace the input"),
+    ("report", REPORT + ["-o", "{d}/sess", "--force"], "replace the input"),
+    ("simulate-fullpose", ["simulate-fullpose", "--robot", "{d}/model.yaml", "-o", "{d}/model.yaml",
+                           "--force"], "replace the input"),
+    ("camera-calibrate", CALIB + ["--square", "20", "-o", "{d}/val/photos/0000.png", "--force"],
+     "replace the input"),
+    ("export", EXPORT + ["-o", "{d}/m.urdf", "--sensor-output", "{d}/m.urdf"], "the same path"),
+):  # fmt: skip
+    case(f"{cmd}: an output that is an input: {' '.join(argv[-3:])}", argv, None, needle, "output")
+
+
 def _data_lines(path: Path):
     lines = path.read_text().splitlines()
     return lines, [i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]

@@ -178,12 +178,32 @@ def check_outputs(args) -> None:
     declared = getattr(args, "_outputs", None) or ()
     if not declared:
         return
+    from lasercal.collector.errors import SessionError
     from lasercal.collector.sessions.store import check_output
 
+    outputs = {dest for dest, *_ in declared}
+    inputs = [  # every other path the command was given that exists: an output must not replace one
+        (k, Path(v).resolve())
+        for k, vals in vars(args).items()
+        if k not in outputs and not k.startswith("_")
+        for v in (vals if isinstance(vals, list | tuple) else [vals])
+        if isinstance(v, str) and v.strip() and Path(v).exists()
+    ]
+    seen = {}
     for dest, flag, kind, instead in declared:
         value = getattr(args, dest, None)
         if value is None:
             continue
+        out = Path(value).resolve() if str(value).strip() else None
+        if out is not None:
+            if out in seen:
+                raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
+            seen[out] = flag
+            for k, p in inputs:
+                if p == out or (kind == "folder" and out in p.parents):  # a folder output is replaced whole
+                    raise SessionError(
+                        f"{flag} {value}: would replace the input {p} (argument {k}; expected another path)"
+                    )
         check_output(
             value,
             folder=kind != "file",
