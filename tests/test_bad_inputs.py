@@ -336,6 +336,7 @@ LAYOUT_BAD = {
     "layout aiming tilt nan": _yaml("layout.yaml", _set("aiming", {"tilt_deg": [nan, 30]})),
     "layout aiming length negative": _yaml("layout.yaml", _set("aiming", {"length": [-300, -100]})),
     "layout aiming text": _yaml("layout.yaml", _set("aiming", {"tilt_deg": "steep"})),
+    "layout aiming length in metres": _yaml("layout.yaml", _set("aiming", {"length": [0.15, 0.6]})),
     "layout not a mapping": lambda d: (d / "layout.yaml").write_text("- a\n- b\n"),
 }
 for cid, setup in LAYOUT_BAD.items():

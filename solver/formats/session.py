@@ -25,7 +25,7 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import AimingError, FormatError, warn
-from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint
+from lasercal.solver.formats.checks import METRES_BELOW_MM, Range, degrees_hint, metres_hint
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.formats.table import read_csv
@@ -262,6 +262,10 @@ def load_layout(path) -> Layout:
         if key in aiming:
             v = aiming[key]
             bad = not isinstance(v, list) or len(v) != 2 or any(rng.problem(x) for x in v) or v[0] > v[1]
+            if not bad and rng.unit == "mm" and max(v) < METRES_BELOW_MM:
+                raise FormatError(
+                    path, f"aiming {key} = {v!r}: these look like metres (expected mm)", field=f"aiming.{key}"
+                )
             if bad:
                 raise FormatError(
                     path,
