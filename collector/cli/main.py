@@ -182,7 +182,8 @@ def _user_errors() -> tuple:
 @contextmanager
 def warnings_as_lines():
     """Show each :class:`LasercalWarning` as one line ``lasercal: warning: ...`` on stderr (each message
-    once); other warnings as Python shows them."""
+    once); numpy's RuntimeWarnings (overflow, invalid value) not at all -- what they concern is checked
+    and named -- and other warnings as Python shows them."""
     from lasercal.solver.errors import LasercalWarning
 
     def show(message, category, filename, lineno, file=None, line=None):
