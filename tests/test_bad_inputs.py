@@ -1078,6 +1078,15 @@ WARNINGS = [
      "captures.csv"),
     ("solve", ["solve", "{d}/pos", "--folds", "0", "-o", "{o}"], "a position capture saved twice",
      _dup_row("pos/captures.csv", 2), "captures.csv"),
+    # an option given where it does nothing is named, not dropped in silence
+    ("simulate", SIMULATE + ["--noise", "0.5", "-o", "{o}"], "a position option on a laser session", None,
+     "--noise 0.5: ignored"),
+    ("simulate", SIM_POS + [str(URDF), "--configs", "4", "--layout", "{d}/layout.yaml"],
+     "a layout for a position session", None, "--layout"),
+    ("spots", BASE["spots"] + ["--imagej-box", "32"], "an imagej option without --method imagej", None,
+     "--imagej-box 32: ignored"),
+    ("fullpose", FULLPOSE + ["--seed", "3", "-o", "{o}"], "--seed without --folds", None,
+     "--seed 3: ignored"),
 ]  # fmt: skip
 
 

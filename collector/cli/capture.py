@@ -13,6 +13,7 @@ from lasercal.collector.cli.options import (
     motion_arguments,
     number,
     output_argument,
+    unused,
 )
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 
@@ -96,6 +97,10 @@ def cmd_capture(args) -> int:
     from lasercal.collector.sessions.settings import capture_settings, given_settings
     from lasercal.collector.sessions.start import CaptureGuide, start_capture
 
+    if not args.auto:
+        unused(args, "it paces --auto", "auto_pace")
+    if args.guide != "move":
+        unused(args, "only --guide move commands moves", "max_step", "yes")
     settings = capture_settings(given_settings(vars(args)), args.layout, args.output, args.resume)
     guide = CaptureGuide(
         auto=args.auto,

@@ -16,6 +16,7 @@ from lasercal.collector.cli.options import (
     count,
     number,
     output_argument,
+    unused,
 )
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
@@ -185,6 +186,8 @@ def cmd_fullpose(args) -> int:
     from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
     from lasercal.solver.identify.fullpose_ml import calibrate_points, cross_validate_points
 
+    if not args.folds:
+        unused(args, "it shuffles the folds of --folds K", "seed")
     model = load_model(args.robot, base_link=args.base_link, tip_link=args.tip_link)
     path = Path(args.measurements)
     estimate = True if args.estimate_frames else None

@@ -154,6 +154,14 @@ def outputs_checked(handler):
     return run
 
 
+def parsed_defaults(p: argparse.ArgumentParser) -> dict:
+    """Each option's default as parsing leaves it (argparse converts a string default with its type)."""
+    return {
+        a.dest: a.type(a.default) if isinstance(a.default, str) and callable(a.type) else a.default
+        for a in p._actions
+    }
+
+
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     """The parser: every command listed, only ``selected``'s arguments (and module) loaded."""
     parser = UsageArgumentParser(
@@ -169,6 +177,7 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
             mod = load(c)
             getattr(mod, "args_" + c.name.replace("-", "_"))(p)
             p.set_defaults(func=outputs_checked(getattr(mod, c.handler)))
+            p.set_defaults(_defaults=parsed_defaults(p))  # a handler tells an option given (options.unused)
     return parser
 
 

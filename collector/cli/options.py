@@ -214,6 +214,19 @@ def check_outputs(args) -> None:
         )
 
 
+def unused(args, why: str, *dests: str) -> None:
+    """Warn about each option among ``dests`` that was given (differs from its default) but is not used:
+    ``--imagej-box 32`` without ``--method imagej`` would otherwise be dropped in silence."""
+    from lasercal.solver.errors import warn
+
+    defaults = getattr(args, "_defaults", {})
+    for d in dests:
+        value = getattr(args, d, None)
+        if d in defaults and value != defaults[d] and value not in (None, False):
+            shown = " ".join(map(str, value)) if isinstance(value, list | tuple) else value
+            warn(f"--{d.replace('_', '-')} {shown}: ignored ({why})")
+
+
 SEED = count(0, 2**32 - 1)
 """A random seed: numpy accepts 0 .. 2**32 - 1."""
 

@@ -22,6 +22,7 @@ from lasercal.collector.cli.options import (
     number,
     output_argument,
     session_robot,
+    unused,
     whole_numbers,
 )
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS
@@ -288,6 +289,13 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
     from lasercal.solver.kinematics.effects import Extension
 
     if not args.effect:
+        given = [
+            f for f, v in (("--effect-size", args.effect_size), ("--effect-point", args.effect_point)) if v
+        ]
+        if given:
+            raise FormatError(
+                "--effect", f"{given[0]} was given without --effect NAME (which effect to hide?)"
+            )
         return None
     if args.effect_size is None:
         raise FormatError("--effect-size", "give the size of the hidden effect")
@@ -325,12 +333,15 @@ def cmd_simulate(args) -> int:
     if args.measurement == "position":
         from lasercal.collector.cli.position import cmd_simulate_position
 
+        unused(args, "a position session has no reference points", "layout", "per_point", "aim_noise")
+
         n = load_model(path, base_link=args.base_link, tip_link=args.tip_link).n
         return cmd_simulate_position(
             args, path, hidden_effect(args, None, n, np.random.default_rng(args.seed + 1))
         )
     if not args.layout:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
+    unused(args, "an option of --measurement position", "configs", "targets", "noise")
     truth = load_model(path, base_link=args.base_link, tip_link=args.tip_link)
     raw = load_yaml(path)
     nominal = args.robot or raw.get("nominal") or str(path.resolve())

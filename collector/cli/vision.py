@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasercal.collector.cli.options import INFILE, LAYOUT, count, number, output_argument
+from lasercal.collector.cli.options import INFILE, LAYOUT, count, number, output_argument, unused
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.vision.measure import Options
@@ -177,6 +177,9 @@ def args_camera_calibrate(p: argparse.ArgumentParser) -> None:
 
 def _options(args) -> Options:
     from lasercal.vision.measure import Options
+
+    if args.method != "imagej":
+        unused(args, "an option of --method imagej", "imagej_mode", "imagej_threshold", "imagej_box")
 
     return Options(
         args.method,
@@ -392,6 +395,7 @@ def camera_calibrate_command(args) -> int:
             "dictionary": args.dictionary,
         }
     else:
+        unused(args, "a chessboard has no markers", "marker", "dictionary")
         pattern = {
             "type": "chessboard",
             "cols": args.chessboard[0],
