@@ -915,6 +915,8 @@ for cmd, argv, needle in (
     ("export", EXPORT + ["-o", "{d}/m.urdf", "--sensor-output", "{d}/m.urdf"], "the same path"),
 ):  # fmt: skip
     case(f"{cmd}: an output that is an input: {' '.join(argv[-3:])}", argv, None, needle, "output")
+case("demo -o an existing file named demo (the command's name is no input)", ["demo", "-o", "{d}/demo"],
+     _touch("demo"), "is a file", "output")  # fmt: skip
 
 
 def _data_lines(path: Path):
@@ -1124,6 +1126,14 @@ def test_a_measured_angle_a_hair_beyond_a_limit_is_kept(base, tmp_path, capsys):
     assert main(["predict", str(d / "model.yaml"), str(d / "configs.csv")]) == 2
     err = capsys.readouterr().err
     assert "configs.csv, line 3, column 'q4'" in err and "by 0.2 (more than 0.1)" in err
+
+
+def test_an_output_named_like_its_command_is_replaced_with_force(tmp_path, monkeypatch, capsys):
+    """'export panda -o export --force' replaces ./export: the command's name is no input path."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "export").write_text("old\n")
+    assert main(["export", "panda", "--format", "yaml", "-o", "export", "--force"]) == 0, capsys.readouterr().err
+    assert "lasercal-robot/1" in (tmp_path / "export").read_text()
 
 
 # files saved with a byte-order mark, as UTF-16 (Windows 'Unicode') or with CRLF line ends are read

@@ -185,7 +185,7 @@ def check_outputs(args) -> None:
     inputs = [  # every other path the command was given that exists: an output must not replace one
         (k, Path(v).resolve())
         for k, vals in vars(args).items()
-        if k not in outputs and not k.startswith("_")
+        if k not in outputs and k != "command" and not k.startswith("_")  # 'report -o report' is fine
         for v in (vals if isinstance(vals, list | tuple) else [vals])
         if isinstance(v, str) and v.strip() and Path(v).exists()
     ]
