@@ -1132,7 +1132,8 @@ def test_an_output_named_like_its_command_is_replaced_with_force(tmp_path, monke
     """'export panda -o export --force' replaces ./export: the command's name is no input path."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "export").write_text("old\n")
-    assert main(["export", "panda", "--format", "yaml", "-o", "export", "--force"]) == 0, capsys.readouterr().err
+    rc = main(["export", "panda", "--format", "yaml", "-o", "export", "--force"])
+    assert rc == 0, capsys.readouterr().err
     assert "lasercal-robot/1" in (tmp_path / "export").read_text()
 
 
