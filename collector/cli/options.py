@@ -200,7 +200,8 @@ def check_outputs(args) -> None:
                 raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
             seen[out] = flag
             for k, p in inputs:
-                if p == out or (kind == "folder" and out in p.parents):  # a folder output is replaced whole
+                # a file is replaced, a folder replaced whole; files written into a folder replace neither
+                if (kind == "file" and p == out) or (kind == "folder" and (p == out or out in p.parents)):
                     raise SessionError(
                         f"{flag} {value}: would replace the input {p} (argument {k}; expected another path)"
                     )
