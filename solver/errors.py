@@ -1,10 +1,15 @@
 """One base exception for lasercal, with specific subclasses.
 
 Every error raised on bad user input derives from :class:`LasercalError`; the CLI
-turns it into a one-line message and exit code 2, never a traceback.
+turns it into a one-line message and exit code 2, never a traceback. Input that is plausible
+but suspicious (a joint angle a hair beyond a rounded limit, a duplicated capture) is kept and
+reported through :func:`warn` (a :class:`LasercalWarning`): the CLI prints it as one line
+``lasercal: warning: ...`` and goes on.
 """
 
 from __future__ import annotations
+
+import warnings
 
 
 class LasercalError(Exception):
@@ -43,3 +48,12 @@ class AimingError(LasercalError):
 
 class CirclePointError(LasercalError):
     """Points that cannot define a rotation plane and circle (too few, coincident, collinear)."""
+
+
+class LasercalWarning(UserWarning):
+    """Input kept but suspicious: the message names the file or option, and what looks wrong."""
+
+
+def warn(message: str) -> None:
+    """Report suspicious input without stopping (the solver never prints: the caller shows it)."""
+    warnings.warn(message, LasercalWarning, stacklevel=2)

@@ -2,15 +2,28 @@
 
 Each case runs ``main([...])`` in-process on copies of small valid inputs (a simulated
 session, its identified model, a validation run, circle-point measurements, a MUKCa robot
-folder) with one thing wrong, and checks: exit code 2; stderr is exactly one line
-``lasercal: error: ...`` that names the file or option at fault; no traceback; the output
-path was not created; no file in the working folder changed (bytes and mtime). A watchdog
-turns a hang into a failure.
+folder and its point session) with one thing wrong, and checks: exit code 2; stderr is exactly
+one line ``lasercal: error: ...`` that names the file or option at fault; no traceback; the
+output path was not created; no file in the working folder changed (bytes and mtime). A
+watchdog turns a hang into a failure.
+
+Cases are grouped by category (the first word of each test id): ``traceback`` (files a newcomer
+saves wrongly: not UTF-8, UTF-16 without a byte-order mark, binary, empty, a folder for a file),
+``silent`` (values that used to pass: metres for mm, degrees for rad, units), ``culprit`` (a bad
+value named with its option or file, line and column), ``output`` (an output path that would
+damage or lose something), ``degenerate`` (input that makes the problem unidentifiable, named
+as such before the fit) and ``warning`` (plausible but suspicious input: one warning line naming
+it, exit 0, the output written). The option and output cases are also generated from the
+declarations of every command (:mod:`collector.cli.options`), so a new option or output is
+covered when it is declared. ``python tests/test_bad_inputs.py`` prints the count per command
+and category.
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
+import os
 import re
 import shutil
 import signal
@@ -20,7 +33,7 @@ import numpy as np
 import pytest
 import yaml
 
-from lasercal.collector.cli.main import main
+from lasercal.collector.cli.main import COMMANDS, build_parser, main
 
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 URDF = Path(__file__).resolve().parent / "data" / "ur5.urdf"
@@ -51,15 +64,30 @@ def base(tmp_path_factory):
     _edit_yaml(d / "pos" / "session.yaml", _set("robot", "arm.urdf"))
     if (MUKCA / "panda_1" / "front").is_dir():
         shutil.copytree(MUKCA / "panda_1" / "front", d / "mukca" / "panda_1" / "front")
+        assert main(["import-mukca", str(d / "mukca" / "panda_1"), "-o", str(d / "pt")]) == 0
+    T = np.tile(np.eye(4), (4, 1, 1))  # measured full poses (q, R, origin mm) of the nominal Panda
+    rcols = [f"r{i}{j}" for i in range(1, 4) for j in range(1, 4)]
+    rows = [",".join(repr(float(v)) for v in [*q[i % 3] * 0.9, *T[i, :3, :3].ravel(), 300.0 + i, 20.0, 500.0])
+            for i in range(4)]  # fmt: skip
+    (d / "poses.csv").write_text(",".join(Q + rcols + ["x", "y", "z"]) + "\n" + "\n".join(rows) + "\n")
     return d
 
 
 def _snapshot(folder: Path) -> dict:
+    """Every file under ``folder`` (not below a symbolic link): mtime and content hash."""
     return {
         str(p.relative_to(folder)): (p.stat().st_mtime_ns, hashlib.sha1(p.read_bytes()).hexdigest())
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
+        for root, _, names in os.walk(folder)
+        for p in sorted(Path(root) / n for n in names)
+        if not p.is_symlink()
     }
+
+
+def _work_copy(base: Path, d: Path) -> Path:
+    """A copy of the valid inputs to spoil; the photos (5 MB, never spoiled) are linked, not copied."""
+    shutil.copytree(base, d, ignore=lambda folder, names: ["photos"] if folder == str(base / "val") else [])
+    (d / "val" / "photos").symlink_to(base / "val" / "photos")
+    return d
 
 
 def _edit_yaml(path: Path, fn) -> None:
@@ -178,12 +206,28 @@ IMPORT = ["import-mukca", "{d}/mukca/panda_1"]
 PLAN = ["plan", "{d}/sess", "--next", "2"]
 STUDY = ["study-mukca", "{d}/mukca", "--robots", "panda_1", "--quick"]
 
-# (id, argv, setup, needle in the message); "{o}" is the output path (must not appear), "{d}" the folder
+# (category, id, argv, setup, needle in the message); "{o}" is the output path (must not appear), "{d}" the
+# folder
 CASES: list[tuple] = []
+CATEGORIES = ("traceback", "silent", "culprit", "output", "degenerate", "warning")
 
 
-def case(cid, argv, setup=None, needle=None):
-    CASES.append((cid, argv, setup, needle))
+def category(cid: str) -> str:
+    """A case's category from its id (the sections below mix them)."""
+    c = cid.lower()
+    if any(w in c for w in ("utf", "binary", "empty file", "a folder for", "not xml", "bom")):
+        return "traceback"
+    if any(w in c for w in ("metres", "degrees", "units")):
+        return "silent"
+    if any(w in c for w in ("same point", "equal", "collinear", "coincident", "copies", "one capture")):
+        return "degenerate"
+    if " -o " in c or "--report" in c or "--overlay" in c or "-output" in c:
+        return "output"
+    return "culprit"
+
+
+def case(cid, argv, setup=None, needle=None, cat=None):
+    CASES.append((cat or category(cid), cid, argv, setup, needle))
 
 
 # --- 1. option values: impossible, non-finite, no bound ------------------------------------------------
@@ -244,7 +288,7 @@ OPTION_VALUES = {
 for cmd, (argv, opts) in OPTION_VALUES.items():
     for opt, values in opts.items():
         for v in values:
-            case(f"{cmd} {opt} {v}", argv + [opt, v], None, opt.lstrip("-").split("-")[0])
+            case(f"{cmd} {opt} {v}", argv + [opt, v], None, opt.lstrip("-").split("-")[0], "culprit")
 
 case("simulate --effect-size nan", SIMULATE + ["-o", "{o}", "--effect", "joint_compliance", "--effect-size",
      "nan"], None, "--effect-size")  # fmt: skip
@@ -267,27 +311,7 @@ case(
     "panda_9",
 )
 
-# --- 2. output paths: checked before any work, nothing kept is replaced ------------------------------
-WRITERS = {
-    "simulate": (SIMULATE, "folder"),
-    "solve": (SOLVE, "file"),
-    "export": (EXPORT, "file"),
-    "fullpose": (FULLPOSE, "file"),
-    "simulate-fullpose": (SIMFP, "file"),
-    "report": (REPORT, "folder"),
-    "import-mukca": (IMPORT, "folder"),
-    "study-mukca": (STUDY, "folder"),
-    "validate": (VALIDATE, "folder"),
-    "capture": (FAKE_CAPTURE, "folder"),
-}
-for cmd, (argv, kind) in WRITERS.items():
-    case(f"{cmd} -o in a missing folder", argv + ["-o", "{d}/no/such/dir/out"], None, "-o")
-    if kind == "file":
-        case(f"{cmd} -o existing file", argv + ["-o", "{d}/kept.out"], _touch("kept.out"), "--force")
-        case(f"{cmd} -o a folder", argv + ["-o", "{d}/adir"], _mkdir("adir"), "-o")
-    else:
-        case(f"{cmd} -o existing folder", argv + ["-o", "{d}/kept"], _mkdir("kept"), "kept")
-        case(f"{cmd} -o a file", argv + ["-o", "{d}/afile"], _touch("afile"), "-o")
+# --- 2. output paths: generated from every command's declarations (section 6) -------------------------
 
 # --- 3. files: malformed, impossible, suspicious, not UTF-8 ------------------------------------------
 nan = float("nan")
@@ -312,6 +336,7 @@ LAYOUT_BAD = {
     "layout aiming tilt nan": _yaml("layout.yaml", _set("aiming", {"tilt_deg": [nan, 30]})),
     "layout aiming length negative": _yaml("layout.yaml", _set("aiming", {"length": [-300, -100]})),
     "layout aiming text": _yaml("layout.yaml", _set("aiming", {"tilt_deg": "steep"})),
+    "layout aiming length in metres": _yaml("layout.yaml", _set("aiming", {"length": [0.15, 0.6]})),
     "layout not a mapping": lambda d: (d / "layout.yaml").write_text("- a\n- b\n"),
 }
 for cid, setup in LAYOUT_BAD.items():
@@ -588,6 +613,325 @@ case("sheet --robot unknown", SHEET + ["--robot", "nosuch", "--place", "450", "0
 case("sheet -o existing", ["sheet", "-o", "{d}/kept"], _mkdir("kept"), "--force")
 
 
+# --- 5. the long tail (issue 26): files saved wrongly, units, degenerate data, every command -----------
+BASE = {  # an argv of every command that parses and runs on the valid inputs (outputs left out)
+    "demo": ["demo"],
+    "capture": FAKE_CAPTURE,
+    "solve": SOLVE,
+    "plan": PLAN,
+    "validate": VALIDATE,
+    "report": REPORT,
+    "export": EXPORT,
+    "predict": PREDICT,
+    "simulate": SIMULATE,
+    "diagnose": DIAGNOSE,
+    "spots": ["spots", "{d}/val/photos/0000.png"],
+    "beam-check": ["beam-check", "{d}/val/photos/0000.png"],
+    "camera-calibrate": CALIB + ["--square", "20"],
+    "fullpose": FULLPOSE,
+    "simulate-fullpose": SIMFP,
+    "import-mukca": IMPORT,
+    "study-mukca": STUDY,
+}
+OUT = {"demo": "-o", "capture": "-o", "solve": "-o", "plan": "-o", "validate": "-o", "report": "-o",
+       "export": "-o", "simulate": "-o", "diagnose": "--report", "camera-calibrate": "-o", "fullpose": "-o",
+       "simulate-fullpose": "-o", "import-mukca": "-o", "study-mukca": "-o", "spots": "--overlay",
+       "beam-check": "--overlay"}  # fmt: skip
+
+
+def _argv(cmd: str) -> list:
+    return BASE[cmd] + ([OUT[cmd], "{o}"] if cmd in OUT else [])
+
+
+def _saved_as(rel: str, how: str):
+    """The file ``rel`` saved wrongly: 'latin-1' (a Windows editor's ANSI), 'utf-16 without BOM',
+    'binary', 'empty file', 'a folder for the file'."""
+
+    def fn(d: Path):
+        p = d / rel
+        text = p.read_text()
+        if how == "latin-1":
+            p.write_bytes(("# caf\xe9 \xb0C\n" + text).encode("latin-1"))
+        elif how == "utf-16 without BOM":
+            p.write_bytes(text.encode("utf-16-le"))
+        elif how == "binary":
+            p.write_bytes(bytes(range(256)) * 4)
+        elif how == "empty file":
+            p.write_bytes(b"")
+        else:
+            p.unlink()
+            p.mkdir()
+            (p / "keep.txt").write_text("keep me\n")
+
+    return fn
+
+
+def _vision_file(rel: str, then):
+    """A vision YAML (camera, markers layout) written first when ``rel`` is one, then ``then``."""
+
+    def fn(d: Path):
+        if rel in VISION_FILES:
+            (d / rel).write_text("format: lasercal-layout/1\nunits: {length: mm}\n")
+        then(d)
+
+    return fn
+
+
+# every text file each command reads, named in the message when saved wrongly
+INPUT_FILES = {
+    "capture": ["layout.yaml"],
+    "validate": ["layout.yaml", "model.yaml"],
+    "simulate": ["layout.yaml"],
+    "solve": ["sess/session.yaml", "sess/captures.csv"],
+    "plan": ["sess/session.yaml", "sess/captures.csv"],
+    "diagnose": ["sess/session.yaml", "sess/captures.csv"],
+    "report": ["sess/captures.csv", "val/validation.yaml", "val/validation.csv"],
+    "export": ["model.yaml"],
+    "predict": ["model.yaml", "configs.csv"],
+    "fullpose": ["fp.csv"],
+    "import-mukca": ["mukca/panda_1/front/hole_0.csv"],
+    "study-mukca": ["mukca/panda_1/front/hole_1.csv"],
+    "spots": ["cam.yaml", "markers.yaml"],
+    "beam-check": ["cam.yaml"],
+}
+SAVED_WRONGLY = ("latin-1", "utf-16 without BOM", "binary", "empty file", "a folder for the file")
+VISION_FILES = {"cam.yaml": "--camera", "markers.yaml": "--layout"}
+for cmd, files in INPUT_FILES.items():
+    for rel in files:
+        argv = _argv(cmd) + ([VISION_FILES[rel], "{d}/" + rel] if rel in VISION_FILES else [])
+        for how in SAVED_WRONGLY:
+            if how == "empty file" and cmd in ("spots", "beam-check"):
+                continue  # an empty vision YAML is no layout and no camera: covered by the vision tests
+            case(f"{cmd}: {rel} {how}", argv, _vision_file(rel, _saved_as(rel, how)), rel.split("/")[-1],
+                 "traceback")  # fmt: skip
+
+# a folder where a file is expected and the other way round, for every path argument
+KINDS = [
+    ("solve", ["solve", "{d}/model.yaml", "-o", "{o}"], "is a file"),
+    ("plan", ["plan", "{d}/configs.csv"], "is a file"),
+    ("diagnose", ["diagnose", "{d}/configs.csv"], "is a file"),
+    ("report", ["report", "{d}/sess", "{d}/fp.csv", "-o", "{o}"], "is a file"),
+    ("import-mukca", ["import-mukca", "{d}/fp.csv", "-o", "{o}"], "is a file"),
+    ("study-mukca", ["study-mukca", "{d}/fp.csv", "-o", "{o}"], "is a file"),
+    ("capture", ["capture", "--resume", "{d}/fp.csv"], "is a file"),
+    ("validate", ["validate", "--resume", "{d}/fp.csv"], "is a file"),
+    ("predict", ["predict", "{d}/model.yaml", "{d}/sess"], "is a folder"),
+    ("predict", ["predict", "{d}/sess", "{d}/configs.csv"], "sess"),
+    ("export", ["export", "{d}/val", "-o", "{o}"], "val"),
+    ("fullpose", ["fullpose", "{d}/sess", "--robot", "panda", "-o", "{o}"], "is a folder"),
+    ("simulate", SIMULATE[:2] + ["--layout", "{d}/sess", "-o", "{o}"], "sess"),
+    ("simulate-fullpose", ["simulate-fullpose", "--robot", "{d}/sess", "-o", "{o}"], "sess"),
+    ("validate", VALIDATE[:4] + ["--layout", "{d}/val", "-o", "{o}"], "val"),
+    ("spots", ["spots", "{d}/val/photos/0000.png", "--reference", "{d}/val"], "is a folder"),
+    ("spots", ["spots", "{d}/val/photos/0000.png", "--camera", "{d}/val"], "is a folder"),
+    ("beam-check", ["beam-check", "{d}/val/photos/0000.png", "--layout", "{d}/sess"], "sess"),
+]  # fmt: skip
+for cmd, argv, needle in KINDS:
+    case(f"{cmd}: a folder for a file or a file for a folder: {' '.join(argv[1:3])}", argv, None, needle,
+         "traceback")  # fmt: skip
+
+# values in the wrong units, in every mm and rad column (they used to pass, or fail late)
+UNITS_BAD = [
+    ("report", "validation x_mm, y_mm in metres", _metres("val/validation.csv", ["x_mm", "y_mm"]), "x_mm"),
+    ("fullpose", "pose origins in metres", _metres("poses.csv", ["x", "y", "z"]), "poses.csv"),
+    ("plan", "captures in degrees", _degrees("sess/captures.csv", Q), "captures.csv"),
+    ("validate", "layout in metres", LAYOUT_BAD["layout in metres"], "layout.yaml"),
+    ("capture", "layout units m", LAYOUT_BAD["layout units m"], "layout.yaml"),
+    ("predict", "model aperture in metres", MODEL_BAD["model aperture in metres"], "model.yaml"),
+    ("export", "model limits in degrees", MODEL_BAD["model limits in degrees"], "model.yaml"),
+    ("import-mukca", "hole in degrees", MUKCA_BAD["mukca hole in degrees"][0], "hole_0.csv"),
+    ("study-mukca", "hole in degrees", MUKCA_BAD["mukca hole in degrees"][0], "hole_0.csv"),
+    ("diagnose", "positions in metres", POS_BAD["positions in metres"][0], "captures.csv"),
+]
+for cmd, cid, setup, needle in UNITS_BAD:
+    argv = _argv(cmd)
+    if cid == "pose origins in metres":
+        argv = ["fullpose", "{d}/poses.csv", "--robot", "panda", "-o", "{o}"]
+    elif cid == "positions in metres":
+        argv = ["diagnose", "{d}/pos", "--bootstrap", "0"]
+    case(f"{cmd}: {cid}", argv, setup, needle, "silent")
+for v, needle in (("0", "--gamma"), ("nan", "--gamma"), ("-1", "--imagej-box")):
+    opt = needle
+    case(f"spots {opt} {v}", ["spots", "{d}/val/photos/0000.png", opt, v], None, opt, "silent")
+for v in ("nan", "0.3"):  # 0.3: metres
+    case(f"beam-check --laser-length {v}", BASE["beam-check"] + ["--laser-length", v], None, "--laser-length",
+         "silent")  # fmt: skip
+case("camera-calibrate --square 0.02 (metres)", CALIB + ["--square", "0.02", "-o", "{o}"], None, "--square",
+     "silent")  # fmt: skip
+case("simulate-fullpose --radius 0.05 (metres)", SIMFP + ["--radius", "0.05", "-o", "{o}"], None, "--radius",
+     "silent")  # fmt: skip
+
+
+def _half_position(d: Path):
+    shutil.copytree(d / "mukca/panda_1/front", d / "mukca/panda_1/back")
+    (d / "mukca/panda_1/back/hole_1.csv").unlink()
+
+
+case("import-mukca: a tool position with one hole file", _argv("import-mukca"), _half_position,
+     "back/hole_1.csv", "silent")  # fmt: skip
+case("predict: a measured angle far beyond its limit (wrong column)", PREDICT,
+     _cell("configs.csv", 0, "q1", "3.2"), "configs.csv", "culprit")  # fmt: skip
+
+
+MARKERS_M = """format: lasercal-layout/1
+markers:
+  dictionary: DICT_4X4_50
+  ids:
+    0: [[0.0, 0.02], [0.02, 0.02], [0.02, 0.0], [0.0, 0.0]]
+"""
+case("plan --workspace in metres", PLAN + ["--workspace", "0.4", "0", "0", "0.6", "0.3", "0"], None,
+     "--workspace", "silent")  # fmt: skip
+case("simulate-fullpose --step 0.35 (radians)", SIMFP + ["--step", "0.35", "-o", "{o}"], None, "--step",
+     "silent")  # fmt: skip
+case("export: tool point in metres", _argv("export"),
+     _yaml("model.yaml", _set("tool", {"point": [0.088, 0, 0.79]})), "tool.point", "silent")  # fmt: skip
+case("spots: marker corners in metres", ["spots", "{d}/val/photos/0000.png", "--layout", "{d}/m.yaml"],
+     _touch("m.yaml", MARKERS_M), "m.yaml", "silent")  # fmt: skip
+case("predict: configs.csv a header and no rows", PREDICT, _keep_only("configs.csv", 0), "configs.csv",
+     "culprit")  # fmt: skip
+case("solve: captures.csv a header and no rows", _argv("solve"), _keep_only("sess/captures.csv", 0),
+     "captures.csv", "culprit")  # fmt: skip
+case("solve --folds more than captures", SOLVE[:2] + ["--folds", "1000", "-o", "{o}"], None, "--folds",
+     "culprit")  # fmt: skip
+case("export: model number 1e308", _argv("export"),
+     _yaml("model.yaml", _set("laser", "M", [0.0, 0.0, 1e308])), "model.yaml", "culprit")  # fmt: skip
+case("report: validation point xyz blank", _argv("report"),
+     _yaml("val/validation.yaml", _set("point", "xyz", [None, None, None])), "validation.yaml",
+     "culprit")  # fmt: skip
+case("solve: captures.csv separated by semicolons", _argv("solve"),
+     lambda d: (d / "sess/captures.csv").write_text((d / "sess/captures.csv").read_text().replace(",", ";")),
+     "captures.csv", "traceback")  # fmt: skip
+
+
+case("capture --trigger unknown (unused with --auto, checked all the same)",
+     _argv("capture") + ["--trigger", "foot"], None, "--trigger", "culprit")  # fmt: skip
+case("capture --aperture-z 200 mm from the model's", _argv("capture") + ["--aperture-z", "625"], None,
+     "--aperture-z", "silent")  # fmt: skip
+case("validate --camera frames that are not there", _argv("validate") + ["--camera", "{d}/frames/%04d.png"],
+     None, "frames/%04d.png", "culprit")  # fmt: skip
+PHOTO = "{d}/val/photos/0000.png"
+case("beam-check: the same photo twice", ["beam-check", PHOTO, "{d}/val/photos/0001.png", PHOTO], None,
+     "same photo", "degenerate")  # fmt: skip
+
+
+FAR = [2521.0, 160.0, -8.0]  # 2.5 m from the base: no Panda reaches it
+for cmd, argv, pt in (("simulate", _argv("simulate"), "P1"), ("capture", _argv("capture"), "P2"),
+                      ("validate", ["validate", "panda"] + _argv("validate")[2:], "P4"),
+                      ("plan", PLAN + ["--layout", "{d}/layout.yaml"], "P4")):  # fmt: skip
+    case(f"{cmd}: layout point {pt} out of reach", argv, _yaml("layout.yaml", _set("points", pt, FAR)),
+         f"layout.yaml, point {pt}", "culprit")  # fmt: skip
+
+
+case("solve: URDF lengths in mm", SOLVE_POS, _urdf_text('xyz="0 0 0.089159"', 'xyz="0 0 89.159"'), "arm.urdf",
+     "silent")  # fmt: skip
+
+
+# input that makes the problem degenerate, named as such before the fit
+def _copies(rel: str, point: str | None = None):
+    """Every capture (at ``point``, or at each point) replaced by the first one there: copies."""
+
+    def fn(d: Path):
+        lines = (d / rel).read_text().splitlines()
+        first = {}
+        for i, ln in enumerate(lines[1:], 1):
+            nm = ln.split(",")[0]
+            first.setdefault(nm, ln)
+            if point in (None, nm):
+                lines[i] = first[nm]
+        (d / rel).write_text("\n".join(lines) + "\n")
+
+    return fn
+
+
+def _coincident(rel: str, names=("P1", "P2", "P3")):
+    return _yaml(rel, lambda d: [d["points"].__setitem__(n, list(d["points"][names[0]])) for n in names[1:]])
+
+
+def _distance(value):
+    return _yaml("pt/session.yaml", lambda d: d["constraints"]["distances"][0].__setitem__(2, value))
+
+
+DEGENERATE = [
+    ("solve", SOLVE, "every capture a copy of the first", _copies("sess/captures.csv"), "distinct"),
+    ("diagnose", DIAGNOSE, "captures at P2 copies of one", _copies("sess/captures.csv", "P2"), "P2"),
+    ("report", REPORT, "captures at P3 copies of one", _copies("sess/captures.csv", "P3"), "P3"),
+    ("plan", PLAN, "every capture a copy", _copies("sess/captures.csv"), "distinct"),
+    ("solve", SOLVE, "three coincident points", _coincident("sess/session.yaml"), "same point"),
+    ("diagnose", DIAGNOSE, "three coincident points", _coincident("sess/session.yaml"), "same point"),
+    ("plan", PLAN, "two coincident points", _coincident("sess/session.yaml", ("P1", "P3")), "same point"),
+    ("report", REPORT, "three coincident points", _coincident("sess/session.yaml"), "same point"),
+    ("simulate", SIMULATE, "three coincident layout points", _coincident("layout.yaml"), "same point"),
+    ("capture", FAKE_CAPTURE, "coincident points", _coincident("layout.yaml", ("P2", "P3")), "same point"),
+    ("validate", VALIDATE, "coincident points", _coincident("layout.yaml", ("P1", "P4")), "same point"),
+    ("simulate", SIMULATE, "a point both calibration and validation",
+     _yaml("layout.yaml", _set("validation", ["P4", "P2"])), "both"),
+    ("capture", FAKE_CAPTURE, "a point both calibration and validation",
+     _yaml("layout.yaml", _set("validation", ["P1"])), "both"),
+    ("solve", ["solve", "{d}/pt", "--folds", "0"], "known distance 0", _distance(0), "distance"),
+    ("solve", ["solve", "{d}/pt", "--folds", "0"], "known distance negative", _distance(-50), "distance"),
+    ("diagnose", ["diagnose", "{d}/pt", "--bootstrap", "0"], "known distance nan", _distance(nan),
+     "distance"),
+    ("solve", ["solve", "{d}/pt", "--folds", "0"], "known distance from a point to itself",
+     _yaml("pt/session.yaml", lambda d: d["constraints"]["distances"][0].__setitem__(1, "front/hole_0")),
+     "itself"),
+    ("solve", ["solve", "{d}/pt", "--folds", "0"], "unknown points and no known distance",
+     _yaml("pt/session.yaml", _set("constraints", {})), "no known distance"),
+]  # fmt: skip
+for cmd, argv, cid, setup, needle in DEGENERATE:
+    argv = argv + ([OUT[cmd], "{o}"] if cmd in OUT and OUT[cmd] not in argv else [])
+    case(f"{cmd}: {cid}", argv, setup, needle, "degenerate")
+
+
+# --- 6. every declared output path of every command (options.output_argument) -----------------------
+def _subparser(name: str):
+    sub = next(a for a in build_parser(name)._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[name]
+
+
+def declared_outputs(name: str) -> list:
+    """(dest, option, kind, instead) of each output path the command declares."""
+    return list(_subparser(name).get_default("_outputs") or [])
+
+
+for cmd in BASE:
+    for _dest, flag, kind, _instead in declared_outputs(cmd):
+        base_argv = [a for a in _argv(cmd) if a != "{o}" and a != OUT.get(cmd)]
+
+        def out(path, base_argv=base_argv, flag=flag):
+            return base_argv + [flag, path]
+
+        case(f"{cmd} {flag} in a missing folder", out("{d}/no/such/dir/out"), None, flag, "output")
+        case(f"{cmd} {flag} below a file", out("{d}/afile/out"), _touch("afile"), flag, "output")
+        case(f"{cmd} {flag} on a read-only file system", out("/sys/lasercal-out"), None, "cannot write",
+             "output")  # fmt: skip
+        case(f"{cmd} {flag} empty", out(""), None, flag, "output")
+        if kind == "file":
+            if "--force" in _subparser(cmd)._option_string_actions:
+                case(f"{cmd} {flag} an existing file", out("{d}/kept.out"), _touch("kept.out"), "--force",
+                     "output")  # fmt: skip
+            case(f"{cmd} {flag} an existing folder", out("{d}/adir"), _mkdir("adir"), flag, "output")
+        else:
+            case(f"{cmd} {flag} an existing file", out("{d}/afile"), _touch("afile"), flag, "output")
+            if kind == "folder":
+                case(f"{cmd} {flag} a folder in use", out("{d}/kept"), _mkdir("kept"), "kept", "output")
+
+
+# an output that is one of the inputs, or the other output, is refused even with --force
+for cmd, argv, needle in (
+    ("fullpose", FULLPOSE + ["-o", "{d}/fp.csv", "--force"], "replace the input"),
+    ("export", EXPORT + ["--format", "yaml", "-o", "{d}/model.yaml", "--force"], "replace the input"),
+    ("report", REPORT + ["-o", "{d}/sess", "--force"], "replace the input"),
+    ("simulate-fullpose", ["simulate-fullpose", "--robot", "{d}/model.yaml", "-o", "{d}/model.yaml",
+                           "--force"], "replace the input"),
+    ("camera-calibrate", CALIB + ["--square", "20", "-o", "{d}/val/photos/0000.png", "--force"],
+     "replace the input"),
+    ("export", EXPORT + ["-o", "{d}/m.urdf", "--sensor-output", "{d}/m.urdf"], "the same path"),
+):  # fmt: skip
+    case(f"{cmd}: an output that is an input: {' '.join(argv[-3:])}", argv, None, needle, "output")
+case("demo -o an existing file named demo (the command's name is no input)", ["demo", "-o", "{d}/demo"],
+     _touch("demo"), "is a file", "output")  # fmt: skip
+
+
 def _data_lines(path: Path):
     lines = path.read_text().splitlines()
     return lines, [i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]
@@ -638,12 +982,14 @@ def watchdog():
     signal.signal(signal.SIGALRM, old)
 
 
-@pytest.mark.parametrize("argv, setup, needle", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+@pytest.mark.parametrize(
+    "argv, setup, needle", [c[2:] for c in CASES], ids=[f"{c[0]}: {c[1]}" for c in CASES]
+)
 def test_bad_input_exits_2_with_one_line(argv, setup, needle, base, tmp_path, capsys, monkeypatch, watchdog):
-    if "{d}/mukca" in " ".join(argv) and not (base / "mukca").is_dir():
+    if ("{d}/mukca" in " ".join(argv) or "{d}/pt" in " ".join(argv)) and not (base / "mukca").is_dir():
         pytest.skip("the MUKCa data (../shared/data/mukca) is not here")
     d = tmp_path / "w"
-    shutil.copytree(base, d)
+    _work_copy(base, d)
     if setup is not None:
         setup(d)
     monkeypatch.chdir(d)
@@ -662,10 +1008,226 @@ def test_bad_input_exits_2_with_one_line(argv, setup, needle, base, tmp_path, ca
     assert _snapshot(d) == before, "an existing file changed"
 
 
+# --- 7. every numeric option of every command declares its range once (options.number) ----------------
+def declared_numbers():
+    """(command, option, its Range, nargs) of every numeric option."""
+    for c in COMMANDS:
+        for a in _subparser(c.name)._actions:
+            rng = getattr(a.type, "range", None)
+            if rng is not None and a.option_strings:
+                yield c.name, a.option_strings[-1], rng, a.nargs
+
+
+def _bad_values(rng) -> list:
+    """NaN, infinities, text, and a value just past each bound."""
+    vals = ["nan", "inf", "-inf", "1e400", "ten"]
+    if rng.lo is not None:
+        vals.append(repr(float(rng.lo)) if rng.lo_open else repr(rng.lo - max(1.0, abs(rng.lo))))
+    if rng.hi is not None:
+        vals.append(repr(float(rng.hi)) if rng.hi_open else repr(rng.hi + max(1.0, abs(rng.hi))))
+    if rng.integer:
+        vals.append(repr((rng.lo or 0) + 0.5))
+    return vals
+
+
+NUMERIC = [(cmd, opt, v, nargs) for cmd, opt, rng, nargs in declared_numbers() for v in _bad_values(rng)]
+
+
+def test_no_option_is_a_bare_float_or_int():
+    """A numeric option declared with type=float (or int) would take NaN, inf or a negative silently."""
+    bare = [
+        (c.name, a.option_strings or a.dest)
+        for c in COMMANDS
+        for a in _subparser(c.name)._actions
+        if a.type in (float, int)
+    ]
+    assert not bare
+
+
+def test_every_numeric_range_is_bounded():
+    """No 'absurd magnitude' passes: each numeric option has a finite lower and upper bound."""
+    unbounded = [(cmd, opt) for cmd, opt, rng, _ in declared_numbers() if rng.lo is None or rng.hi is None]
+    assert not unbounded
+    assert len({cmd for cmd, *_ in declared_numbers()}) >= 14  # all but export and import-mukca
+
+
+OPTIONS = sorted({(cmd, opt, nargs) for cmd, opt, _, nargs in NUMERIC}, key=str)
+
+
+@pytest.mark.parametrize("cmd, opt, nargs", OPTIONS, ids=[f"culprit: {c} {o}" for c, o, _ in OPTIONS])
+def test_every_numeric_option_refuses_bad_values(cmd, opt, nargs, base, tmp_path, capsys):
+    """Parsed before anything runs: exit 2, one line naming the option, nothing written; for each of
+    NaN, +-inf, an overflow, text and a value just past each bound (one pytest item per option, the
+    values in a loop: 500 items would cost more in set-up than in running)."""
+    k = nargs if isinstance(nargs, int) else 1
+    rng = next(r for c, o, r, _ in declared_numbers() if (c, o) == (cmd, opt))
+    ok = repr(float(min(max(0.0, rng.lo), rng.hi)))
+    argv = [a.replace("{d}", str(base)).replace("{o}", str(tmp_path / "out")) for a in _argv(cmd)]
+    for value in [v for c, o, v, _ in NUMERIC if (c, o) == (cmd, opt)]:
+        rc = main(argv + [opt, value] + [ok] * (k - 1))
+        err = capsys.readouterr().err
+        assert rc == 2 and len(err.splitlines()) == 1 and err.startswith("lasercal: error: argument"), err
+        assert opt in err, err
+    assert not (tmp_path / "out").exists()
+
+
+# --- 8. plausible but suspicious: a warning that names it, the work done -------------------------------
+def _dup_row(rel: str, row: int):
+    def fn(d: Path):
+        lines = (d / rel).read_text().splitlines()
+        (d / rel).write_text("\n".join(lines + [lines[1 + row]]) + "\n")
+
+    return fn
+
+
+def _limits_rounded(rel: str, j: int, excess: float):
+    """model.yaml's upper limit of joint j (0-based) rounded to ``excess`` rad below the largest angle
+    measured in ``rel`` (a CSV with a q<j+1> column)."""
+
+    def fn(d: Path):
+        lines = (d / rel).read_text().splitlines()
+        col = lines[0].split(",").index(f"q{j + 1}")
+        q = max(float(ln.split(",")[col]) for ln in lines[1:])
+        _edit_yaml(d / "model.yaml", lambda m: m["joints"][j].__setitem__("limits", [
+            m["joints"][j]["limits"][0], q - excess]))  # fmt: skip
+
+    return fn
+
+
+WARNINGS = [
+    ("solve", SOLVE + ["-o", "{o}"], "a capture saved twice", _dup_row("sess/captures.csv", 4), "line(s) 38"),
+    ("diagnose", DIAGNOSE, "a capture saved twice", _dup_row("sess/captures.csv", 0), "captures.csv"),
+    ("predict", PREDICT + ["--plane-z", "900"], "a plane above the aperture", None, "--plane-z"),
+    ("predict", PREDICT, "a measured angle a hair beyond a rounded limit",
+     _limits_rounded("configs.csv", 3, 0.003), "q4"),
+    ("spots", ["spots", "{d}/val/photos/0000.png", "--layout", "{d}/layout.yaml"], "a layout without markers",
+     None, "layout.yaml"),
+    ("solve", SOLVE + ["--robot", "{d}/model.yaml", "-o", "{o}"], "measured angles a hair beyond a limit",
+     _limits_rounded("sess/captures.csv", 5, 0.002), "q6"),
+    ("plan", PLAN, "a capture saved twice", _dup_row("sess/captures.csv", 7), "captures.csv"),
+    ("report", REPORT + ["-o", "{o}"], "a capture saved twice", _dup_row("sess/captures.csv", 30),
+     "captures.csv"),
+    ("solve", ["solve", "{d}/pos", "--folds", "0", "-o", "{o}"], "a position capture saved twice",
+     _dup_row("pos/captures.csv", 2), "captures.csv"),
+    # an option given where it does nothing is named, not dropped in silence
+    ("simulate", SIMULATE + ["--noise", "0.5", "-o", "{o}"], "a position option on a laser session", None,
+     "--noise 0.5: ignored"),
+    ("simulate", SIM_POS + [str(URDF), "--configs", "4", "--layout", "{d}/layout.yaml"],
+     "a layout for a position session", None, "--layout"),
+    ("spots", BASE["spots"] + ["--imagej-box", "32"], "an imagej option without --method imagej", None,
+     "--imagej-box 32: ignored"),
+    ("fullpose", FULLPOSE + ["--seed", "3", "-o", "{o}"], "--seed without --folds", None,
+     "--seed 3: ignored"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("argv, setup, needle", [w[1:2] + w[3:] for w in WARNINGS],
+                         ids=[f"warning: {w[0]}: {w[2]}" for w in WARNINGS])  # fmt: skip
+def test_suspicious_input_warns_and_goes_on(argv, setup, needle, base, tmp_path, capsys, monkeypatch,
+                                            watchdog):  # fmt: skip
+    d = tmp_path / "w"
+    _work_copy(base, d)
+    if setup is not None:
+        setup(d)
+    monkeypatch.chdir(d)
+    args = [a.replace("{d}", str(d)).replace("{o}", str(d / "out")) for a in argv]
+    rc = main(args)
+    err = capsys.readouterr().err
+    warned = [ln for ln in err.splitlines() if ln.startswith("lasercal: warning: ")]
+    assert rc == 0 and "Traceback" not in err and "error" not in err, err
+    assert warned and any(needle in ln for ln in warned), err
+    assert "{o}" not in " ".join(argv) or (d / "out").exists()
+
+
+def test_a_measured_angle_a_hair_beyond_a_limit_is_kept(base, tmp_path, capsys):
+    """A FANUC's J4 at -360.000 deg against a URDF limit of -6.28 rad: kept with a warning, and the
+    prediction is the one at the measured angle; 0.2 rad beyond (a column or unit mistake) is refused."""
+    d = tmp_path / "w"
+    _work_copy(base, d)
+    _limits_rounded("configs.csv", 3, 0.003)(d)
+    assert main(["predict", str(d / "model.yaml"), str(d / "configs.csv")]) == 0
+    kept = capsys.readouterr().out
+    _limits_rounded("configs.csv", 3, 0.0)(d)  # the limit exactly at the angle: no warning, same spot
+    assert main(["predict", str(d / "model.yaml"), str(d / "configs.csv")]) == 0
+    out = capsys.readouterr()
+    assert out.out == kept and "warning" not in out.err
+    _limits_rounded("configs.csv", 3, 0.2)(d)
+    assert main(["predict", str(d / "model.yaml"), str(d / "configs.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "configs.csv, line 3, column 'q4'" in err and "by 0.2 (more than 0.1)" in err
+
+
+def test_an_output_named_like_its_command_is_replaced_with_force(tmp_path, monkeypatch, capsys):
+    """'export panda -o export --force' replaces ./export: the command's name is no input path."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "export").write_text("old\n")
+    rc = main(["export", "panda", "--format", "yaml", "-o", "export", "--force"])
+    assert rc == 0, capsys.readouterr().err
+    assert "lasercal-robot/1" in (tmp_path / "export").read_text()
+
+
+# files saved with a byte-order mark, as UTF-16 (Windows 'Unicode') or with CRLF line ends are read
+ENCODED_OK = [
+    ("solve", SOLVE + ["-o", "{o}"], "sess/captures.csv"),
+    ("solve", SOLVE + ["-o", "{o}"], "sess/session.yaml"),
+    ("predict", PREDICT, "configs.csv"),
+    ("export", EXPORT + ["-o", "{o}"], "model.yaml"),
+    ("simulate", SIMULATE + ["-o", "{o}"], "layout.yaml"),
+    ("spots", ["spots", "{d}/val/photos/0000.png", "--layout", "{d}/layout.yaml"], "layout.yaml"),
+]
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16", "crlf"])
+@pytest.mark.parametrize("argv, rel", [e[1:] for e in ENCODED_OK],
+                         ids=[f"{e[0]}: {e[2]}" for e in ENCODED_OK])  # fmt: skip
+def test_bom_utf16_and_crlf_files_are_read(argv, rel, encoding, base, tmp_path, capsys):
+    d = tmp_path / "w"
+    _work_copy(base, d)
+    text = (d / rel).read_text()
+    if encoding == "crlf":
+        (d / rel).write_bytes(text.replace("\n", "\r\n").encode())
+    else:
+        (d / rel).write_bytes(text.encode(encoding))
+    args = [a.replace("{d}", str(d)).replace("{o}", str(d / "out")) for a in argv]
+    assert main(args) == 0, capsys.readouterr().err
+    assert "error" not in capsys.readouterr().err
+
+
 def test_at_least_150_cases_cover_every_command():
     from lasercal.collector.cli.main import COMMANDS
 
     assert len(CASES) >= 150
-    named = {c[1][0] for c in CASES}
+    named = {c[2][0] for c in CASES}
     missing = {c.name for c in COMMANDS} - named
     assert not missing, missing
+
+
+def test_every_command_has_cases_in_the_categories_it_can_fail():
+    counts = case_counts()
+    for c in COMMANDS:
+        assert counts.get((c.name, "culprit")), c.name
+        if declared_outputs(c.name):
+            assert counts.get((c.name, "output")), c.name
+    for name in INPUT_FILES:
+        assert counts.get((name, "traceback")), name
+
+
+def case_counts() -> dict:
+    """(command, category) -> number of cases in this module (parametrised tests included)."""
+    counts: dict = {}
+    rows = [(c[2][0], c[0]) for c in CASES] + [(cmd, "culprit") for cmd, *_ in NUMERIC]
+    rows += [(w[0], "warning") for w in WARNINGS]
+    rows += [(e[0], "traceback") for e in ENCODED_OK for _ in range(3)]
+    for key in rows:
+        counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
+if __name__ == "__main__":  # the table of cases per command and category (python tests/test_bad_inputs.py)
+    counts = case_counts()
+    print(f"{'command':18}" + "".join(f"{c:>11}" for c in CATEGORIES) + f"{'total':>8}")
+    for c in COMMANDS:
+        row = [counts.get((c.name, k), 0) for k in CATEGORIES]
+        print(f"{c.name:18}" + "".join(f"{n:>11}" for n in row) + f"{sum(row):>8}")
+    col = [sum(counts.get((c.name, k), 0) for c in COMMANDS) for k in CATEGORIES]
+    print(f"{'all':18}" + "".join(f"{n:>11}" for n in col) + f"{sum(col):>8}")

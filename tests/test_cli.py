@@ -159,7 +159,7 @@ def test_unparseable_yaml_and_missing_folder(tmp_path, capsys, session_dir):
     assert main(["solve", str(bad), "-o", str(tmp_path / "m.yaml")]) == 2
     assert "session.yaml" in capsys.readouterr().err and True
     assert main(["solve", str(tmp_path / "nope"), "-o", str(tmp_path / "m.yaml")]) == 2
-    assert "not a session folder" in capsys.readouterr().err
+    assert "nope: no such folder" in capsys.readouterr().err
 
 
 def test_demo_prints_p4_beside_the_thesis(tmp_path, capsys):

@@ -168,7 +168,6 @@ def test_demo_refuses_a_folder_in_use(demo, capsys):
     assert main(["demo", "-o", str(out)]) == 2
     assert (
         capsys.readouterr().err
-        == f"lasercal: error: {out} is not empty (an earlier demo?): remove it or choose another folder "
-        "with -o\n"
+        == f"lasercal: error: -o {out}: exists and is kept (remove it or choose another folder with -o)\n"
     )
     assert sorted(p.name for p in out.iterdir()) == before

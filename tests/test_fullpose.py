@@ -321,7 +321,11 @@ def test_pose_csv_errors(tmp_path):
     with pytest.raises(FormatError, match="unknown column"):
         read_pose_csv(p)
     p.write_text(cols + "\n0,0,1,0,0,0,1,0,0,0,1,1,2,3\n")
+    with pytest.raises(FormatError, match="look like metres"):  # every origin within 5 mm of the base
+        read_pose_csv(p)
+    p.write_text(cols + "\n0,0,1,0,0,0,1,0,0,0,1,100,200,300\n")
     with pytest.raises(FormatError, match="2 joint columns but the robot has 7"):
         read_pose_csv(p, 7)
-    assert np.allclose(read_pose_csv(p, 2).T[0], [[1, 0, 0, 1], [0, 1, 0, 2], [0, 0, 1, 3], [0, 0, 0, 1]])
-    assert np.allclose(inv_T(read_pose_csv(p).T)[0, :3, 3], [-1, -2, -3])
+    T = read_pose_csv(p, 2).T[0]
+    assert np.allclose(T, [[1, 0, 0, 100], [0, 1, 0, 200], [0, 0, 1, 300], [0, 0, 0, 1]])
+    assert np.allclose(inv_T(read_pose_csv(p).T)[0, :3, 3], [-100, -200, -300])

@@ -105,13 +105,25 @@ class Camera:
 
 
 def read_yaml(path: Path, what: str):
-    """Parse a YAML file; unreadable or invalid files raise LayoutError naming the file."""
+    """Parse a YAML file; unreadable, binary, non-UTF text or invalid files raise LayoutError naming the
+    file.
+
+    The bytes go to PyYAML, which decodes UTF-8 and, after a byte-order mark, UTF-16 (a Windows editor's
+    'Unicode'); any other encoding is a reader error, named with its position.
+    """
     try:
-        return yaml.safe_load(Path(path).read_text())
+        data = Path(path).read_bytes()
+    except IsADirectoryError:
+        raise LayoutError(path, f"is a folder (expected a {what})") from None
     except OSError as exc:
         raise LayoutError(path, f"cannot read {what} ({exc.strerror})") from None
+    try:
+        return yaml.safe_load(data)
     except yaml.YAMLError as exc:
-        raise LayoutError(path, f"not valid YAML ({exc})") from None
+        where = getattr(exc, "problem_mark", None) or getattr(exc, "position", None)
+        line = f"line {where.line + 1}: " if hasattr(where, "line") else ""
+        reason = getattr(exc, "problem", None) or getattr(exc, "reason", None) or exc
+        raise LayoutError(path, f"{line}not valid YAML text ({reason}; expected a UTF-8 {what})") from None
 
 
 def load_camera(path) -> Camera:

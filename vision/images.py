@@ -38,6 +38,8 @@ def read_image(path) -> np.ndarray:
         The file is missing, unreadable or not an image OpenCV can decode.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ImageReadError(f"{path}: is a folder (expected a photo; give its files, e.g. {path}/*.jpg)")
     if not path.is_file():
         raise ImageReadError(f"{path}: no such file")
     try:

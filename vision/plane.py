@@ -39,6 +39,9 @@ import numpy as np
 from lasercal.vision.camera import Camera, aruco_dictionary, distort, read_yaml
 from lasercal.vision.errors import LayoutError, MarkerError
 
+# marker corners all closer than this to the sheet's origin are in metres, not mm (as in solver's checks)
+METRES_BELOW_MM = 5.0
+
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # renamed in numpy 2.0
 LAYOUT_FORMAT = "lasercal-layout/1"
 FRAMES = ("base", "sheet")  # a layout's frame: the robot's base, or a printed sheet's own
@@ -213,6 +216,12 @@ def load_markers(path) -> MarkerLayout | None:
                 field,
             )
         corners[mid] = c
+    if corners and np.abs(np.concatenate(list(corners.values()))).max() < METRES_BELOW_MM:
+        raise LayoutError(
+            path,
+            f"every corner is within {METRES_BELOW_MM:g} mm: these look like metres (expected mm)",
+            "markers.ids",
+        )
     charuco = _parse_charuco(m["charuco"], m["dictionary"], path) if m.get("charuco") is not None else None
     if charuco is None and not corners:
         raise LayoutError(path, "no markers listed", "markers.ids")

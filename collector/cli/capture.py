@@ -5,18 +5,40 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lasercal.collector.cli.options import backend_arguments, count, motion_arguments, number
+from lasercal.collector.cli.options import (
+    INFOLDER,
+    LAYOUT,
+    backend_arguments,
+    count,
+    motion_arguments,
+    number,
+    output_argument,
+    unused,
+)
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 
 
 def args_capture(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal capture``."""
-    p.add_argument("--layout", help="layout YAML with the reference points")
+    p.add_argument("--layout", type=LAYOUT, help="layout YAML with the reference points")
     p.add_argument(
         "--per-point", type=count(1, 10000), metavar="N", help="captures at each calibration point"
     )
-    p.add_argument("-o", "--output", metavar="SESSION", help="new session folder")
-    p.add_argument("--resume", metavar="SESSION", help="continue an interrupted session where it stopped")
+    output_argument(
+        p,
+        "-o",
+        "--output",
+        kind="folder",
+        instead="resume it with --resume {path}",
+        metavar="SESSION",
+        help="new session folder",
+    )
+    p.add_argument(
+        "--resume",
+        type=INFOLDER,
+        metavar="SESSION",
+        help="continue an interrupted session where it stopped",
+    )
     p.add_argument(
         "--aperture-z",
         type=number(METRES_BELOW_MM, 5000, "mm"),
@@ -75,6 +97,10 @@ def cmd_capture(args) -> int:
     from lasercal.collector.sessions.settings import capture_settings, given_settings
     from lasercal.collector.sessions.start import CaptureGuide, start_capture
 
+    if not args.auto:
+        unused(args, "it paces --auto", "auto_pace")
+    if args.guide != "move":
+        unused(args, "only --guide move commands moves", "max_step", "yes")
     settings = capture_settings(given_settings(vars(args)), args.layout, args.output, args.resume)
     guide = CaptureGuide(
         auto=args.auto,

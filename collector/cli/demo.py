@@ -5,14 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lasercal.collector.cli.options import SEED
+from lasercal.collector.cli.options import SEED, output_argument
 
 
 def args_demo(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal demo``."""
-    p.add_argument(
+    output_argument(
+        p,
         "-o",
         "--output",
+        kind="folder",
+        instead="remove it or choose another folder with -o",
         default="lasercal-demo",
         help="folder for the session, models, validations and report (default: ./lasercal-demo)",
     )

@@ -7,21 +7,27 @@ import json
 import sys
 
 from lasercal.collector.cli.options import (
+    INFOLDER,
     SESSION_ROBOT,
     bootstrap_arguments,
     chain_arguments,
     number,
+    numbers,
+    output_argument,
     session_robot,
 )
 from lasercal.solver.analysis import ALPHA
 
+PAYLOAD_KG = number(0, 100, "kg", lo_open=True)
+PAYLOAD_MM = number(-5000, 5000, "mm")
+
 
 def args_diagnose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal diagnose``."""
-    p.add_argument("session", help="session folder")
+    p.add_argument("session", type=INFOLDER, help="session folder")
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--report", metavar="DIR", help="write the plots that make the case")
+    output_argument(p, "--report", kind="into", metavar="DIR", help="write the plots that make the case")
     p.add_argument(
         "--alpha",
         type=number(0, 1, lo_open=True, hi_open=True),
@@ -31,36 +37,30 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
     bootstrap_arguments(p)
     p.add_argument(
         "--payload",
+        type=numbers(4, lambda i: PAYLOAD_KG if i == 0 else PAYLOAD_MM, "KG,X,Y,Z"),
         metavar="KG,X,Y,Z",
         help="mass (kg) and centre of mass at q = 0 (mm) carried by the flange, for the gravity model when "
         "torques are not logged",
     )
 
 
-def parse_payload(text: str | None):
-    """'KG,X,Y,Z' -> (kg, (3,) mm), or None."""
+def parse_payload(values: tuple | None):
+    """(kg, x, y, z) from ``--payload`` -> (kg, (3,) mm), or None."""
     import numpy as np
 
-    from lasercal.solver.errors import FormatError
-
-    if not text:
-        return None
-    try:
-        vals = [float(v) for v in text.split(",")]
-    except ValueError:
-        vals = []
-    if len(vals) != 4 or not np.all(np.isfinite(vals)) or not 0 < vals[0] <= 100:
-        raise FormatError("--payload", f"expected KG,X,Y,Z (0 < kg <= 100, finite mm), got {text!r}")
-    return vals[0], np.array(vals[1:])
+    return None if values is None else (values[0], np.array(values[1:]))
 
 
 def cmd_diagnose(args) -> int:
     from lasercal.collector.report.text import format_diagnosis
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.formats.session import load_session
+    from lasercal.solver.identify.measurement import check_data
 
+    session = load_session(args.session, **session_robot(args))
+    check_data(session)
     d = diagnose(
-        load_session(args.session, **session_robot(args)),
+        session,
         alpha=args.alpha,
         n_boot=args.bootstrap,
         seed=args.seed,

@@ -7,7 +7,17 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasercal.collector.cli.options import FOLDS, SEED, chain_arguments, count, number
+from lasercal.collector.cli.options import (
+    FOLDS,
+    INFILE,
+    ROBOT,
+    SEED,
+    chain_arguments,
+    count,
+    number,
+    output_argument,
+    unused,
+)
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.solver.identify.fullpose import FullPoseCalibration
@@ -18,12 +28,15 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal fullpose``."""
     p.add_argument(
         "measurements",
+        type=INFILE,
         help="MEASUREMENTS.csv: config,q1..qN,angle_index,x,y,z (mm, rad); a poses.csv "
         "(q1..qN,r11..r33,x,y,z) is read as full poses",
     )
-    p.add_argument("--robot", required=True, help="nominal robot: model YAML, URDF or built-in name")
+    p.add_argument(
+        "--robot", type=ROBOT, required=True, help="nominal robot: model YAML, URDF or built-in name"
+    )
     chain_arguments(p)
-    p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    output_argument(p, "-o", "--output", required=True, help="identified model YAML to write")
     p.add_argument(
         "--method",
         choices=["ml", "circle"],
@@ -45,7 +58,7 @@ def args_fullpose(p: argparse.ArgumentParser) -> None:
 
 def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate-fullpose``."""
-    p.add_argument("--robot", required=True, help="true robot: model YAML, URDF or built-in name")
+    p.add_argument("--robot", type=ROBOT, required=True, help="true robot: model YAML, URDF or built-in name")
     chain_arguments(p)
     p.add_argument("--configs", type=count(1, 10**5), default=30, help="robot configurations g (default 30)")
     p.add_argument(
@@ -56,7 +69,7 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--step",
-        type=number(0, 120, "deg", lo_open=True),
+        type=number(1, 120, "deg"),  # below 1 deg: radians, or circles too small to fit
         default=20.0,
         help="the last joint's step, deg (default 20)",
     )
@@ -68,7 +81,7 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--radius",
-        type=number(0, 5000, "mm", lo_open=True),
+        type=number(0, 5000, "mm", lo_open=True, metres=True),
         default=50.0,
         help="target distance from the last axis, mm (default 50)",
     )
@@ -80,14 +93,14 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--sensor",
-        type=float,
+        type=number(-1e5, 1e5),
         nargs=6,
         metavar=("X", "Y", "Z", "RX", "RY", "RZ"),
         help="the truth's base in the sensor frame: origin (mm) and x-y-z Euler angles (deg, extrinsic); "
         "default: the sensor frame is the base frame",
     )
     p.add_argument("--seed", type=SEED, default=0)
-    p.add_argument("-o", "--output", required=True, help="MEASUREMENTS.csv to write")
+    output_argument(p, "-o", "--output", required=True, help="MEASUREMENTS.csv to write")
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
@@ -167,14 +180,15 @@ def report(cal: FullPoseCalibration | PointCalibration, cv, source: str) -> dict
 
 
 def cmd_fullpose(args) -> int:
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.control.nominal import robot_reference
     from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
     from lasercal.solver.identify.fullpose_ml import calibrate_points, cross_validate_points
 
-    check_output(args.output, force=args.force)
+    if not args.folds:
+        unused(args, "it shuffles the folds of --folds K", "seed")
     model = load_model(args.robot, base_link=args.base_link, tip_link=args.tip_link)
     path = Path(args.measurements)
     estimate = True if args.estimate_frames else None
@@ -270,12 +284,11 @@ def cmd_fullpose(args) -> int:
 def cmd_simulate_fullpose(args) -> int:
     import numpy as np
 
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.formats.fullpose_io import write_circlepoint_csv
     from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.identify.fullpose import default_target, simulate_circlepoint
 
-    check_output(args.output, force=args.force)
     X = np.eye(4)
     if args.sensor is not None:
         from scipy.spatial.transform import Rotation

@@ -2,8 +2,11 @@
 
 Every subcommand is a thin handler (parse arguments, call one library function, print) in a
 module of this package. ``lasercal --help`` imports none of them, so it starts fast. Any
-:class:`~lasercal.solver.errors.LasercalError` (or ``vision``'s ``VisionError``) becomes a
-one-line message and exit code 2, never a traceback.
+:class:`~lasercal.solver.errors.LasercalError` (or ``vision``'s ``VisionError``, or an ``OSError``
+on a file the user named) becomes a one-line message and exit code 2, never a traceback; a
+:class:`~lasercal.solver.errors.LasercalWarning` becomes a line ``lasercal: warning: ...`` and the
+command goes on. Output paths (declared with :func:`options.output_argument`) are checked before
+the handler runs (:func:`outputs_checked`).
 """
 
 from __future__ import annotations
@@ -11,6 +14,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
+from contextlib import contextmanager
 from typing import NamedTuple
 
 
@@ -146,6 +151,29 @@ def load(cmd: Command):
     return importlib.import_module(f"lasercal.collector.cli.{cmd.module}")
 
 
+def outputs_checked(handler):
+    """``handler`` preceded by the check of every output path its command declared
+    (:func:`options.check_outputs`): nothing runs, and nothing is written, for an output that is kept."""
+    from functools import wraps
+
+    from lasercal.collector.cli.options import check_outputs
+
+    @wraps(handler)
+    def run(args):
+        check_outputs(args)
+        return handler(args)
+
+    return run
+
+
+def parsed_defaults(p: argparse.ArgumentParser) -> dict:
+    """Each option's default as parsing leaves it (argparse converts a string default with its type)."""
+    return {
+        a.dest: a.type(a.default) if isinstance(a.default, str) and callable(a.type) else a.default
+        for a in p._actions
+    }
+
+
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     """The parser: every command listed, only ``selected``'s arguments (and module) loaded."""
     parser = UsageArgumentParser(
@@ -160,7 +188,8 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
         if c.name == selected:
             mod = load(c)
             getattr(mod, "args_" + c.name.replace("-", "_"))(p)
-            p.set_defaults(func=getattr(mod, c.handler))
+            p.set_defaults(func=outputs_checked(getattr(mod, c.handler)))
+            p.set_defaults(_defaults=parsed_defaults(p))  # a handler tells an option given (options.unused)
     return parser
 
 
@@ -171,17 +200,43 @@ def _user_errors() -> tuple:
     return LasercalError, VisionError
 
 
+@contextmanager
+def warnings_as_lines():
+    """Show each :class:`LasercalWarning` as one line ``lasercal: warning: ...`` on stderr (each message
+    once); numpy's RuntimeWarnings (overflow, invalid value) not at all -- what they concern is checked
+    and named -- and other warnings as Python shows them."""
+    from lasercal.solver.errors import LasercalWarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, LasercalWarning):
+            print(f"lasercal: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+        warnings.simplefilter("default", LasercalWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's overflow notes: results are checked
+        warnings.showwarning = show
+        yield
+
+
 def main(argv=None) -> int:
     """Run ``lasercal``; returns the exit code (0 ok, 2 bad input or nothing measured)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = next((a for a in argv if not a.startswith("-")), None)
     try:
         args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
-        return int(args.func(args) or 0)
+        with warnings_as_lines():
+            return int(args.func(args) or 0)
     except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported
         raise
     except _user_errors() as e:
         print(f"lasercal: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # a file or folder the user named cannot be read or written (disk full, ...)
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"lasercal: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("lasercal: interrupted", file=sys.stderr)

@@ -1,14 +1,22 @@
-"""Command-line option types that check range and units (through :class:`solver.formats.checks.Range`).
+"""The one validation layer of the command line: every option declares what it accepts here.
 
-``type=number(0, None, "s", lo_open=True)`` makes argparse refuse ``--hold -1`` with one line
-naming the option: ``argument --hold: -1 s is out of range (expected a finite number > 0 s)``.
+* Numbers: ``type=number(0, None, "s", lo_open=True)`` makes argparse refuse ``--hold -1`` (and NaN,
+  inf, text) with one line naming the option: ``argument --hold: -1 s is out of range (expected a
+  finite number > 0 s)`` (through :class:`solver.formats.checks.Range`); ``metres=True`` names a mm
+  value below a few mm as metres.
+* Input paths: ``type=existing("file")`` (or ``"folder"``, or a built-in ``names="robots"``) refuses a
+  missing path, or a folder where a file is expected and the other way round, naming the option.
+* Output paths: :func:`output_argument` declares ``-o``, ``--overlay``, ``--report`` ... with their kind
+  (a new file, a new folder, or a folder written into); :func:`check_outputs` checks them all
+  (:func:`collector.sessions.store.check_output`) before the handler does any work.
 """
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from lasercal.solver.formats.checks import Range
+from lasercal.solver.formats.checks import METRES_BELOW_MM, Range
 
 
 def number(
@@ -19,23 +27,205 @@ def number(
     lo_open: bool = False,
     hi_open: bool = False,
     integer: bool = False,
+    metres: bool = False,
 ):
-    """An argparse ``type`` accepting finite numbers in [lo, hi] (open ends as asked), in ``unit``."""
+    """An argparse ``type`` accepting finite numbers in [lo, hi] (open ends as asked), in ``unit``.
+
+    ``metres``: a length in mm whose size is below :data:`METRES_BELOW_MM` (but not 0) is refused as
+    metres. The returned function carries the :class:`Range` as ``.range`` (the tests read it).
+    """
     rng = Range(lo, hi, unit, lo_open, hi_open, integer)
 
     def parse(text: str):
         try:
-            return rng.parse(text)
+            v = rng.parse(text)
         except ValueError as e:
             raise argparse.ArgumentTypeError(str(e)) from None
+        if metres and 0 < abs(v) < METRES_BELOW_MM:
+            raise argparse.ArgumentTypeError(
+                f"{v:g} mm is below {METRES_BELOW_MM:g} mm: this looks like metres (expected mm)"
+            )
+        return v
 
     parse.__name__ = rng.expected()  # argparse names the type in some messages
+    parse.range = rng
     return parse
 
 
 def count(lo: int = 0, hi: int | None = None):
     """An argparse ``type`` for whole numbers in [lo, hi]."""
     return number(lo, hi, integer=True)
+
+
+def numbers(k: int, rng_of, what: str):
+    """An argparse ``type`` for ``k`` comma-separated numbers (e.g. ``KG,X,Y,Z``), each checked by the
+    ``number`` type ``rng_of(i)``; returns a tuple of floats."""
+
+    def parse(text: str):
+        cells = [c.strip() for c in str(text).split(",")]
+        if len(cells) != k:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected {k} comma-separated numbers {what}")
+        return tuple(rng_of(i)(c) for i, c in enumerate(cells))
+
+    parse.__name__ = what
+    return parse
+
+
+def whole_numbers(lo: int, hi: int):
+    """An argparse ``type`` for a comma-separated list of whole numbers in [lo, hi] (e.g. joints 2,4)."""
+    one = count(lo, hi)
+
+    def parse(text: str):
+        cells = [c.strip() for c in str(text).split(",")]
+        if not all(cells):
+            raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated whole numbers")
+        return tuple(one(c) for c in cells)
+
+    parse.__name__ = f"whole numbers in [{lo}, {hi}]"
+    return parse
+
+
+def names_list(text: str) -> tuple:
+    """An argparse ``type`` for a comma-separated list of names (at least one; blanks dropped)."""
+    names = tuple(n.strip() for n in str(text).split(",") if n.strip())
+    if not names:
+        raise argparse.ArgumentTypeError(f"{text!r} names nothing (expected NAME[,NAME...])")
+    return names
+
+
+def existing(kind: str = "file", names: str | None = None):
+    """An argparse ``type`` for an input path that must exist as a ``file`` or a ``folder``.
+
+    Parameters
+    ----------
+    kind : "file" or "folder"
+    names : "robots" or "layouts": a built-in name (``panda``, ``thesis``) is accepted too
+
+    Returns
+    -------
+    callable str -> str (the text unchanged)
+    """
+
+    def parse(text: str) -> str:
+        p = Path(text)
+        if p.exists():
+            if kind == "file" and p.is_dir():
+                raise argparse.ArgumentTypeError(f"{text} is a folder (expected a file)")
+            if kind == "folder" and not p.is_dir():
+                raise argparse.ArgumentTypeError(f"{text} is a file (expected a folder)")
+            return text
+        if names is not None:
+            from lasercal.solver.errors import FormatError
+            from lasercal.solver.formats.data import resolve
+
+            if not str(text).lower().endswith(".urdf"):
+                try:
+                    resolve(names, text)
+                    return text
+                except FormatError as e:
+                    raise argparse.ArgumentTypeError(f"{text}: {e.reason}") from None
+        raise argparse.ArgumentTypeError(f"{text}: no such {kind}")
+
+    parse.__name__ = kind
+    return parse
+
+
+def trigger(text: str) -> str:
+    """An argparse ``type`` for ``--trigger``: enter, serial:URL or pilot (checked even where unused)."""
+    if text in ("enter", "pilot") or (text.startswith("serial:") and len(text) > len("serial:")):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r}: expected enter, serial:URL or pilot")
+
+
+INFILE = existing("file")
+INFOLDER = existing("folder")
+ROBOT = existing("file", "robots")
+LAYOUT = existing("file", "layouts")
+
+OUTPUT_KINDS = ("file", "folder", "into")
+
+
+def output_argument(
+    p: argparse.ArgumentParser, *flags: str, kind: str = "file", instead: str | None = None, **kw
+) -> argparse.Action:
+    """Declare an output path option; :func:`check_outputs` checks it before the handler runs.
+
+    Parameters
+    ----------
+    p : the command's parser
+    flags : e.g. ``"-o", "--output"``
+    kind : "file" (a new file), "folder" (a new or empty folder) or "into" (a folder written into,
+        created if missing; files of the same names are replaced)
+    instead : what to do when the output exists ('{path}' is replaced); default: pass --force
+    kw : the other ``add_argument`` arguments (help, required, metavar, default)
+    """
+    action = p.add_argument(*flags, **kw)
+    declared = list(p.get_default("_outputs") or [])
+    declared.append((action.dest, flags[-1] if len(flags) == 1 else flags[0], kind, instead))
+    p.set_defaults(_outputs=declared)
+    return action
+
+
+def check_outputs(args) -> None:
+    """Check every output path the command declared (:func:`output_argument`), before any work.
+
+    Raises
+    ------
+    SessionError
+        One line naming the option and the path (missing or unwritable folder, a file where a folder
+        is expected or the other way round, an output that exists and is kept).
+    """
+    declared = getattr(args, "_outputs", None) or ()
+    if not declared:
+        return
+    from lasercal.collector.errors import SessionError
+    from lasercal.collector.sessions.store import check_output
+
+    outputs = {dest for dest, *_ in declared}
+    inputs = [  # every other path the command was given that exists: an output must not replace one
+        (k, Path(v).resolve())
+        for k, vals in vars(args).items()
+        if k not in outputs and k != "command" and not k.startswith("_")  # 'report -o report' is fine
+        for v in (vals if isinstance(vals, list | tuple) else [vals])
+        if isinstance(v, str) and v.strip() and Path(v).exists()
+    ]
+    seen = {}
+    for dest, flag, kind, instead in declared:
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        out = Path(value).resolve() if str(value).strip() else None
+        if out is not None:
+            if out in seen:
+                raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
+            seen[out] = flag
+            for k, p in inputs:
+                # a file is replaced, a folder replaced whole; files written into a folder replace neither
+                if (kind == "file" and p == out) or (kind == "folder" and (p == out or out in p.parents)):
+                    raise SessionError(
+                        f"{flag} {value}: would replace the input {p} (argument {k}; expected another path)"
+                    )
+        check_output(
+            value,
+            folder=kind != "file",
+            into=kind == "into",
+            force=bool(getattr(args, "force", False)),
+            option=flag,
+            instead=(instead or "pass --force to replace it").replace("{path}", str(value)),
+        )
+
+
+def unused(args, why: str, *dests: str) -> None:
+    """Warn about each option among ``dests`` that was given (differs from its default) but is not used:
+    ``--imagej-box 32`` without ``--method imagej`` would otherwise be dropped in silence."""
+    from lasercal.solver.errors import warn
+
+    defaults = getattr(args, "_defaults", {})
+    for d in dests:
+        value = getattr(args, d, None)
+        if d in defaults and value != defaults[d] and value not in (None, False):
+            shown = " ".join(map(str, value)) if isinstance(value, list | tuple) else value
+            warn(f"--{d.replace('_', '-')} {shown}: ignored ({why})")
 
 
 SEED = count(0, 2**32 - 1)
@@ -57,7 +247,7 @@ def chain_arguments(p: argparse.ArgumentParser, robot_help: str | None = None) -
     """``--base-link`` and ``--tip-link`` (a URDF chain's ends), and ``--robot`` when ``robot_help``; a
     session's robot (``SESSION_ROBOT``) comes with ``--prior``, the prior of its fits."""
     if robot_help:
-        p.add_argument("--robot", metavar="ROBOT", help=robot_help)
+        p.add_argument("--robot", type=ROBOT, metavar="ROBOT", help=robot_help)
     if robot_help is SESSION_ROBOT:
         prior_argument(p)
     p.add_argument(
@@ -114,7 +304,9 @@ def backend_arguments(p: argparse.ArgumentParser) -> None:
 
     g = p.add_argument_group("robot backend")
     g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
-    g.add_argument("--robot", help="nominal robot model: name under data/robots/ or YAML (default panda)")
+    g.add_argument(
+        "--robot", type=ROBOT, help="nominal robot model: name under data/robots/ or YAML (default panda)"
+    )
     g.add_argument("--host", help="robot FCI address (franky, panda-py) or rosbridge host (ros)")
     g.add_argument(
         "--dynamics",
@@ -135,12 +327,14 @@ def backend_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--trigger",
+        type=trigger,
         metavar="enter|serial:URL|pilot",
         help="enter (default), serial:URL (button box / foot pedal, pyserial URL) or pilot",
     )
     f = p.add_argument_group("fake backend")
     f.add_argument(
         "--truth",
+        type=ROBOT,
         metavar="ROBOT.yaml",
         help="the fake robot's true geometry: robot YAML or name (default panda_thesis_identified)",
     )

@@ -9,27 +9,41 @@ import sys
 
 import numpy as np
 
-from lasercal.collector.cli.options import SEED, SESSION_ROBOT, chain_arguments, count, number, session_robot
+from lasercal.collector.cli.options import (
+    INFOLDER,
+    LAYOUT,
+    SEED,
+    SESSION_ROBOT,
+    chain_arguments,
+    count,
+    number,
+    output_argument,
+    session_robot,
+)
 
 MIN_SHEET_CAPTURES = 9  # captures from which a sheet session's own fit places the sheet (else its placement)
 
 
 def args_plan(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal plan``."""
-    p.add_argument("session", help="session folder (session.yaml + captures.csv; no captures yet is fine)")
+    p.add_argument(
+        "session", type=INFOLDER, help="session folder (session.yaml + captures.csv; no captures yet is fine)"
+    )
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
-        "--layout", help="layout YAML (default: the points, calibration and validation lists of the session)"
+        "--layout",
+        type=LAYOUT,
+        help="layout YAML (default: the points, calibration and validation lists of the session)",
     )
     p.add_argument(
         "--next", type=count(1, 1000), default=10, metavar="K", help="captures to plan (default 10)"
     )
-    p.add_argument("-o", "--output", metavar="NEXT.csv", help="write point,q1..qN,expected_mm here")
+    output_argument(p, "-o", "--output", metavar="NEXT.csv", help="write point,q1..qN,expected_mm here")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.add_argument("--json", action="store_true", help="print the plan and the prediction as JSON")
     p.add_argument(
         "--workspace",
-        type=number(-1e5, 1e5, "mm"),
+        type=number(-1e5, 1e5, "mm", metres=True),
         nargs=6,
         metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
         help="predict the error at points in this box (mm) instead of the layout's validation points",
@@ -45,13 +59,11 @@ def args_plan(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_plan(args) -> int:
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.design import Coach, DesignError, posterior
     from lasercal.solver.formats.session import load_layout, load_session, session_layout
     from lasercal.solver.identify.spot import identify_lm, in_base_frame
 
-    if args.output:
-        check_output(args.output, force=args.force)
     session = load_session(args.session, **session_robot(args))
     if session.measurement != "laser":
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")

@@ -6,7 +6,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from lasercal.collector.cli.options import SESSION_ROBOT, bootstrap_arguments, chain_arguments, session_robot
+from lasercal.collector.cli.options import (
+    INFOLDER,
+    ROBOT,
+    SESSION_ROBOT,
+    bootstrap_arguments,
+    chain_arguments,
+    output_argument,
+    session_robot,
+)
 from lasercal.solver.formats.export import FORMATS
 
 
@@ -15,12 +23,19 @@ def args_report(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "folders",
         nargs="+",
+        type=INFOLDER,
         metavar="SESSION",
         help="one capture session folder (session.yaml) and any number of lasercal validate folders "
         "(validation.yaml) at one point, shown in the order given (e.g. the nominal model's first)",
     )
-    p.add_argument(
-        "-o", "--output", required=True, metavar="DIR", help="folder for index.html and its PNG plots"
+    output_argument(
+        p,
+        "-o",
+        "--output",
+        kind="folder",
+        required=True,
+        metavar="DIR",
+        help="folder for index.html and its PNG plots",
     )
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
@@ -32,10 +47,13 @@ def args_report(p: argparse.ArgumentParser) -> None:
 
 def args_export(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal export``."""
-    p.add_argument("model", help="robot model YAML (e.g. written by lasercal solve) or a built-in name")
-    p.add_argument("--format", choices=FORMATS, default="urdf", help="urdf (default), dh or yaml")
-    p.add_argument("-o", "--output", metavar="FILE", help="write here (default: standard output)")
     p.add_argument(
+        "model", type=ROBOT, help="robot model YAML (e.g. written by lasercal solve) or a built-in name"
+    )
+    p.add_argument("--format", choices=FORMATS, default="urdf", help="urdf (default), dh or yaml")
+    output_argument(p, "-o", "--output", metavar="FILE", help="write here (default: standard output)")
+    output_argument(
+        p,
         "--sensor-output",
         metavar="FILE",
         help="urdf of a model from a URDF: also write the sensor-to-base transform as a URDF of its own",
@@ -48,13 +66,12 @@ def cmd_report(args) -> int:
 
     from lasercal.collector.errors import SessionError
     from lasercal.collector.report.html import load_validation, write_report
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import fit
+    from lasercal.solver.identify.measurement import check_data, fit
 
-    check_output(args.output, folder=True, force=args.force)
     sessions, validations = [], []
     for f in map(Path, args.folders):
         if (f / "session.yaml").is_file():
@@ -84,6 +101,7 @@ def cmd_report(args) -> int:
         raise FormatError(
             sessions[0], "the report covers laser sessions (spots on a plane)", field="measurement"
         )
+    check_data(session)
     ident = fit(session, method=args.method)
     d = diagnose(session, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
     with atomic_output(args.output, folder=True) as tmp:
@@ -93,14 +111,10 @@ def cmd_report(args) -> int:
 
 
 def cmd_export(args) -> int:
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.formats.export import export
     from lasercal.solver.formats.robots import load_model
 
-    if args.output:
-        check_output(args.output, force=args.force)
-    if args.sensor_output:
-        check_output(args.sensor_output, force=args.force)
     model = load_model(args.model)
     text = export(model, args.format)
     if args.sensor_output:

@@ -11,12 +11,19 @@ from typing import TYPE_CHECKING
 
 from lasercal.collector.cli.options import (
     FOLDS,
+    INFILE,
+    INFOLDER,
+    LAYOUT,
+    ROBOT,
     SEED,
     SESSION_ROBOT,
     chain_arguments,
     count,
     number,
+    output_argument,
     session_robot,
+    unused,
+    whole_numbers,
 )
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS
 
@@ -28,8 +35,8 @@ if TYPE_CHECKING:  # annotations only: the modules load when a command runs
 
 def args_solve(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal solve``."""
-    p.add_argument("session", help="session folder (session.yaml + captures.csv)")
-    p.add_argument("-o", "--output", required=True, help="identified model YAML to write")
+    p.add_argument("session", type=INFOLDER, help="session folder (session.yaml + captures.csv)")
+    output_argument(p, "-o", "--output", required=True, help="identified model YAML to write")
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
         "--method",
@@ -60,8 +67,8 @@ def args_solve(p: argparse.ArgumentParser) -> None:
 
 def args_predict(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal predict``."""
-    p.add_argument("model", help="robot model YAML")
-    p.add_argument("configs", help="configurations CSV (q1..qN; t, tau1..tauN optional)")
+    p.add_argument("model", type=ROBOT, help="robot model YAML")
+    p.add_argument("configs", type=INFILE, help="configurations CSV (q1..qN; t, tau1..tauN optional)")
     p.add_argument(
         "--plane-z", type=number(-5000, 5000, "mm"), help="plane height, mm (default: the model's plane)"
     )
@@ -69,8 +76,12 @@ def args_predict(p: argparse.ArgumentParser) -> None:
 
 def args_simulate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal simulate``."""
-    p.add_argument("truth", help="true robot model YAML, URDF (position sessions) or built-in name")
-    p.add_argument("--layout", help="layout YAML with the reference points (laser and point sessions)")
+    p.add_argument(
+        "truth", type=ROBOT, help="true robot model YAML, URDF (position sessions) or built-in name"
+    )
+    p.add_argument(
+        "--layout", type=LAYOUT, help="layout YAML with the reference points (laser and point sessions)"
+    )
     p.add_argument(
         "--measurement",
         choices=["laser", "position"],
@@ -90,7 +101,9 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument(
-        "--robot", help="nominal robot the session names (default: the truth file's 'nominal' key)"
+        "--robot",
+        type=ROBOT,
+        help="nominal robot the session names (default: the truth file's 'nominal' key)",
     )
     p.add_argument(
         "--sheet-pose",
@@ -108,21 +121,24 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         help="hide a non-geometric effect in the data",
     )
     p.add_argument(
-        "--effect-joints", default="2", help="1-based joints of a joint effect, comma-separated (default 2)"
+        "--effect-joints",
+        type=whole_numbers(1, 64),
+        default="2",
+        help="1-based joints of a joint effect, comma-separated (default 2)",
     )
     p.add_argument("--effect-point", help="the reference point of a reference_point_offset")
     p.add_argument(
         "--effect-size",
-        type=number(),
+        type=number(-100, 100),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
-    p.add_argument("-o", "--output", required=True, help="session folder to write")
+    output_argument(p, "-o", "--output", kind="folder", required=True, help="session folder to write")
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def cmd_solve(args) -> int:
     from lasercal.collector.report.text import format_diagnosis, format_solve
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.control.nominal import robot_reference
@@ -131,9 +147,13 @@ def cmd_solve(args) -> int:
     from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
     from lasercal.solver.kinematics.effects import robot_extensions
 
-    check_output(args.output, force=args.force)
     session = load_session(args.session, **session_robot(args))
     check_data(session)
+    if args.folds > session.m:
+        raise IdentificationError(
+            f"--folds {args.folds}: more folds than the session's {session.m} captures (expected 2 .. "
+            f"{session.m}, or 0 for none)"
+        )
     diagnosis = None
     robust = not args.no_robust
     if args.extend != "none" and args.method != "lm":
@@ -222,7 +242,7 @@ def cmd_solve(args) -> int:
 def cmd_predict(args) -> int:
     import numpy as np
 
-    from lasercal.solver.errors import FormatError
+    from lasercal.solver.errors import FormatError, warn
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_configs
     from lasercal.solver.identify.point import tips
@@ -266,10 +286,10 @@ def cmd_predict(args) -> int:
         xy = [f"{s[0]:.6f}", f"{s[1]:.6f}"] if ok else ["", ""]
         w.writerow(row + xy + [f"{t:.6f}" if np.isfinite(t) else "", "true" if ok else "false"])
     if not valid.all():
-        print(
-            f"lasercal: {int((~valid).sum())} of {len(valid)} configurations have no spot: the beam points "
-            f"away from the plane z = {z:g} mm or runs along it (valid = false, spot left empty)",
-            file=sys.stderr,
+        where = "--plane-z" if args.plane_z is not None else f"{args.model}, field 'plane.z'"
+        warn(
+            f"{where}: {int((~valid).sum())} of {len(valid)} configurations have no spot: the beam points "
+            f"away from the plane z = {z:g} mm or runs along it (valid = false, spot left empty)"
         )
     return 0
 
@@ -283,6 +303,13 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
     from lasercal.solver.kinematics.effects import Extension
 
     if not args.effect:
+        given = [
+            f for f, v in (("--effect-size", args.effect_size), ("--effect-point", args.effect_point)) if v
+        ]
+        if given:
+            raise FormatError(
+                "--effect", f"{given[0]} was given without --effect NAME (which effect to hide?)"
+            )
         return None
     if args.effect_size is None:
         raise FormatError("--effect-size", "give the size of the hidden effect")
@@ -296,10 +323,7 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
             )
         phi = rng.uniform(0, 2 * np.pi)
         return Extension(args.effect, (), args.effect_point, size * np.array([np.cos(phi), np.sin(phi)]))
-    try:
-        joints = tuple(int(j) for j in str(args.effect_joints).split(","))
-    except ValueError:
-        raise FormatError("--effect-joints", "joints must be comma-separated integers") from None
+    joints = tuple(args.effect_joints)
     if any(not 1 <= j <= n for j in joints):
         raise FormatError("--effect-joints", f"joints are numbered 1..{n}")
     if args.effect == "encoder_eccentricity":
@@ -340,16 +364,17 @@ def sheet_world(truth, nominal, layout, pose):
 def cmd_simulate(args) -> int:
     import numpy as np
 
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
-    check_output(args.output, folder=True, force=args.force)
     path = Path(args.truth) if str(args.truth).lower().endswith(".urdf") else resolve_robot_path(args.truth)
     if args.measurement == "position":
         from lasercal.collector.cli.position import cmd_simulate_position
+
+        unused(args, "a position session has no reference points", "layout", "per_point", "aim_noise")
 
         n = load_model(path, base_link=args.base_link, tip_link=args.tip_link).n
         return cmd_simulate_position(
@@ -357,6 +382,7 @@ def cmd_simulate(args) -> int:
         )
     if not args.layout:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
+    unused(args, "an option of --measurement position", "configs", "targets", "noise")
     truth = load_model(path, base_link=args.base_link, tip_link=args.tip_link)
     raw = load_yaml(path)
     nominal = args.robot or raw.get("nominal") or str(path.resolve())

@@ -7,28 +7,38 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from lasercal.collector.cli.options import SEED, count, prior_argument
+from lasercal.collector.cli.options import INFOLDER, SEED, count, names_list, output_argument, prior_argument
 from lasercal.collector.studies.options import QUICK, ROBOTS, StudyOptions
 
 
 def args_import_mukca(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal import-mukca``."""
-    p.add_argument("robot_dir", help="e.g. ../shared/data/mukca/panda_1")
-    p.add_argument("-o", "--output", required=True, help="session folder to write")
-    p.add_argument("--positions", help="comma-separated tool positions to import (default: all)")
+    p.add_argument("robot_dir", type=INFOLDER, help="e.g. ../shared/data/mukca/panda_1")
+    output_argument(p, "-o", "--output", kind="folder", required=True, help="session folder to write")
+    p.add_argument(
+        "--positions", type=names_list, help="comma-separated tool positions to import (default: all)"
+    )
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_study_mukca(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal study-mukca``."""
     p.add_argument(
-        "data_dir", help="folder holding panda_1 ... (and panda_k_clean), e.g. ../shared/data/mukca"
+        "data_dir",
+        type=INFOLDER,
+        help="folder holding panda_1 ... (and panda_k_clean), e.g. ../shared/data/mukca",
     )
-    p.add_argument(
-        "-o", "--output", required=True, help="report folder (report.json, report.md, PNG plots, sessions/)"
+    output_argument(
+        p,
+        "-o",
+        "--output",
+        kind="folder",
+        required=True,
+        help="report folder (report.json, report.md, PNG plots, sessions/)",
     )
     p.add_argument(
         "--robots",
+        type=names_list,
         default=",".join(ROBOTS),
         help=f"comma-separated robot folders (default {','.join(ROBOTS)})",
     )
@@ -55,11 +65,10 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_import(args) -> int:
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.collector.studies.mukca_import import import_mukca
 
-    only = [p.strip() for p in args.positions.split(",")] if args.positions else None
-    check_output(args.output, folder=True, force=args.force)
+    only = list(args.positions) if args.positions else None
     with atomic_output(args.output, folder=True) as tmp:
         import_mukca(args.robot_dir, tmp, only)
     print(f"wrote {args.output}")
@@ -67,22 +76,17 @@ def cmd_import(args) -> int:
 
 
 def cmd_study(args) -> int:
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.collector.studies.mukca import run_study
     from lasercal.solver.errors import LasercalError
 
     opts = replace(QUICK if args.quick else StudyOptions(), seed=args.seed, jobs=args.jobs, prior=args.prior)
     if args.bootstrap is not None:
         opts = replace(opts, bootstrap=args.bootstrap)
-    robots = [r.strip() for r in args.robots.split(",") if r.strip()]
-    if not robots:
-        raise LasercalError(
-            f"--robots {args.robots!r}: no robot folder named (expected e.g. panda_1,panda_2)"
-        )
+    robots = list(args.robots)
     missing = [r for r in robots if not (Path(args.data_dir) / r).is_dir()]
     if missing:
         raise LasercalError(f"--robots: no folder {missing[0]} in {args.data_dir}")
-    check_output(args.output, folder=True, force=args.force)
     with atomic_output(args.output, folder=True) as tmp:
         rep = run_study(args.data_dir, tmp, robots, opts)
     print(

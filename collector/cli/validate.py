@@ -5,22 +5,40 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lasercal.collector.cli.options import backend_arguments, count, motion_arguments
+from lasercal.collector.cli.options import (
+    INFOLDER,
+    LAYOUT,
+    ROBOT,
+    backend_arguments,
+    count,
+    motion_arguments,
+    output_argument,
+)
 
 
 def args_validate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal validate``."""
-    p.add_argument("model", nargs="?", help="robot model YAML under test (nominal or identified)")
+    p.add_argument("model", nargs="?", type=ROBOT, help="robot model YAML under test (nominal or identified)")
     p.add_argument("--point", help="validation point (default: the layout's first validation point)")
     p.add_argument("-n", type=count(1, 10000), default=60, help="configurations (default 60)")
-    p.add_argument(
-        "-o", "--output", metavar="DIR", help="new folder: validation.yaml, validation.csv, photos/"
+    output_argument(
+        p,
+        "-o",
+        "--output",
+        kind="folder",
+        instead="resume it with --resume {path}",
+        metavar="DIR",
+        help="new folder: validation.yaml, validation.csv, photos/",
     )
     p.add_argument(
-        "--resume", metavar="DIR", help="continue an interrupted validation run (its settings are kept)"
+        "--resume",
+        type=INFOLDER,
+        metavar="DIR",
+        help="continue an interrupted validation run (its settings are kept)",
     )
     p.add_argument(
         "--layout",
+        type=LAYOUT,
         help="layout YAML (required for a real robot; default with --backend fake: the thesis layout)",
     )
     motion_arguments(p)

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasercal.collector.cli.options import number
+from lasercal.collector.cli.options import INFILE, LAYOUT, count, number, output_argument, unused
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.vision.measure import Options
@@ -41,6 +41,10 @@ def _expect(text: str) -> int | None:
     return n
 
 
+def _reference(text: str) -> str:
+    return text if text == "median" else INFILE(text)
+
+
 def _pattern_size(text: str) -> tuple[int, int]:
     try:
         cols, rows = (int(x) for x in text.lower().split("x"))
@@ -53,13 +57,18 @@ def _pattern_size(text: str) -> tuple[int, int]:
 
 def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> None:
     p.add_argument(
-        "--layout", metavar="LAYOUT.yaml", help="layout with a 'markers' section: report x_mm, y_mm"
+        "--layout",
+        type=LAYOUT,
+        metavar="LAYOUT.yaml",
+        help="layout with a 'markers' section: report x_mm, y_mm",
     )
     p.add_argument(
-        "--camera", metavar="CAMERA.yaml", help="camera YAML from camera-calibrate: undo lens distortion"
+        "--camera",
+        metavar="CAMERA.yaml",
+        help="camera YAML from camera-calibrate: undo lens distortion",
     )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument("--overlay", metavar="DIR", help="write annotated PNGs to DIR")
+    output_argument(p, "--overlay", kind="into", metavar="DIR", help="write annotated PNGs to DIR")
     p.add_argument(
         "--method",
         choices=("precise", "imagej"),
@@ -80,7 +89,7 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
     )
     p.add_argument(
         "--imagej-box",
-        type=int,
+        type=count(0, 100000),
         default=64,
         metavar="PX",
         help="imagej: side of the box drawn around each spot, px; 0: the whole photo (default 64)",
@@ -93,6 +102,7 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
     )
     p.add_argument(
         "--reference",
+        type=_reference,
         metavar="OFF.jpg|median",
         help="laser-off photo of the same view, or 'median' of the photos given",
     )
@@ -112,9 +122,9 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
     )
     p.add_argument(
         "--gamma",
-        type=float,
+        type=number(0.5, 4),
         default=2.2,
-        help="encoding gamma of the photos (2.2 camera JPEG, 1 linear data)",
+        help="encoding gamma of the photos, in [0.5, 4] (2.2 camera JPEG, 1 linear data)",
     )
     p.add_argument(
         "--channel",
@@ -142,7 +152,7 @@ def args_beam_check(p: argparse.ArgumentParser) -> None:
     p.add_argument("images", nargs="+", metavar="IMAGE")
     p.add_argument(
         "--laser-length",
-        type=float,
+        type=number(0, 1e4, "mm", lo_open=True, metres=True),
         metavar="MM",
         help="distance from where the beam meets the joint-7 axis to the plane, mm (for the tilt)",
     )
@@ -152,26 +162,32 @@ def args_beam_check(p: argparse.ArgumentParser) -> None:
 def args_camera_calibrate(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal camera-calibrate``."""
     p.add_argument("photos", nargs="+", metavar="PHOTO")
-    p.add_argument("-o", "--output", required=True, metavar="CAMERA.yaml")
+    output_argument(p, "-o", "--output", required=True, metavar="CAMERA.yaml")
     p.add_argument("--force", action="store_true", help="replace an existing camera YAML")
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--chessboard", type=_pattern_size, metavar="COLSxROWS", help="inner corners, e.g. 9x6")
     g.add_argument("--charuco", type=_pattern_size, metavar="COLSxROWS", help="squares, e.g. 7x5")
     p.add_argument(
         "--square",
-        type=number(0, 1000, "mm", lo_open=True),
+        type=number(0, 1000, "mm", lo_open=True, metres=True),
         required=True,
         metavar="MM",
         help="square side, mm",
     )
     p.add_argument(
-        "--marker", type=number(0, 1000, "mm", lo_open=True), metavar="MM", help="ChArUco marker side, mm"
+        "--marker",
+        type=number(0, 1000, "mm", lo_open=True, metres=True),
+        metavar="MM",
+        help="ChArUco marker side, mm",
     )
     p.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary (default DICT_4X4_50)")
 
 
 def _options(args) -> Options:
     from lasercal.vision.measure import Options
+
+    if args.method != "imagej":
+        unused(args, "an option of --method imagej", "imagej_mode", "imagej_threshold", "imagej_box")
 
     return Options(
         args.method,
@@ -343,8 +359,6 @@ def beam_check_command(args) -> int:
     from lasercal.vision.beamcheck import fit_circle, tilt
     from lasercal.vision.errors import CalibrationError, VisionError
 
-    if args.laser_length is not None and args.laser_length <= 0:
-        raise VisionError(f"--laser-length must be positive, got {args.laser_length} mm")
     if args.expect != 1:
         raise VisionError("beam-check takes one spot per photo (--expect 1)")
     measured, layout = _measure_all(args)
@@ -356,6 +370,13 @@ def beam_check_command(args) -> int:
             f"beam-check needs at least 3 photos with a spot, {len(results)} of {len(args.images)} had one"
         )
     uv = np.array([[r.spots[0].u, r.spots[0].v] for _, r in results])
+    d = np.linalg.norm(uv[:, None] - uv[None], axis=2) + np.eye(len(uv))
+    if d.min() < 1e-3:  # a photo given twice (or taken twice at one angle) is no second point of the circle
+        i, j = sorted(np.unravel_index(np.argmin(d), d.shape))
+        raise CalibrationError(
+            f"{results[i][0]['image']} and {results[j][0]['image']} show the same spot ({uv[i, 0]:.2f}, "
+            f"{uv[i, 1]:.2f}) px: the same photo twice? (expected one photo per joint-7 angle)"
+        )
     c_px = fit_circle(uv)
     mm = all(r.plane is not None for _, r in results)
     c_mm = fit_circle(np.array([[r.spots[0].x_mm, r.spots[0].y_mm] for _, r in results])) if mm else None
@@ -424,14 +445,11 @@ def camera_calibrate_command(args) -> int:
     """``lasercal camera-calibrate``: write a camera YAML."""
     import numpy as np
 
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.vision.camera import calibrate, save_camera
     from lasercal.vision.errors import CalibrationError, VisionError
     from lasercal.vision.images import read_image, to_gray
 
-    check_output(args.output, force=args.force)
-    if args.square <= 0:
-        raise VisionError(f"--square must be positive, got {args.square} mm")
     if args.charuco:
         if args.marker is None or not 0 < args.marker < args.square:
             raise VisionError("--charuco needs --marker MM, smaller than --square")
@@ -444,6 +462,7 @@ def camera_calibrate_command(args) -> int:
             "dictionary": args.dictionary,
         }
     else:
+        unused(args, "a chessboard has no markers", "marker", "dictionary")
         pattern = {
             "type": "chessboard",
             "cols": args.chessboard[0],

@@ -31,6 +31,7 @@ from lasercal.collector.report.text import format_diagnosis
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.table import csv_rows
@@ -93,10 +94,14 @@ def load_validation(folder) -> Validation:
     meta = load_yaml(ypath)
     try:
         point, xyz = str(meta["point"]["name"]), np.array(meta["point"]["xyz"], dtype=float).reshape(3)
+        if not np.all(np.abs(xyz) <= 1e5):  # NaN (a blank) fails too
+            raise ValueError
     except (TypeError, KeyError, ValueError):
         raise FormatError(
-            ypath, "not a lasercal validation (expected point: {name, xyz})", field="point"
+            ypath, "not a lasercal validation (expected point: {name, xyz: [x, y, z] in mm})", field="point"
         ) from None
+    if metres_hint(xyz):
+        raise FormatError(ypath, f"point xyz {xyz.tolist()}: {metres_hint(xyz)}", field="point.xyz")
     rows = csv_rows(cpath)
     if not rows or not {"x_mm", "y_mm"} <= set(rows[0][1]):
         raise FormatError(cpath, "expected a header with x_mm and y_mm", line=rows[0][0] if rows else None)
@@ -136,6 +141,9 @@ def load_validation(folder) -> Validation:
         raise FormatError(
             cpath, "no measured spot (x_mm, y_mm empty): measure the photos first (lasercal spots)"
         )
+    hint = metres_hint(np.c_[np.array(spots), np.zeros(len(spots))])
+    if hint:
+        raise FormatError(cpath, f"measured spots: {hint}", field="x_mm")
     simulated = bool(meta.get("simulated")) or "fake" in (meta.get("backend"), meta.get("camera"))
     return Validation(
         folder,

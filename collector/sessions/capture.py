@@ -25,7 +25,7 @@ from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
-from lasercal.solver.formats.session import Layout, session_meta
+from lasercal.solver.formats.session import Layout, check_aperture, session_meta
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -294,6 +294,8 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
     columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
     fake = cfg["backend"] == "fake"
     aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if fake else None)
+    if aperture is not None:  # refused now, not when the finished session is loaded
+        check_aperture("--aperture-z", aperture, nominal)
     collector = {
         **cfg,
         "aperture_z": aperture,

@@ -94,8 +94,14 @@ class StartedCapture:
         CaptureResult
         """
         cfg, layout = self.settings.cfg, self.settings.layout
-        # Built here, not at start: the coach's design takes a while, after the resume is announced.
-        coach = session_coach(self.store, self.nominal, layout.in_base(), cfg) if self.coach else None
+        try:
+            # Built here, not at start: the coach's design takes a while, after the resume is announced.
+            coach = session_coach(self.store, self.nominal, layout.in_base(), cfg) if self.coach else None
+        except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
+            self.store.close()
+            if not self.settings.resume and not self.store.point:
+                self.store.remove_empty()
+            raise
         try:
             real = cfg["backend"] != "fake"
             return run_capture(

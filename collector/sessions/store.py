@@ -64,6 +64,7 @@ def check_output(
     force: bool = False,
     option: str = "-o",
     instead: str = "pass --force to replace it",
+    into: bool = False,
 ) -> Path:
     """Check an output path before any work starts: its folder exists, it is not kept unless ``force``.
 
@@ -72,6 +73,8 @@ def check_output(
     path : str or Path, a file (``folder=False``) or a folder to be written
     folder : bool, the output is a folder (an existing empty folder is fine)
     force : bool, an existing output may be replaced
+    into : bool, a folder that files are written into (``--overlay``, ``--report``): it may exist
+        and hold other files
     option : str, how the command line named it (for the message)
     instead : str, what to do when the output exists (the message's end)
 
@@ -82,17 +85,24 @@ def check_output(
     """
     p = Path(path)
     where = f"{option} {p}"
+    if not str(path).strip():
+        raise SessionError(f"{option}: an empty path (expected a {'folder' if folder else 'file'} name)")
     parent = p.resolve().parent
+    if parent.exists() and not parent.is_dir():
+        raise SessionError(f"{where}: {parent} is a file (expected a folder)")
     if not parent.is_dir():
         raise SessionError(f"{where}: the folder {parent} does not exist (expected an existing folder)")
-    if not os.access(parent, os.W_OK):
-        raise SessionError(f"{where}: the folder {parent} is not writable")
+    for f in (parent, p) if into and p.is_dir() else (parent,):
+        try:  # a probe, not os.access: root passes access() on a read-only or pseudo file system
+            tempfile.TemporaryFile(dir=f).close()
+        except OSError as e:
+            raise SessionError(f"{where}: cannot write in the folder {f} ({e.strerror})") from None
     if p.exists():
         if folder and not p.is_dir():
             raise SessionError(f"{where}: is a file (expected a folder)")
         if not folder and p.is_dir():
             raise SessionError(f"{where}: is a folder (expected a file name)")
-        if not force and (not folder or any(p.iterdir())):
+        if not force and not into and (not folder or any(p.iterdir())):
             raise SessionError(f"{where}: exists and is kept ({instead})")
     return p
 
@@ -296,6 +306,14 @@ class CaptureStore:
         self.t.pop()
         self.q.pop()
         return self.point.pop()
+
+    def remove_empty(self) -> None:
+        """Remove a session that holds no capture (session.yaml, the header and the folder if then empty):
+        a new session that could not start leaves nothing behind."""
+        for name in ("captures.csv", "session.yaml"):
+            (self.folder / name).unlink(missing_ok=True)
+        if not any(self.folder.iterdir()):
+            self.folder.rmdir()
 
     def counts(self, names) -> dict:
         """Captures on disk per point name."""

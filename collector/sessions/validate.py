@@ -30,7 +30,6 @@ from lasercal.collector.sessions.store import CsvLog, write_atomic, write_atomic
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.table import csv_rows
-from lasercal.solver.kinematics.aim import aim
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
@@ -38,6 +37,19 @@ from lasercal.vision.exposure import exposure_advice
 from lasercal.vision.render import LaserSpot, Photo, View, look_down, render
 
 VALIDATION_FORMAT = "lasercal-validation/1"
+
+
+def _absent(device) -> bool:
+    """A camera that surely is not there: a Linux device index without /dev/videoN, or a frame-file
+    pattern (frames/%04d.png) with none of its first files."""
+    if isinstance(device, int):
+        return sys.platform.startswith("linux") and not Path(f"/dev/video{device}").exists()
+    if "%" not in device or "://" in device:
+        return False
+    try:
+        return not any(Path(device % i).exists() for i in range(5))  # OpenCV starts at 0 .. 4
+    except (TypeError, ValueError):  # not a printf pattern: let OpenCV judge
+        return False
 
 
 class OpenCVCamera:
@@ -53,6 +65,11 @@ class OpenCVCamera:
 
     def __init__(self, device, flush: int = 3):
         self.device, self.flush = device, flush
+        if _absent(device):  # checked here: OpenCV would print lines of its own before failing
+            raise DeviceError(
+                f"camera: cannot open {device!r}: no such device or frame files (a device index such as 0, a "
+                "stream URL, or frames/%04d.png)"
+            )
         self._cap = cv2.VideoCapture(device)
         if not self._cap.isOpened():
             raise DeviceError(
@@ -353,7 +370,7 @@ def run_validation(
     folder = Path(folder)
     if not resume and (folder / "validation.csv").exists():
         raise SessionError(f"{folder} already holds a validation run: resume it with --resume {folder}")
-    planned = aim(model, p, opts.n, np.random.default_rng(opts.seed), **layout.aim_kwargs())
+    planned = layout.aim_at(model, point, opts.n, np.random.default_rng(opts.seed))
     guided = opts.guide or not robot.can_move
     if guided and trigger is None:
         raise DeviceError(

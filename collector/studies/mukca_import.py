@@ -16,13 +16,16 @@ import numpy as np
 
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model
-from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, Session, write_session
+from lasercal.solver.formats.session import SESSION_FORMAT, UNITS, Session, check_limits, write_session
 from lasercal.solver.formats.table import csv_rows
 
 HOLE_DISTANCE = 50.0  # mm, checked with calipers by the authors
 # Nominal ball centre at q = 0: the hand's TCP is 103.4 mm beyond the flange (88, 0, 926) along
 # the flange z axis (down at q = 0), and the ball centre 30.1 mm beyond the TCP.
 NOMINAL_TOOL = (88.0, 0.0, 926.0 - 103.4 - 30.1)
+
+
+HOLES = ("hole_0.csv", "hole_1.csv")
 
 
 def read_hole(path: Path) -> np.ndarray:
@@ -57,11 +60,17 @@ def _is_float(v: str) -> bool:
 
 def positions(robot_dir: Path) -> list[str]:
     """Tool positions (folders holding hole_0.csv and hole_1.csv), sorted."""
-    return sorted(
-        p.name
-        for p in Path(robot_dir).iterdir()
-        if (p / "hole_0.csv").is_file() and (p / "hole_1.csv").is_file()
-    )
+    return sorted(p.name for p in Path(robot_dir).iterdir() if all((p / h).is_file() for h in HOLES))
+
+
+def half_positions(robot_dir: Path) -> dict:
+    """Tool positions holding one hole file but not the other: name -> the missing file's path."""
+    out = {}
+    for p in sorted(Path(robot_dir).iterdir()):
+        have = [(p / h).is_file() for h in HOLES]
+        if any(have) and not all(have):
+            out[p.name] = p / HOLES[have.index(False)]
+    return out
 
 
 def position_of(session: Session) -> np.ndarray:
@@ -91,23 +100,27 @@ def import_mukca(robot_dir, out, only: list[str] | None = None) -> Path:
         if missing:
             raise FormatError(robot_dir, f"no tool position {missing[0]!r} (has {', '.join(pos)})")
         pos = [p for p in pos if p in only]
+    half = {p: f for p, f in half_positions(robot_dir).items() if not only or p in only}
+    if half:  # not skipped in silence: a newcomer would calibrate on less data than they think
+        name, path = next(iter(half.items()))
+        raise FormatError(
+            path,
+            f"missing: tool position {name} has only one of {', '.join(HOLES)} (expected both; leave it out "
+            f"with --positions {','.join(pos) or 'POSITIONS'})",
+        )
     if not pos:
         raise FormatError(robot_dir, "no <position>/hole_0.csv, hole_1.csv found")
     names, qs = [], []
+    robot = load_model("panda")
     for p in pos:
         for h in ("hole_0", "hole_1"):
-            q = read_hole(robot_dir / p / f"{h}.csv")
+            path = robot_dir / p / f"{h}.csv"
+            q = read_hole(path)
+            # the solver's rule for measured angles: a hair beyond a limit is kept (warned), further refused
+            check_limits(path, robot, q, [ln for ln, _ in csv_rows(path)])
             qs.append(q)
             names += [f"{p}/{h}"] * len(q)
     q = np.concatenate(qs)
-    robot = load_model("panda")
-    bad = ~robot.within_limits(q, margin=-1e-6)
-    if bad.any():  # report rather than refuse: it is real data; the solver's limit check would stop it
-        i = int(np.flatnonzero(bad)[0])
-        raise FormatError(
-            robot_dir / names[i],
-            f"joint angles outside the Panda's limits at row {i + 1}: {np.round(q[i], 4).tolist()}",
-        )
     meta = {
         "format": SESSION_FORMAT,
         "robot": "panda",

@@ -184,10 +184,7 @@ def use_region(
             # 16 tries: about half of the aiming IK's solutions fail the clearance or singularity test,
             # and 4 (as once here) called a reachable point unreachable for 1 seed in 20
             if not len(_aim_many(model, [p], 16, rng, con, pool=128)[0]):
-                raise DesignError(
-                    f"point {nm} {np.round(p, 1).tolist()} mm is out of reach: no configuration within the "
-                    "joint limits, the aiming range and the table clearance aims at it"
-                )
+                raise DesignError(layout.unreachable(nm))
     q, target = _aim_many(
         model, points, max(n // len(points), 2), rng, con, pool=4 * max(n // len(points), 16)
     )
@@ -251,10 +248,7 @@ def candidates(
             model, [layout.points[nm]], per_point, rng, con, pool=2 * per_point + 40, spread=spread
         )
         if not len(q):
-            raise DesignError(
-                f"point {nm} {np.round(layout.points[nm], 1).tolist()} mm is out of reach: no configuration "
-                "within the joint limits, the aiming range and the table clearance aims at it"
-            )
+            raise DesignError(layout.unreachable(nm))
         qs.append(q)
         ts.append(t)
         ns += [nm] * len(q)

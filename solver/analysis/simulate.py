@@ -73,7 +73,7 @@ def simulate_captures(
     qs, hits = [], []
     for name in names:
         p = layout.points[name]
-        q = aim(truth, p, per_point, rng, **layout.aim_kwargs())
+        q = layout.aim_at(truth, name, per_point, rng)
         hit = p + np.c_[rng.normal(0, aim_noise, (per_point, 2)), np.zeros(per_point)]
         if effect is not None and effect.point == name:
             hit[:, :2] += effect.params[:2]

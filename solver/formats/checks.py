@@ -97,17 +97,39 @@ def degrees_hint(q: np.ndarray, limits: np.ndarray) -> str | None:
 
 
 def read_text(path) -> str:
-    """A text file's contents; FormatError (naming the file) if it cannot be read or is not UTF-8."""
+    """A text file's contents: UTF-8 (a leading byte-order mark dropped), or UTF-16 with its byte-order
+    mark (what a Windows editor saves as 'Unicode'); line ends normalised to ``\\n``.
+
+    Raises
+    ------
+    FormatError
+        Naming the file (and the line of a bad byte): missing, a folder, unreadable, binary (NUL bytes:
+        UTF-16 without a byte-order mark, a spreadsheet, an image) or not UTF-8 text.
+    """
+    import codecs
     from pathlib import Path
 
     from lasercal.solver.errors import FormatError
 
+    p = Path(path)
+    if p.is_dir():
+        raise FormatError(path, "is a folder (expected a text file)")
     try:
-        data = Path(path).read_bytes()
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise FormatError(path, "no such file") from None
     except OSError as e:
         raise FormatError(path, f"cannot read file ({e.strerror})") from None
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        try:
+            return data.decode("utf-16").replace("\r\n", "\n")
+        except UnicodeDecodeError:
+            raise FormatError(path, "not valid UTF-16 text after its byte-order mark") from None
+    if b"\0" in data:
+        line = data[: data.index(b"\0")].count(b"\n") + 1
+        raise FormatError(path, "a binary file, not text (NUL bytes; expected a UTF-8 text file)", line=line)
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig").replace("\r\n", "\n")
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
         raise FormatError(

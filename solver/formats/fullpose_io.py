@@ -316,4 +316,7 @@ def read_pose_csv(path, n: int | None = None) -> PoseData:
             )
         T[i, :3, :3] = R
         T[i, :3, 3] = [_num(path, ln, r, c) for c in ("x", "y", "z")]
+    hint = metres_hint(T[:, :3, 3])
+    if hint:
+        raise FormatError(path, f"pose origins x, y, z: {hint}", line=hline, field="x")
     return PoseData(q, T, np.array([ln for ln, _ in rows]), str(path))

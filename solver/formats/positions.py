@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.session import (
     SESSION_FORMAT,
     UNITS,
@@ -27,6 +28,7 @@ from lasercal.solver.formats.session import (
     _joint_columns,
     _numeric_block,
     check_limits,
+    check_repeats,
     format_row,
 )
 from lasercal.solver.formats.table import read_csv
@@ -65,6 +67,9 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
                 field="rows",
             )
     y = _numeric_block(spath, srows, sheader, ["x", "y", "z"])
+    hint = metres_hint(y)
+    if hint:
+        raise FormatError(spath, f"sensor positions: {hint}", field="x")
     sig = _numeric_block(spath, srows, sheader, ["sigma"], required=False)
     if sig is not None and np.any(sig <= 0):
         r = int(np.argmax(sig[:, 0] <= 0))
@@ -93,6 +98,7 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
     tau = _numeric_block(cpath, rows, header, _joint_columns("tau", n), required=False)
     lines = np.array([ln for ln, _ in rows], dtype=int)
     check_limits(cpath, robot, q, lines)
+    check_repeats(cpath, names, q, lines)
     known = set(qcols + _joint_columns("tau", n) + ["t", "x", "y", "z", "target", "sigma"])
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known

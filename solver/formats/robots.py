@@ -25,6 +25,7 @@ from lasercal.solver.kinematics.sheet import SheetPose
 PLANE_Z = Range(-5000.0, 5000.0, "mm")
 MASS = Range(0.0, 1000.0, "kg")
 _TOL_UNIT = 1e-6  # a printed axis further than this from unit length is reported
+MAX_ABS = 1e6  # no number of a robot file (mm, rad, kg) is this large: 1e308 is a typing accident
 
 
 def _vec(d: dict, key: str, n: int, path, where: str) -> np.ndarray:
@@ -34,9 +35,11 @@ def _vec(d: dict, key: str, n: int, path, where: str) -> np.ndarray:
         a = np.array(d[key], dtype=float).ravel()
     except (TypeError, ValueError):
         raise FormatError(path, f"'{key}' in {where} must be {n} numbers", field=f"{where}.{key}") from None
-    if a.size != n or not np.all(np.isfinite(a)):
+    if a.size != n or not np.all(np.abs(a) <= MAX_ABS):  # NaN fails the test too
         raise FormatError(
-            path, f"'{key}' in {where} must be {n} finite numbers, got {d[key]!r}", field=f"{where}.{key}"
+            path,
+            f"'{key}' in {where} must be {n} finite numbers within +-{MAX_ABS:g}, got {d[key]!r}",
+            field=f"{where}.{key}",
         )
     return a
 
@@ -156,6 +159,10 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         if isinstance(tool, dict) and tool.get("point") is not None
         else None
     )
+    if tool_point is not None and metres_hint(tool_point):
+        raise FormatError(
+            path, f"tool point {tool_point.tolist()}: {metres_hint(tool_point)}", field="tool.point"
+        )
     ee = d.get("ee")
     ee_pose = None
     if isinstance(ee, dict) and ee.get("M") is not None:
@@ -174,6 +181,9 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         if not isinstance(d["targets"], dict):
             raise FormatError(path, "'targets' must be a mapping NAME: [x, y, z] (mm)", field="targets")
         targets = {str(k): _frozen(_vec(d["targets"], k, 3, path, "targets")) for k in d["targets"]}
+        hint = metres_hint(np.array(list(targets.values()))) if targets else None
+        if hint:
+            raise FormatError(path, f"targets: {hint}", field="targets")
     sensor_pose = None
     if isinstance(d.get("sensor"), dict) and d["sensor"].get("T") is not None:
         sensor_pose = _vec(d["sensor"], "T", 16, path, "sensor").reshape(4, 4)

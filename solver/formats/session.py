@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import Range, degrees_hint, metres_hint
+from lasercal.solver.errors import AimingError, FormatError, warn
+from lasercal.solver.formats.checks import METRES_BELOW_MM, Range, degrees_hint, metres_hint
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.formats.table import read_csv
@@ -39,6 +39,13 @@ LAYOUT_FORMAT = "lasercal-layout/1"
 UNITS = {"length": "mm", "angle": "rad", "torque": "Nm", "time": "s"}
 CLOCKS = ("seconds", "order")  # what the t column is: a real clock (s), or the recording order (a count)
 _LIMIT_TOL = 1e-6  # rad: logged angles are allowed to sit on a limit up to rounding
+# A measured angle beyond a (URDF-rounded) limit by at most this much is kept with a warning: measured
+# data is the truth. Further out (a column or unit mistake) it is refused. The slack is the smaller of
+# LIMIT_SLACK_RAD and LIMIT_SLACK_FRACTION of the joint's range (mm for a prismatic joint).
+LIMIT_SLACK_RAD = 0.1
+LIMIT_SLACK_FRACTION = 0.05
+DISTANCE = Range(0.0, 1e5, "mm", lo_open=True)  # a known distance between two points
+MIN_PER_POINT = 3  # captures at one point: fewer cannot tell a point's spread from the model's error
 SAME_POINT_MM = 1.0  # reference points closer than this are one point
 APERTURE_TOL_MM = 100.0  # a measured aperture height further than this from the nominal model's is a mistake
 FRAMES = ("base", "sheet")  # the frame of a layout's points: the robot's base, or a printed sheet's own
@@ -95,6 +102,29 @@ class Layout:
         names = list(self.points)
         xyz = pose.to_base(np.array([self.points[k] for k in names]), self.plane_z)
         return replace(self, points=dict(zip(names, xyz)), frame="base", sheet=None)
+
+    def unreachable(self, name: str) -> str:
+        """The message for a point no configuration can aim at, naming the layout file and the point."""
+        return (
+            f"{self.path}, point {name} {np.round(self.points[name], 1).tolist()} mm: out of reach (no "
+            "configuration within the joint limits, the aiming range and the table clearance aims at it)"
+        )
+
+    def aim_at(self, model: RobotModel, name: str, n: int, rng: np.random.Generator) -> np.ndarray:
+        """Configurations (n, N) of ``model`` aiming at point ``name`` under the layout's hints
+        (:func:`solver.kinematics.aim.aim`).
+
+        Raises
+        ------
+        AimingError
+            Naming the layout file and the point: the aiming IK knows only coordinates.
+        """
+        from lasercal.solver.kinematics.aim import aim
+
+        try:
+            return aim(model, self.points[name], n, rng, **self.aim_kwargs())
+        except AimingError as e:
+            raise AimingError(f"{self.path}, point {name}: {e}") from None
 
     def aim_kwargs(self) -> dict:
         """Keyword arguments for :func:`solver.aim.aim` from the ``aiming`` hints."""
@@ -213,6 +243,14 @@ def load_layout(path) -> Layout:
     points = _points(d, path)
     calib = _names(d, "calibration", points, path)
     valid = _names(d, "validation", points, path)
+    both = [p for p in calib if p in valid]
+    if both:
+        raise FormatError(
+            path,
+            f"point {both[0]} is listed both as calibration and as validation (expected a validation point "
+            "the model is not fitted to)",
+            field="validation",
+        )
     if not calib:
         calib = tuple(p for p in points if p not in valid)
     plane_z = _plane_z(d, path)
@@ -225,6 +263,10 @@ def load_layout(path) -> Layout:
         if key in aiming:
             v = aiming[key]
             bad = not isinstance(v, list) or len(v) != 2 or any(rng.problem(x) for x in v) or v[0] > v[1]
+            if not bad and rng.unit == "mm" and max(v) < METRES_BELOW_MM:
+                raise FormatError(
+                    path, f"aiming {key} = {v!r}: these look like metres (expected mm)", field=f"aiming.{key}"
+                )
             if bad:
                 raise FormatError(
                     path,
@@ -256,15 +298,7 @@ def check_layout_geometry(
                 else f"point {n} z = {p[2]:g} mm: on a sheet (frame: sheet) points are [x, y, 0] mm",
                 field=f"points.{n}",
             )
-    d = np.linalg.norm(xyz[:, None] - xyz[None], axis=2) + np.eye(len(xyz)) * 1e9
-    if d.min() < SAME_POINT_MM:
-        i, j = np.unravel_index(np.argmin(d), d.shape)
-        raise FormatError(
-            path,
-            f"points {names[i]} and {names[j]} are the same point "
-            f"(expected distinct points, > {SAME_POINT_MM:g} mm apart)",
-            field="points",
-        )
+    check_distinct(path, points)
     c = np.array([points[n][:2] for n in calibration])
     if len(c) >= 3 and np.linalg.svd(c - c.mean(axis=0), compute_uv=False)[1] < SAME_POINT_MM:
         raise FormatError(
@@ -272,6 +306,31 @@ def check_layout_geometry(
             f"calibration points {', '.join(calibration)} are collinear: the direction along their line is "
             "unidentifiable (expected at least three points not on one line)",
             field="points",
+        )
+
+
+def check_distinct(path, points: dict, key: str = "points") -> None:
+    """No two reference points (those with coordinates) coincide.
+
+    Raises
+    ------
+    FormatError
+        Naming the file and every point at the first place where points coincide (three coincident
+        points are not 'collinear': they are one point).
+    """
+    names = [n for n, p in points.items() if p is not None]
+    if len(names) < 2:
+        return
+    xyz = np.array([points[n] for n in names], dtype=float)
+    d = np.linalg.norm(xyz[:, None] - xyz[None], axis=2) + np.eye(len(xyz)) * 1e9
+    if d.min() < SAME_POINT_MM:
+        i = int(np.unravel_index(np.argmin(d), d.shape)[0])
+        same = [names[i]] + [names[j] for j in np.flatnonzero(d[i] < SAME_POINT_MM)]
+        raise FormatError(
+            path,
+            f"points {', '.join(same[:-1])} and {same[-1]} are the same point "
+            f"{np.round(xyz[i], 3).tolist()} mm (expected distinct points, > {SAME_POINT_MM:g} mm apart)",
+            field=key,
         )
 
 
@@ -425,19 +484,126 @@ def _numeric_block(path, rows, header, cols, required=True) -> np.ndarray | None
     return out
 
 
+def limit_slack(limits: np.ndarray) -> np.ndarray:
+    """How far (n,) a measured angle may lie beyond each joint's limit and be kept (with a warning):
+    the smaller of :data:`LIMIT_SLACK_RAD` and :data:`LIMIT_SLACK_FRACTION` of the joint's range."""
+    return np.minimum(LIMIT_SLACK_RAD, LIMIT_SLACK_FRACTION * (limits[:, 1] - limits[:, 0]))
+
+
 def check_limits(path, robot: RobotModel, q: np.ndarray, lines) -> None:
-    """Raise FormatError at the first logged angle outside the robot's joint limits."""
-    bad = (q < robot.limits[:, 0] - _LIMIT_TOL) | (q > robot.limits[:, 1] + _LIMIT_TOL)
-    if bad.any():
-        r, j = np.argwhere(bad)[0]
-        lo, hi = robot.limits[j]
+    """Measured angles (m, n) against the robot's joint limits: a hair beyond a limit (a rounded limit, a
+    FANUC's J4 at -360.000 deg against -6.28 rad) is kept with a warning; beyond :func:`limit_slack` it
+    is refused (wrong units or columns).
+
+    Raises
+    ------
+    FormatError
+        At the first angle beyond the slack, naming file, line and column (with a degrees hint).
+    """
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    excess = np.maximum(lo - q, q - hi)  # > 0 outside
+    out = excess > _LIMIT_TOL
+    if not out.any():
+        return
+    far = excess > _LIMIT_TOL + limit_slack(robot.limits)
+    r, j = np.argwhere(far if far.any() else out)[0]
+    where = f"joint {j + 1} = {q[r, j]:.6g} rad is outside its limits [{lo[j]:.4f}, {hi[j]:.4f}]"
+    if far.any():
         hint = degrees_hint(q, robot.limits)
         raise FormatError(
             path,
-            f"joint {j + 1} = {q[r, j]:.6g} rad is outside its limits [{lo:.4f}, {hi:.4f}]"
-            + (f": {hint}" if hint else ""),
+            where
+            + (
+                f": {hint}"
+                if hint
+                else f" by {excess[r, j]:.3g} (more than {limit_slack(robot.limits)[j]:.3g})"
+            ),
             line=int(lines[r]),
             field=f"q{j + 1}",
+        )
+    warn(
+        f"{path}, line {int(lines[r])}, column 'q{j + 1}': {where} by {excess[r, j]:.3g} "
+        f"({int(out.sum())} angle(s) beyond a limit by at most {excess[out].max():.3g}): kept as measured "
+        "(a rounded limit in the robot file?)"
+    )
+
+
+def repeated_captures(point, q: np.ndarray) -> tuple[dict, np.ndarray]:
+    """Captures that repeat an earlier one: the same point and the same joint angles (to 1e-9 rad), as a
+    capture saved twice or a copied row would.
+
+    Parameters
+    ----------
+    point : (m,) point (or target) of each capture
+    q : (m, n) joint angles, rad
+
+    Returns
+    -------
+    distinct : dict point -> number of distinct configurations captured there
+    repeats : (k,) int array, the indices of the captures that repeat an earlier one
+    """
+    point = np.asarray(point, dtype=str)
+    qr = np.round(np.asarray(q, dtype=float), 9)
+    distinct, repeats = {}, []
+    for nm in dict.fromkeys(point):
+        idx = np.flatnonzero(point == nm)
+        _, first = np.unique(qr[idx], axis=0, return_index=True)
+        distinct[str(nm)] = len(first)
+        repeats.extend(np.setdiff1d(idx, idx[first]))
+    return distinct, np.sort(np.array(repeats, dtype=int))
+
+
+def check_repeats(path, point, q: np.ndarray, lines) -> None:
+    """Captures that repeat earlier ones (:func:`repeated_captures`): a point left with fewer than
+    :data:`MIN_PER_POINT` distinct configurations among at least as many rows is refused (copies of one
+    capture are not data, and would be reported as an unidentifiable model); other repeats are kept with
+    a warning.
+
+    Raises
+    ------
+    FormatError
+        Naming the file, the point and the lines that repeat earlier ones.
+    """
+    distinct, rep = repeated_captures(point, q)
+    if not len(rep):
+        return
+    point = np.asarray(point, dtype=str)
+    counts = {nm: int(np.sum(point == nm)) for nm in distinct}
+
+    def shown(idx) -> str:
+        return ", ".join(str(int(lines[i])) for i in idx[:5]) + (", ..." if len(idx) > 5 else "")
+
+    for nm, k in distinct.items():
+        if counts[nm] >= MIN_PER_POINT > k:
+            idx = [i for i in rep if point[i] == nm]
+            raise FormatError(
+                path,
+                f"the {counts[nm]} captures at {nm} are only {k} distinct configuration(s): line(s) "
+                f"{shown(idx)} repeat earlier rows (one capture saved many times?); capture at least "
+                f"{MIN_PER_POINT} different configurations there",
+                line=int(lines[idx[0]]),
+                field="point",
+            )
+    warn(
+        f"{path}: {len(rep)} capture(s) repeat an earlier one exactly (same point and joint angles; "
+        f"line(s) {shown(rep)}): kept, but a capture saved twice counts twice"
+    )
+
+
+def check_aperture(where, aperture_z: float, robot: RobotModel, field: str | None = None) -> None:
+    """A measured aperture height p_Mz (mm) within :data:`APERTURE_TOL_MM` of the nominal model's.
+
+    Raises
+    ------
+    FormatError
+        Naming ``where`` (a file and ``field``, or an option such as ``--aperture-z``).
+    """
+    if not abs(aperture_z - robot.aperture[2]) <= APERTURE_TOL_MM:
+        raise FormatError(
+            where,
+            f"aperture_z = {aperture_z:g} mm is not within {APERTURE_TOL_MM:g} mm of the {robot.name} "
+            f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
+            field=field,
         )
 
 
@@ -520,6 +686,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
 
         return load_position_session(folder, meta, robot, clock)
     points = _points(meta, ypath, allow_unknown=measurement == "point")
+    check_distinct(ypath, points)
     tool_point, distances = None, ()
     if measurement == "point":
         tool = meta.get("tool")
@@ -541,13 +708,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
             raise FormatError(
                 ypath, "laser.aperture_z must be a number (mm)", field="laser.aperture_z"
             ) from None
-        if not abs(aperture_z - robot.aperture[2]) <= APERTURE_TOL_MM:
-            raise FormatError(
-                ypath,
-                f"aperture_z = {aperture_z:g} mm is not within {APERTURE_TOL_MM:g} mm of the {robot.name} "
-                f"model's {robot.aperture[2]:g} mm (expected its height at q = 0, mm: sign, metres?)",
-                field="laser.aperture_z",
-            )
+        check_aperture(ypath, aperture_z, robot, "laser.aperture_z")
     header, rows = read_csv(cpath)
     n = robot.n
     if header[:2] != ["point", "t"]:
@@ -575,6 +736,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         names.append(nm)
     lines = np.array([ln for ln, _ in rows], dtype=int)
     check_limits(cpath, robot, q, lines)
+    check_repeats(cpath, names, q, lines)
     known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
@@ -622,11 +784,12 @@ def _distances(meta: dict, points: dict, path) -> tuple:
         a, b, dist = row
         if str(a) not in points or str(b) not in points:
             raise FormatError(path, f"distance names unknown point(s) {a!r}, {b!r}", field=field)
-        try:
-            dist = float(dist)
-        except (TypeError, ValueError):
-            raise FormatError(path, f"distance must be a number (mm), got {dist!r}", field=field) from None
-        out.append((str(a), str(b), dist))
+        msg = DISTANCE.problem(dist)
+        if msg:
+            raise FormatError(path, f"distance {a}-{b}: {msg}", field=field)
+        if str(a) == str(b):
+            raise FormatError(path, f"a distance from {a!r} to itself (expected two points)", field=field)
+        out.append((str(a), str(b), float(dist)))
     return tuple(out)
 
 
@@ -691,6 +854,8 @@ class Configs:
 def load_configs(path, robot: RobotModel) -> Configs:
     """Load a configurations CSV (columns q1..qN, optional t and tau1..tauN; others passed through)."""
     header, rows = read_csv(path)
+    if not rows:
+        raise FormatError(path, "no configurations (a header and no rows)", line=2)
     q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
     t = _numeric_block(path, rows, header, ["t"], required=False)
     tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)

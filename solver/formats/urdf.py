@@ -38,6 +38,7 @@ from lasercal.solver.kinematics.poe import inv_T
 MOVABLE = ("revolute", "continuous", "prismatic")
 CONTINUOUS_LIMIT = 2 * math.pi  # rad: the range given to a continuous joint (it has no limits)
 M_TO_MM = 1000.0
+URDF_MAX_M = 50.0  # a joint origin further than this (m) from its parent is a length written in mm
 
 
 def origin_T(xyz, rpy) -> np.ndarray:
@@ -53,14 +54,16 @@ def _parse(path: Path):
     from urdf_parser_py.xml_reflection import core
 
     try:
-        text = path.read_text()
+        data = path.read_bytes()  # bytes: the XML parser honours the file's own encoding declaration
+    except IsADirectoryError:
+        raise FormatError(path, "is a folder (expected a URDF file)") from None
     except OSError as e:
         raise FormatError(path, f"cannot read file ({e.strerror})") from None
     messages = []
     saved = core.on_error
     core.on_error = messages.append  # the parser's warnings become our notes, not stderr noise
     try:
-        robot = U.URDF.from_xml_string(text.encode())
+        robot = U.URDF.from_xml_string(data)
     except Exception as e:  # the parser raises bare exceptions on malformed XML
         reason = " ".join(str(e).split()) or type(e).__name__
         raise FormatError(path, f"not a valid URDF ({reason})") from None
@@ -149,6 +152,13 @@ def load_urdf(path, base_link: str | None = None, tip_link: str | None = None) -
     names, screws, limits, frames, owner = [], [], [], [], {base: -1}
     for j in joints:
         o = j.origin
+        if o is not None and o.xyz is not None and np.abs(o.xyz).max() > URDF_MAX_M:
+            raise FormatError(
+                path,
+                f"joint {j.name!r} origin xyz {list(o.xyz)} is over {URDF_MAX_M:g} m: these look like mm "
+                "(URDF lengths are metres)",
+                field=f"joint {j.name}",
+            )
         T = T @ origin_T(o.xyz if o else None, o.rpy if o else None)
         if j.type not in MOVABLE + ("fixed",):
             raise FormatError(

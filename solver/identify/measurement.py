@@ -7,10 +7,12 @@ plane, (m, 2) mm), 'point' (a tool point held at fixed points; residuals (m, 3) 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from lasercal.solver.errors import IdentificationError
-from lasercal.solver.formats.session import Session
+from lasercal.solver.errors import FormatError, IdentificationError
+from lasercal.solver.formats.session import MIN_PER_POINT, Session
 from lasercal.solver.identify.degenerate import (
     Deficiency,
     Determination,
@@ -71,9 +73,6 @@ def residuals(
     return spot_residuals(model, q, target)
 
 
-MIN_PER_POINT = 3  # captures at one point: fewer cannot tell a point's spread from the model's error
-
-
 def check_data(session) -> None:
     """Refuse data that cannot identify the geometry: a point with too few captures, collinear points.
 
@@ -82,6 +81,21 @@ def check_data(session) -> None:
     IdentificationError
         Naming the point or points, what cannot be identified and what data would fix it.
     """
+    if session.m == 0:
+        raise FormatError(
+            Path(session.path) / "captures.csv",
+            "no captures (a header and no rows): nothing to identify",
+            line=2,
+        )
+    unknown = [nm for nm, xyz in session.points.items() if xyz is None]
+    if session.measurement == "point" and unknown and not session.distances:
+        raise FormatError(
+            Path(session.path) / "session.yaml",
+            f"points {', '.join(unknown[:4])}{' ...' if len(unknown) > 4 else ''} are unknown (null) and no "
+            "known distance fixes the scale: a scaled robot fits as well (add constraints: {distances: "
+            "[[A, B, mm]]}, or give a point's coordinates)",
+            field="constraints.distances",
+        )
     names, counts = np.unique(np.asarray(session.point, dtype=str), return_counts=True)
     few = [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
     if few:
