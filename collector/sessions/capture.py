@@ -25,7 +25,7 @@ from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
-from lasercal.solver.formats.session import Layout, check_aperture, session_meta
+from lasercal.solver.formats.session import Layout, check_aperture, session_layout, session_meta
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -373,7 +373,8 @@ def run_capture(
         ``opts.move`` and the moves were not confirmed: the arm did not move.
     """
     meta = store.meta
-    points = {k: np.asarray(v, dtype=float) for k, v in meta["points"].items()}
+    # base frame: a sheet's points where its stated placement puts them (the check, the coach, the prompt)
+    points = session_layout(meta, store.path).in_base().points
     requested = list(meta["requested"])
     counts = store.counts(requested)
     w = out.write

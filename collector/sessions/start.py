@@ -268,7 +268,7 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     point = validation_point(layout, run["point"])
     model = load_model(run["model"])
     check_layout(layout, model, run["model"], point)
-    sheet = None
+    sheet = placed = None
     if layout.frame == "sheet":  # a printed sheet: its points where the model found the sheet (eq. S1)
         sheet = model.sheet
         if sheet is None:
@@ -278,9 +278,11 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
                 "a model solved from a session on that sheet",
                 field="sheet",
             )
+        if cfg["backend"] == "fake":  # the simulated table holds the sheet at its placement, as in capture
+            placed = layout.sheet or layout.in_base().sheet  # (in_base names a layout without a placement)
         layout = layout.in_base(sheet)
     robot = make_robot(cfg, load_model(cfg["robot"]), layout)
-    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"], sheet)
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"], sheet, placed)
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)

@@ -160,7 +160,9 @@ def measure_with_markers(img: np.ndarray, name: str, markers, sheet=None) -> tup
     return xy, res.exposure and res.exposure.advice
 
 
-def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, layout_path, sheet=None):
+def make_camera(
+    spec: str | None, cfg: dict, robot, layout: Layout, point: str, layout_path, sheet=None, placed=None
+):
     """The camera a validation photographs with, and how its photos are measured.
 
     Parameters
@@ -172,6 +174,8 @@ def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, 
     layout : Layout (base frame); point : str, the validation point
     layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
     sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
+    placed : SheetPose or None, where the simulated table holds that sheet (the fake camera's spots,
+        in the simulated robot's frame, go to the sheet through it and to the model's frame through ``sheet``)
 
     Returns
     -------
@@ -183,9 +187,14 @@ def make_camera(spec: str | None, cfg: dict, robot, layout: Layout, point: str, 
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
         view = fake_view(layout.points[point][:2], layout.plane_z)
-        return FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"]), (
-            lambda img, name: measure_known_view(img, name, view)
-        )
+
+        def measure(img, name):
+            xy, advice = measure_known_view(img, name, view)
+            if placed is not None:
+                xy = sheet.to_base(placed.from_base(xy[None]), layout.plane_z)[0, :2]
+            return xy, advice
+
+        return FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"]), measure
     if spec is None:
         raise SessionError(
             "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"
