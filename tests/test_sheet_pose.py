@@ -139,3 +139,22 @@ def test_a_sheet_pose_round_trips_through_the_model_file(tmp_path):
     )
     with pytest.raises(Exception, match=r"sheet\.yaw_deg"):
         load_model(tmp_path / "b.yaml")
+
+
+def test_print_capture_solve_validate_on_the_simulated_robot(tmp_path, capsys):
+    """The whole path a lab takes, on the fake backend: a printed sheet laid at its placement, a coached
+    capture (the on-screen check in the base frame through the placement), solve, validate at P6."""
+    sheet, session, model, val = (tmp_path / k for k in ("sheet", "session", "model.yaml", "val"))
+    assert main(["sheet", "-o", str(sheet), "--robot", "panda", "--place", "450", "0", "0"]) == 0
+    layout = str(sheet / "layout.yaml")
+    cap = ["capture", "--layout", layout, "--robot", "panda", "--backend", "fake", "--auto"]
+    assert main(cap + ["--per-point", "4", "-o", str(session)]) == 0
+    assert "discarded" not in capsys.readouterr().out  # every capture within reach of its cross
+    assert main(["solve", str(session), "-o", str(model), "--folds", "0"]) == 0
+    pose = load_model(model).sheet
+    assert abs(pose.x_mm - 450) < 10 and abs(pose.y_mm) < 10  # near its placement (the robot's own frame)
+    capsys.readouterr()
+    assert main(["validate", str(model), "--layout", layout, "--point", "P6", "-n", "4", "--backend", "fake",
+                 "-o", str(val)]) == 0  # fmt: skip
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith("P6: 4 spots measured") and float(last.split("error mean ")[1].split()[0]) < 2.0
