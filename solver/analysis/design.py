@@ -54,7 +54,7 @@ import numpy as np
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.identify.lsq import fit_subspace, identifiability
-from lasercal.solver.identify.prior import DEFAULTS, Tolerances
+from lasercal.solver.identify.prior import Tolerances, robot_tolerances
 from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
@@ -354,7 +354,7 @@ def posterior(
     nominal: RobotModel,
     q: np.ndarray,
     target: np.ndarray,
-    tolerances: Tolerances = DEFAULTS,
+    tolerances: Tolerances | str = "robot",
     start: np.ndarray | None = None,
     jacobians: SpotJacobians | None = None,
 ) -> Posterior:
@@ -369,7 +369,8 @@ def posterior(
     nominal : RobotModel, the prior mean
     q : (m, n) array, captured configurations, rad (m may be 0)
     target : (m, 3) array, the reference point of each capture, mm
-    tolerances : Tolerances, the prior (the robot's, :func:`~lasercal.solver.identify.prior.robot_tolerances`)
+    tolerances : Tolerances, the prior (default "robot": the nominal's own,
+        :func:`~lasercal.solver.identify.prior.robot_tolerances`, as ``solve`` uses)
     start : (p,) array, where the fit starts (e.g. the previous estimate: a warm start)
     jacobians : SpotJacobians of the same nominal model, kept between calls (a session's refits reuse
         the Jacobians of earlier captures at the warm start)
@@ -380,7 +381,7 @@ def posterior(
     """
     P = LaserParams(nominal)
     x0 = P.x0()
-    prior = laser_prior(P, tolerances)
+    prior = laser_prior(P, robot_tolerances(nominal) if isinstance(tolerances, str) else tolerances)
     R = np.linalg.inv(prior.whitening)
     q = np.asarray(q, dtype=float).reshape(-1, nominal.n)
     target = np.asarray(target, dtype=float).reshape(-1, 3)
@@ -748,7 +749,7 @@ class Coach:
     nominal : RobotModel, the prior mean
     layout : Layout
     seed : int, seed of the candidate and use-region sampling
-    tolerances : Tolerances, the prior (the robot's)
+    tolerances : Tolerances, the prior (default "robot": the nominal's own, as ``solve`` uses)
     constraints : Constraints (default: the layout's)
     workspace : ((3,), (3,)) box corners, mm, or None (the layout's validation points)
     model : RobotModel that aims the candidates and the use region (default: nominal)
@@ -766,7 +767,7 @@ class Coach:
         nominal: RobotModel,
         layout: Layout,
         seed: int = 0,
-        tolerances: Tolerances = DEFAULTS,
+        tolerances: Tolerances | str = "robot",
         constraints: Constraints | None = None,
         workspace: tuple | None = None,
         model: RobotModel | None = None,
