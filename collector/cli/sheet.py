@@ -29,8 +29,7 @@ def args_sheet(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing, non-empty DIR")
     p.add_argument(
         "--paper",
-        type=_paper,
-        default="A4",
+        type=_paper,  # no default string: argparse would run the check (and load vision) for --help too
         metavar="A4|A3|letter|WxH",
         help="paper, landscape (default A4); WxH in mm: W across the robot's front, H away from it",
     )
@@ -79,7 +78,7 @@ def cmd_sheet(args) -> int:
     from lasercal.vision.sheet import design_sheet
 
     check_output(args.output, folder=True, force=args.force)
-    design = design_sheet(args.paper, args.margin, args.marker)
+    design = design_sheet(args.paper or "A4", args.margin, args.marker)
     model = load_model(args.robot, base_link=args.base_link, tip_link=args.tip_link) if args.robot else None
     plane_z = args.plane_z
     if plane_z is None:
