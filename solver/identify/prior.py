@@ -102,8 +102,8 @@ class Tolerances:
     sensor_mm: float = math.inf
     sheet_mm: float = 50.0
     sheet_rad: float = math.radians(15.0)
-    compliance_rad_per_nm: float = 2e-4
-    eccentricity_rad: float = 2e-3
+    compliance_rad_per_nm: float = 1e-3
+    eccentricity_rad: float = 1e-2
     drift_rad_per_s: float = 1e-5
     point_offset_mm: float = 3.0
     noise_mm: tuple = (("laser", 1.0), ("point", 0.3), ("position", 0.02))
