@@ -1042,6 +1042,7 @@ PRIOR_BAD = [
      "silent"),
     ("a tolerance outside prior:", "format: lasercal-prior/1\noffset_mm: 4.0\n", "field 'offset_mm'",
      "silent"),
+    ("prior: misspelt", "format: lasercal-prior/1\npriors: {offset_mm: 4.0}\n", "field 'priors'", "silent"),
     ("unknown tolerance", "format: lasercal-prior/1\nprior: {offset: 4.0}\n", "field 'prior.offset'",
      "culprit"),
     ("tolerance zero", "format: lasercal-prior/1\nprior: {offset_mm: 0}\n", "field 'prior.offset_mm'",

@@ -294,7 +294,10 @@ def load_tolerances(spec, model) -> Tolerances | None:
     units = d.get("units") or {}
     if not isinstance(units, dict) or units.get("length", "mm") != "mm" or units.get("angle", "rad") != "rad":
         raise FormatError(spec, "units must be length: mm, angle: rad", field="units")
-    astray = [k for k in d if k in {f.name for f in fields(Tolerances)}]
-    if astray:  # else ignored in silence: the fit would run on the defaults
-        raise FormatError(spec, f"{astray[0]} belongs under 'prior:' (a tolerance)", field=astray[0])
+    # any other key would be ignored in silence ('priors:', a tolerance at the top): a fit on the defaults
+    for k in d:
+        if k in {f.name for f in fields(Tolerances)}:
+            raise FormatError(spec, f"{k} is a tolerance: it belongs under 'prior:'", field=str(k))
+        if k not in ("format", "units", "prior"):
+            raise FormatError(spec, f"unknown key {k!r} (expected format, units, prior)", field=str(k))
     return base.updated(d.get("prior") or {}, spec)
