@@ -40,10 +40,16 @@ URDF = Path(__file__).resolve().parent / "data" / "ur5.urdf"
 WATCHDOG_S = 30
 
 
+GOALS = "x,y,z\n400,0,500\n450,20,480\n"  # goals of lasercal correct, mm
+PRIOR = "format: lasercal-prior/1\nunits: {length: mm, angle: rad}\nprior: {offset_mm: 4.0}\n"
+
+
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
-    """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/, and pos/
-    (a position session of the UR5 URDF, which it names as 'robot: arm.urdf' beside its captures)."""
+    """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/, pos/
+    (a position session of the UR5 URDF, which it names as 'robot: arm.urdf' beside its captures),
+    goals.csv, prior.yaml, sheet/ (a printed sheet and its layout, frame: sheet) and shs/ (a session on
+    that sheet, displaced from its placement)."""
     d = tmp_path_factory.mktemp("valid")
     layout = yaml.safe_load((Path(__file__).resolve().parents[1] / "data/layouts/thesis.yaml").read_text())
     (d / "layout.yaml").write_text(yaml.safe_dump(layout))
@@ -70,6 +76,13 @@ def base(tmp_path_factory):
     rows = [",".join(repr(float(v)) for v in [*q[i % 3] * 0.9, *T[i, :3, :3].ravel(), 300.0 + i, 20.0, 500.0])
             for i in range(4)]  # fmt: skip
     (d / "poses.csv").write_text(",".join(Q + rcols + ["x", "y", "z"]) + "\n" + "\n".join(rows) + "\n")
+    (d / "goals.csv").write_text(GOALS)
+    (d / "prior.yaml").write_text(PRIOR)
+    assert main(["sheet", "-o", str(d / "sheet"), "--place", "450", "0", "0"]) == 0
+    for drawing in ("sheet.pdf", "sheet.svg"):  # read by no command: not copied for every case
+        (d / "sheet" / drawing).unlink()
+    assert main(["simulate", "panda_thesis_identified", "--layout", str(d / "sheet" / "layout.yaml"),
+                 "--per-point", "4", "--sheet-pose", "455", "5", "2", "-o", str(d / "shs")]) == 0  # fmt: skip
     return d
 
 
@@ -632,11 +645,13 @@ BASE = {  # an argv of every command that parses and runs on the valid inputs (o
     "simulate-fullpose": SIMFP,
     "import-mukca": IMPORT,
     "study-mukca": STUDY,
+    "sheet": ["sheet"],
+    "correct": ["correct", "{d}/model.yaml", "{d}/goals.csv"],
 }
 OUT = {"demo": "-o", "capture": "-o", "solve": "-o", "plan": "-o", "validate": "-o", "report": "-o",
        "export": "-o", "simulate": "-o", "diagnose": "--report", "camera-calibrate": "-o", "fullpose": "-o",
        "simulate-fullpose": "-o", "import-mukca": "-o", "study-mukca": "-o", "spots": "--overlay",
-       "beam-check": "--overlay"}  # fmt: skip
+       "beam-check": "--overlay", "sheet": "-o", "correct": "-o"}  # fmt: skip
 
 
 def _argv(cmd: str) -> list:
@@ -677,33 +692,35 @@ def _vision_file(rel: str, then):
     return fn
 
 
-# every text file each command reads, named in the message when saved wrongly
+# every text file each command reads, named in the message when saved wrongly; (file, the option giving it)
+PRIOR_FILE = ("prior.yaml", ["--prior", "{d}/prior.yaml"])
 INPUT_FILES = {
     "capture": ["layout.yaml"],
     "validate": ["layout.yaml", "model.yaml"],
     "simulate": ["layout.yaml"],
-    "solve": ["sess/session.yaml", "sess/captures.csv"],
-    "plan": ["sess/session.yaml", "sess/captures.csv"],
-    "diagnose": ["sess/session.yaml", "sess/captures.csv"],
-    "report": ["sess/captures.csv", "val/validation.yaml", "val/validation.csv"],
+    "solve": ["sess/session.yaml", "sess/captures.csv", PRIOR_FILE],
+    "plan": ["sess/session.yaml", "sess/captures.csv", PRIOR_FILE],
+    "diagnose": ["sess/session.yaml", "sess/captures.csv", PRIOR_FILE],
+    "report": ["sess/captures.csv", "val/validation.yaml", "val/validation.csv", PRIOR_FILE],
     "export": ["model.yaml"],
     "predict": ["model.yaml", "configs.csv"],
     "fullpose": ["fp.csv"],
     "import-mukca": ["mukca/panda_1/front/hole_0.csv"],
-    "study-mukca": ["mukca/panda_1/front/hole_1.csv"],
-    "spots": ["cam.yaml", "markers.yaml"],
-    "beam-check": ["cam.yaml"],
+    "study-mukca": ["mukca/panda_1/front/hole_1.csv", PRIOR_FILE],
+    "spots": [("cam.yaml", ["--camera", "{d}/cam.yaml"]), ("markers.yaml", ["--layout", "{d}/markers.yaml"])],
+    "beam-check": [("cam.yaml", ["--camera", "{d}/cam.yaml"])],
+    "correct": ["model.yaml", "goals.csv"],
+    "sheet": [("model.yaml", ["--robot", "{d}/model.yaml", "--place", "450", "0", "0"])],
 }
 SAVED_WRONGLY = ("latin-1", "utf-16 without BOM", "binary", "empty file", "a folder for the file")
-VISION_FILES = {"cam.yaml": "--camera", "markers.yaml": "--layout"}
+VISION_FILES = ("cam.yaml", "markers.yaml")  # not among the valid inputs: written first, then spoiled
 for cmd, files in INPUT_FILES.items():
-    for rel in files:
-        argv = _argv(cmd) + ([VISION_FILES[rel], "{d}/" + rel] if rel in VISION_FILES else [])
+    for rel, given in (f if isinstance(f, tuple) else (f, []) for f in files):
         for how in SAVED_WRONGLY:
             if how == "empty file" and cmd in ("spots", "beam-check"):
                 continue  # an empty vision YAML is no layout and no camera: covered by the vision tests
-            case(f"{cmd}: {rel} {how}", argv, _vision_file(rel, _saved_as(rel, how)), rel.split("/")[-1],
-                 "traceback")  # fmt: skip
+            case(f"{cmd}: {rel} {how}", _argv(cmd) + given, _vision_file(rel, _saved_as(rel, how)),
+                 rel.split("/")[-1], "traceback")  # fmt: skip
 
 # a folder where a file is expected and the other way round, for every path argument
 KINDS = [
@@ -724,6 +741,10 @@ KINDS = [
     ("validate", VALIDATE[:4] + ["--layout", "{d}/val", "-o", "{o}"], "val"),
     ("spots", ["spots", "{d}/val/photos/0000.png", "--reference", "{d}/val"], "is a folder"),
     ("spots", ["spots", "{d}/val/photos/0000.png", "--camera", "{d}/val"], "is a folder"),
+    ("correct", ["correct", "{d}/sess", "{d}/goals.csv", "-o", "{o}"], "is a folder"),
+    ("correct", ["correct", "{d}/model.yaml", "{d}/sess", "-o", "{o}"], "is a folder"),
+    ("sheet", ["sheet", "--robot", "{d}/sess", "--place", "450", "0", "0", "-o", "{o}"], "is a folder"),
+    ("solve", ["solve", "--prior", "{d}/val", "{d}/sess", "-o", "{o}"], "is a folder"),
     ("beam-check", ["beam-check", "{d}/val/photos/0000.png", "--layout", "{d}/sess"], "sess"),
 ]  # fmt: skip
 for cmd, argv, needle in KINDS:
@@ -926,6 +947,7 @@ for cmd, argv, needle in (
     ("camera-calibrate", CALIB + ["--square", "20", "-o", "{d}/val/photos/0000.png", "--force"],
      "replace the input"),
     ("export", EXPORT + ["-o", "{d}/m.urdf", "--sensor-output", "{d}/m.urdf"], "the same path"),
+    ("correct", BASE["correct"] + ["-o", "{d}/goals.csv", "--force"], "replace the input"),
 ):  # fmt: skip
     case(f"{cmd}: an output that is an input: {' '.join(argv[-3:])}", argv, None, needle, "output")
 case("demo -o an existing file named demo (the command's name is no input)", ["demo", "-o", "{d}/demo"],
@@ -966,6 +988,167 @@ case(
     _yaml("model.yaml", _set("name", "mybot"), lambda m: m.pop("nominal"), lambda m: m.pop("identification")),
     "nominal",
 )
+
+
+# --- 9. beside issue 26: sheet, correct's goals, --prior files, --sheet-pose, sheet layouts and sessions ----
+SIM_SHEET = ["simulate", "panda_thesis_identified", "--layout", "{d}/sheet/layout.yaml", "--per-point", "3"]
+PLACE = ["--place", "450", "0", "0"]
+case("sheet --place 0.45 0 0 (metres)", SHEET + ["--place", "0.45", "0", "0"], None, "--place", "silent")
+case("sheet --place yaw beyond a turn", SHEET + ["--place", "450", "0", "400"], None, "--place")
+case("sheet --robot a layout", SHEET + ["--robot", "{d}/layout.yaml"] + PLACE, None, "layout.yaml")
+case("sheet --robot URDF not a chain", SHEET + ["--robot", "{d}/b.urdf"] + PLACE, _touch("b.urdf", BRANCHED),
+     "b.urdf")  # fmt: skip
+case("sheet --tip-link not a link", SHEET + ["--robot", str(URDF), "--tip-link", "tool9"] + PLACE, None,
+     "tool9")  # fmt: skip
+
+# lasercal correct's goals (IN.csv): the file, line and column named
+GOALS_BAD = [
+    ("a goal x nan", "x,y,z\nnan,0,500\n", "line 2, column 'x'", "culprit"),
+    ("a goal z inf", "x,y,z\n400,0,500\n400,0,inf\n", "line 3, column 'z'", "culprit"),
+    ("goals in metres", "x,y,z\n0.4,0,0.5\n0.45,0.02,0.48\n", "line 2, column 'x'", "silent"),
+    ("one goal in metres among mm", "x,y,z\n400,0,500\n0.45,0.02,0.48\n", "line 3, column 'x'", "silent"),
+    ("column z missing", "x,y\n400,0\n", "line 1, column 'z'", "culprit"),
+    ("column x twice", "x,y,z,x\n400,0,500,1\n", "line 1, column 'x'", "silent"),
+    ("columns in capitals", "X,Y,Z\n400,0,500\n", "line 1", "culprit"),
+    ("a row one value short", "x,y,z\n400,0,500\n400,0\n", "line 3", "culprit"),
+    ("seeds q1..q3 of 7 joints", "x,y,z,q1,q2,q3\n400,0,500,0,0,0\n", "line 1, column 'q4'", "culprit"),
+    ("a program q1..q8 for 7 joints", "q1,q2,q3,q4,q5,q6,q7,q8\n0,0,0,-1,0,1,0,0\n", "line 1, column 'q8'",
+     "silent"),
+    ("a program one joint short", "q1,q2,q3,q4,q5,q6\n0,0,0,-1,0,1\n", "line 1, column 'q7'", "culprit"),
+    ("rotation vector in degrees", "x,y,z,rx,ry,rz\n400,0,500,180,0,0\n", "line 2, column 'rx'", "silent"),
+    ("rotation without a position", "rx,ry,rz,q1,q2,q3,q4,q5,q6,q7\n0,0,0,0,0,0,-1,0,1,0\n",
+     "line 1, column 'rx'", "culprit"),
+    ("rotation two columns of three", "x,y,z,rx,ry\n400,0,500,1,0\n", "line 1, column 'rz'", "culprit"),
+    ("separated by semicolons", "x;y;z\n400;0;500\n", "line 1", "traceback"),
+    ("a header and no rows", "x,y,z\n", "line 1: no goals", "culprit"),
+]  # fmt: skip
+for cid, text, where, cat in GOALS_BAD:
+    case(f"correct: goals.csv {cid}", _argv("correct"), _touch("goals.csv", text), f"goals.csv, {where}", cat)
+case("correct --tcp 0.01 0 0.1 (metres)", _argv("correct") + ["--tcp", "0.01", "0", "0.1"], None, "--tcp",
+     "silent")  # fmt: skip
+case("correct --tool blank", _argv("correct") + ["--tool", " "], None, "--tool")
+case("correct: a robot name that is none", ["correct", "nosuch_robot", "{d}/goals.csv", "-o", "{o}"], None,
+     "nosuch_robot")  # fmt: skip
+
+# --prior FILE (lasercal-prior/1) on every command that fits: the file and the field named
+PRIOR_BAD = [
+    ("not a mapping", "- offset_mm\n- 4.0\n", "field 'format'", "culprit"),
+    ("format missing", "prior: {offset_mm: 4.0}\n", "field 'format'", "culprit"),
+    ("a robot model's format", "format: lasercal-robot/1\nprior: {offset_mm: 4.0}\n", "field 'format'",
+     "culprit"),
+    ("units a word", "format: lasercal-prior/1\nunits: mm\nprior: {offset_mm: 4.0}\n", "field 'units'",
+     "traceback"),
+    ("units m", "format: lasercal-prior/1\nunits: {length: m}\nprior: {offset_mm: 4.0}\n", "field 'units'",
+     "silent"),
+    ("a tolerance outside prior:", "format: lasercal-prior/1\noffset_mm: 4.0\n", "field 'offset_mm'",
+     "silent"),
+    ("prior: misspelt", "format: lasercal-prior/1\npriors: {offset_mm: 4.0}\n", "field 'priors'", "silent"),
+    ("unknown tolerance", "format: lasercal-prior/1\nprior: {offset: 4.0}\n", "field 'prior.offset'",
+     "culprit"),
+    ("tolerance zero", "format: lasercal-prior/1\nprior: {offset_mm: 0}\n", "field 'prior.offset_mm'",
+     "culprit"),
+    ("tolerance negative", "format: lasercal-prior/1\nprior: {tool_mm: -5}\n", "field 'prior.tool_mm'",
+     "culprit"),
+    ("tolerance nan", "format: lasercal-prior/1\nprior: {axis_rad: .nan}\n", "field 'prior.axis_rad'",
+     "culprit"),
+    ("tolerance yes", "format: lasercal-prior/1\nprior: {offset_mm: yes}\n", "field 'prior.offset_mm'",
+     "silent"),
+    ("tolerance with its unit", "format: lasercal-prior/1\nprior: {offset_mm: 4 mm}\n",
+     "field 'prior.offset_mm'", "culprit"),
+    ("noise_mm a number", "format: lasercal-prior/1\nprior: {noise_mm: 1.0}\n", "field 'prior.noise_mm'",
+     "culprit"),
+    ("noise_mm of an unknown measurement", "format: lasercal-prior/1\nprior: {noise_mm: {tracker: 0.1}}\n",
+     "field 'prior.noise_mm'", "culprit"),
+    ("noise_mm infinite", "format: lasercal-prior/1\nprior: {noise_mm: {laser: .inf}}\n",
+     "field 'prior.noise_mm'", "culprit"),
+    ("noise_dof infinite", "format: lasercal-prior/1\nprior: {noise_dof: .inf}\n", "field 'prior.noise_dof'",
+     "culprit"),
+    ("prior a list", "format: lasercal-prior/1\nprior: [4.0, 0.01]\n", "field 'prior'", "culprit"),
+    ("invalid YAML", "format: lasercal-prior/1\nprior: {offset_mm: 4.0\n", "line 3", "culprit"),
+]  # fmt: skip
+FITS = ("solve", "plan", "diagnose", "report", "study-mukca")
+for i, (cid, text, where, cat) in enumerate(PRIOR_BAD):
+    for cmd in FITS if i < 3 else ("solve", FITS[1 + i % 4]):  # every case on solve, a few on the others
+        case(f"{cmd}: prior.yaml {cid}", _argv(cmd) + ["--prior", "{d}/prior.yaml"],
+             _touch("prior.yaml", text), f"prior.yaml, {where}", cat)  # fmt: skip
+for cmd in FITS:
+    case(f"{cmd} --prior a file that is not there", _argv(cmd) + ["--prior", "{d}/no.yaml"], None, "--prior")
+case("solve --prior blank", _argv("solve") + ["--prior", ""], None, "--prior")
+
+# simulate --sheet-pose X Y YAW (mm, mm, deg); NaN and inf by its declared range (section 7)
+case("simulate --sheet-pose a displacement out of reach", _argv("simulate") + ["--sheet-pose", "2000", "0",
+     "0"], None, "layout.yaml, point")  # fmt: skip
+case("simulate --sheet-pose yaw beyond a turn", _argv("simulate") + ["--sheet-pose", "5", "5", "720"], None,
+     "--sheet-pose")  # fmt: skip
+case("simulate --sheet-pose 0.455 0.005 2 on a sheet layout (metres)", SIM_SHEET + ["-o", "{o}",
+     "--sheet-pose", "0.455", "0.005", "2"], None, "--sheet-pose", "silent")  # fmt: skip
+
+
+# layouts and sessions with frame: sheet (points in the sheet's own frame), and a model's sheet pose
+def _sheet_yaml(rel: str, *keys_value):
+    """An edit of the sheet's layout or session: _sheet_yaml('layout', 'sheet', 'x_mm', nan)."""
+    return _yaml({"layout": "sheet/layout.yaml", "session": "shs/session.yaml"}[rel], _set(*keys_value))
+
+
+def _drop_frame(rel: str):
+    return _yaml(rel, lambda d: d.pop("frame"))
+
+
+def _sheet_point_z(rel: str, name: str):
+    return _yaml(rel, lambda d: d["points"][name].__setitem__(2, -8.0))  # the plane's z, not the sheet's 0
+
+
+SHEET_LAYOUT_BAD = [
+    ("frame unknown", _sheet_yaml("layout", "frame", "paper"), "frame", "culprit"),
+    ("a placement without frame: sheet", _drop_frame("sheet/layout.yaml"), "sheet", "culprit"),
+    ("placement keys x, y", _sheet_yaml("layout", "sheet", {"x": 450, "y": 0}), "sheet", "culprit"),
+    ("placement a list", _sheet_yaml("layout", "sheet", [450, 0, 0]), "sheet", "culprit"),
+    ("placement x nan", _sheet_yaml("layout", "sheet", "x_mm", nan), "sheet.x_mm", "culprit"),
+    ("placement yaw text", _sheet_yaml("layout", "sheet", "yaw_deg", "left"), "sheet.yaw_deg", "culprit"),
+    ("placement yaw beyond a turn", _sheet_yaml("layout", "sheet", "yaw_deg", 400.0), "sheet.yaw_deg",
+     "culprit"),
+    ("placement in metres", _sheet_yaml("layout", "sheet", {"x_mm": 0.45, "y_mm": 0.0}), "sheet", "silent"),
+    ("a point at the plane's z", _sheet_point_z("sheet/layout.yaml", "P1"), "points.P1", "culprit"),
+    ("points in metres", _yaml("sheet/layout.yaml", lambda d: d.update(
+        points={k: [c / 1000 for c in v] for k, v in d["points"].items()})), "points", "silent"),
+]  # fmt: skip
+CAPTURE_SHEET = FAKE_CAPTURE[:4] + ["--per-point", "2", "--layout", "{d}/sheet/layout.yaml", "-o", "{o}"]
+VALIDATE_SHEET = VALIDATE[:-2] + ["--layout", "{d}/sheet/layout.yaml", "-o", "{o}"]
+for i, (cid, setup, field, cat) in enumerate(SHEET_LAYOUT_BAD):
+    needle = f"layout.yaml, field '{field}'"
+    case(f"simulate: a sheet layout's {cid}", SIM_SHEET + ["-o", "{o}"], setup, needle, cat)
+    case(f"{('capture', 'validate')[i % 2]}: a sheet layout's {cid}", (CAPTURE_SHEET, VALIDATE_SHEET)[i % 2],
+         setup, needle, cat)  # fmt: skip
+SHEET_SESSION_BAD = [
+    ("frame unknown", _sheet_yaml("session", "frame", "table"), "frame", "culprit"),
+    ("a placement without frame: sheet", _drop_frame("shs/session.yaml"), "sheet", "culprit"),
+    ("placement x nan", _sheet_yaml("session", "sheet", "x_mm", nan), "sheet.x_mm", "culprit"),
+    ("placement in metres", _sheet_yaml("session", "sheet", {"x_mm": 0.455, "y_mm": 0.005}), "sheet",
+     "silent"),
+    ("a point off the sheet", _sheet_point_z("shs/session.yaml", "P2"), "points.P2", "culprit"),
+]  # fmt: skip
+SHEET_FITS = (["solve", "{d}/shs", "--folds", "0", "-o", "{o}"], ["diagnose", "{d}/shs", "--bootstrap", "0"])
+for i, (cid, setup, field, cat) in enumerate(SHEET_SESSION_BAD):
+    argv = SHEET_FITS[i % 2]
+    case(f"{argv[0]}: a sheet session's {cid}", argv, setup, f"session.yaml, field '{field}'", cat)
+case("solve: a sheet session with --method thesis", ["solve", "{d}/shs", "--method", "thesis", "-o", "{o}"],
+     None, "the thesis method needs the reference points in the base frame")  # fmt: skip
+case("validate: a sheet layout and a model without a sheet pose", ["validate", "panda", "--backend", "fake",
+     "-n", "3", "--layout", "{d}/sheet/layout.yaml", "-o", "{o}"], None, "no sheet pose")  # fmt: skip
+SHEET_POSE = {"x_mm": 455.0, "y_mm": 5.0, "yaw_deg": 2.0}
+MODEL_SHEET_BAD = [
+    ("sheet a word", _set("sheet", "on the table"), "sheet"),
+    ("sheet x nan", _set("sheet", SHEET_POSE | {"x_mm": nan}), "sheet.x_mm"),
+    ("sheet without its yaw", _set("sheet", {"x_mm": 455.0, "y_mm": 5.0}), "sheet"),
+    ("sheet yaw 1e9", _set("sheet", SHEET_POSE | {"yaw_deg": 1e9}), "sheet.yaw_deg"),
+    ("sheet_std without a sheet", _set("sheet_std", SHEET_POSE), "sheet_std"),
+]  # fmt: skip
+for cid, edit, field in MODEL_SHEET_BAD:
+    case(f"export: model {cid}", _argv("export"), _yaml("model.yaml", edit), f"model.yaml, field '{field}'")
+STD_NEGATIVE = _yaml("model.yaml", _set("sheet", SHEET_POSE), _set("sheet_std", SHEET_POSE | {"y_mm": -1.0}))
+case("export: model sheet_std negative", _argv("export"), STD_NEGATIVE, "model.yaml, field 'sheet_std.y_mm'")
+case("spots --model: a model's sheet_std negative", ["spots", "{d}/val/photos/0000.png", "--layout",
+     "{d}/sheet/layout.yaml", "--model", "{d}/model.yaml"], STD_NEGATIVE, "sheet_std.y_mm")  # fmt: skip
 
 
 @pytest.fixture
@@ -1118,6 +1301,24 @@ WARNINGS = [
      "--imagej-box 32: ignored"),
     ("fullpose", FULLPOSE + ["--seed", "3", "-o", "{o}"], "--seed without --folds", None,
      "--seed 3: ignored"),
+    # beside issue 26 (section 9)
+    ("sheet", SHEET + ["--place", "450", "0", "1.5708"], "a yaw in radians", None, "YAW 1.5708 deg: 90 deg"),
+    ("sheet", SHEET + ["--tip-link", "tool0"], "--tip-link without --robot", None,
+     "--tip-link tool0: ignored"),
+    ("simulate", SIM_SHEET + ["--sheet-pose", "450", "0", "0.7854", "-o", "{o}"],
+     "a --sheet-pose yaw in radians", None, "45 deg written in radians"),
+    ("simulate", SIM_POS + [str(URDF), "--configs", "4", "--sheet-pose", "5", "5", "2"],
+     "--sheet-pose on a position session", None, "--sheet-pose 5.0 5.0 2.0: ignored"),
+    ("simulate", SIM_SHEET + ["-o", "{o}"], "a sheet layout's yaw in radians",
+     _sheet_yaml("layout", "sheet", "yaw_deg", 0.5236), "field 'sheet.yaw_deg'"),
+    ("correct", _argv("correct"), "a rotation vector longer than pi",
+     _touch("goals.csv", "x,y,z,rx,ry,rz\n400,0,500,4.0,0,0\n"), "goals.csv, line 2, column 'rx'"),
+    ("solve", SOLVE + ["--prior", "{d}/prior.yaml", "-o", "{o}"], "a prior tolerance in metres",
+     _touch("prior.yaml", "format: lasercal-prior/1\nprior: {point_offset_mm: 0.003}\n"),
+     "field 'prior.point_offset_mm'"),
+    ("diagnose", DIAGNOSE + ["--prior", "{d}/prior.yaml"], "a prior angle in degrees",
+     _touch("prior.yaml", "format: lasercal-prior/1\nprior: {eccentricity_rad: 5.0}\n"),
+     "field 'prior.eccentricity_rad'"),
 ]  # fmt: skip
 
 
@@ -1174,6 +1375,8 @@ ENCODED_OK = [
     ("export", EXPORT + ["-o", "{o}"], "model.yaml"),
     ("simulate", SIMULATE + ["-o", "{o}"], "layout.yaml"),
     ("spots", ["spots", "{d}/val/photos/0000.png", "--layout", "{d}/layout.yaml"], "layout.yaml"),
+    ("correct", _argv("correct"), "goals.csv"),
+    ("solve", SOLVE + ["--prior", "{d}/prior.yaml", "-o", "{o}"], "prior.yaml"),
 ]
 
 

@@ -6,19 +6,23 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lasercal.collector.cli.options import count, number
+from lasercal.collector.cli.options import INFILE, ROBOT, count, name, number, output_argument
 
 
 def args_correct(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal correct``."""
-    p.add_argument("model", help="calibrated model YAML (lasercal solve), a built-in robot or a URDF")
+    p.add_argument(
+        "model", type=ROBOT, help="calibrated model YAML (lasercal solve), a built-in robot or a URDF"
+    )
     p.add_argument(
         "goals",
+        type=INFILE,
         metavar="IN.csv",
         help="goals x,y,z mm [rx,ry,rz rad] [q1..qN seeds, rad], base frame; or a program q1..qN (rad) "
         "planned with the nominal model",
     )
-    p.add_argument(
+    output_argument(
+        p,
         "-o",
         "--output",
         required=True,
@@ -28,7 +32,10 @@ def args_correct(p: argparse.ArgumentParser) -> None:
     )
     tool = p.add_mutually_exclusive_group()
     tool.add_argument(
-        "--tool", metavar="NAME", help="a target or tool point the model identified (default: the flange)"
+        "--tool",
+        type=name,
+        metavar="NAME",
+        help="a target or tool point the model identified (default: the flange)",
     )
     tool.add_argument(
         "--tcp",
@@ -55,12 +62,17 @@ def args_correct(p: argparse.ArgumentParser) -> None:
 def cmd_correct(args) -> int:
     import numpy as np
 
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.control.robot import load_model
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.checks import metres_hint
     from lasercal.solver.formats.goals import load_goals, write_commands
     from lasercal.solver.kinematics.ik import IKOptions
 
-    check_output(args.output, force=args.force)
+    if args.tcp is not None and metres_hint(args.tcp):
+        raise LasercalError(
+            f"argument --tcp: {' '.join(f'{v:g}' for v in args.tcp)}: {metres_hint(args.tcp)}"
+        )
     robot = load_model(args.model, IKOptions(margin=args.margin, restarts=args.restarts))
     goals = load_goals(args.goals, robot.model)
     tool = robot.tool(args.tool or args.tcp)

@@ -85,6 +85,13 @@ def whole_numbers(lo: int, hi: int):
     return parse
 
 
+def name(text: str) -> str:
+    """An argparse ``type`` for one name (not blank; spaces around it dropped)."""
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError(f"{text!r} names nothing (expected a NAME)")
+    return str(text).strip()
+
+
 def names_list(text: str) -> tuple:
     """An argparse ``type`` for a comma-separated list of names (at least one; blanks dropped)."""
     names = tuple(n.strip() for n in str(text).split(",") if n.strip())
@@ -228,6 +235,32 @@ def unused(args, why: str, *dests: str) -> None:
             warn(f"--{d.replace('_', '-')} {shown}: ignored ({why})")
 
 
+def sheet_pose(values, flag: str, absolute: bool = True):
+    """The :class:`~solver.kinematics.sheet.SheetPose` of an ``X_MM Y_MM YAW_DEG`` option (``--place``,
+    ``--sheet-pose``; each a finite number by its type), checked as a layout's placement is
+    (:func:`~solver.formats.checks.sheet_pose_problem`: a yaw beyond a full turn; metres, when
+    ``absolute`` -- a pose in the base frame, not a displacement); a yaw in radians is a warning.
+
+    Raises
+    ------
+    LasercalError
+        One line naming the option.
+    """
+    from lasercal.solver.errors import LasercalError, warn
+    from lasercal.solver.formats.checks import radians_hint, sheet_pose_problem
+    from lasercal.solver.kinematics.sheet import SheetPose
+
+    bad = sheet_pose_problem(values, absolute)
+    if bad:
+        raise LasercalError(
+            f"argument {flag}: {'' if bad[0] is None else ('X ', 'Y ', 'YAW ')[bad[0]]}{bad[1]}"
+        )
+    hint = radians_hint(values[2])
+    if hint:
+        warn(f"{flag} {' '.join(f'{v:g}' for v in values)}: YAW {hint}")
+    return SheetPose(*(float(v) for v in values))
+
+
 SEED = count(0, 2**32 - 1)
 """A random seed: numpy accepts 0 .. 2**32 - 1."""
 
@@ -271,10 +304,22 @@ def session_robot(args) -> dict:
     return {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link, "prior": args.prior}
 
 
+def prior_spec(text: str) -> str:
+    """An argparse ``type`` for ``--prior``: none, default, or an existing file (read by the command)."""
+    if str(text).strip().lower() in ("none", "default"):
+        return text
+    if not str(text).strip() or not Path(text).exists():
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: no such file (expected none, default or a lasercal-prior/1 YAML)"
+        )
+    return INFILE(text)
+
+
 def prior_argument(p: argparse.ArgumentParser) -> None:
     """``--prior``: the prior of every fit (docs/formats.md, "Priors")."""
     p.add_argument(
         "--prior",
+        type=prior_spec,
         metavar="none|FILE",
         help="the prior of every fit: the robot's manufacturing tolerances (default), a lasercal-prior/1 "
         "YAML overriding some of them, or 'none' for plain least squares (the thesis's comparisons)",

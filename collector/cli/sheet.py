@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from lasercal.collector.cli.options import chain_arguments, number
+from lasercal.collector.cli.options import chain_arguments, number, output_argument, sheet_pose, unused
 
 
 def _paper(text: str) -> str:
@@ -23,8 +23,14 @@ def _paper(text: str) -> str:
 
 def args_sheet(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal sheet``."""
-    p.add_argument(
-        "-o", "--output", required=True, metavar="DIR", help="folder for sheet.pdf, sheet.svg and layout.yaml"
+    output_argument(
+        p,
+        "-o",
+        "--output",
+        kind="folder",
+        required=True,
+        metavar="DIR",
+        help="folder for sheet.pdf, sheet.svg and layout.yaml",
     )
     p.add_argument("--force", action="store_true", help="replace an existing, non-empty DIR")
     p.add_argument(
@@ -71,19 +77,19 @@ def args_sheet(p: argparse.ArgumentParser) -> None:
 
 def cmd_sheet(args) -> int:
     """``lasercal sheet``: check the reach (with --robot), write the files, say how to use them."""
-    from lasercal.collector.sessions.store import atomic_output, check_output
+    from lasercal.collector.sessions.store import atomic_output
     from lasercal.collector.sheet import DEFAULT_PLANE_Z, REACH_CONFIGS, make_sheet
     from lasercal.solver.formats.robots import load_model
-    from lasercal.solver.kinematics.sheet import SheetPose
     from lasercal.vision.sheet import design_sheet
 
-    check_output(args.output, folder=True, force=args.force)
+    if not args.robot:
+        unused(args, "they pick the chain of a URDF --robot", "base_link", "tip_link")
+    pose = sheet_pose(args.place, "--place") if args.place else None
     design = design_sheet(args.paper or "A4", args.margin, args.marker)
     model = load_model(args.robot, base_link=args.base_link, tip_link=args.tip_link) if args.robot else None
     plane_z = args.plane_z
     if plane_z is None:
         plane_z = model.plane_z if model is not None and model.plane_z is not None else DEFAULT_PLANE_Z
-    pose = SheetPose(*args.place) if args.place else None
     with atomic_output(args.output, folder=True) as tmp:
         _, reach = make_sheet(tmp, design, plane_z, model, pose)
     ids = sorted(design.markers)

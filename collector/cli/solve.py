@@ -22,6 +22,7 @@ from lasercal.collector.cli.options import (
     number,
     output_argument,
     session_robot,
+    sheet_pose,
     unused,
     whole_numbers,
 )
@@ -337,7 +338,7 @@ def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension |
 def sheet_world(truth, nominal, layout, pose):
     """``simulate --sheet-pose``: the true robot in its own frame (eq. S2), the layout as a sheet (a base
     layout's points become sheet coordinates, placed where the layout says), the points where the sheet
-    truly lies, and what the session records of it.
+    truly lies (``pose``, a SheetPose), and what the session records of it.
 
     Returns
     -------
@@ -352,13 +353,17 @@ def sheet_world(truth, nominal, layout, pose):
     if layout.frame == "base":
         pts = {k: np.r_[v[:2], 0.0] for k, v in layout.points.items()}
         layout = replace(layout, points=pts, frame="sheet", sheet=SheetPose())
-    true = SheetPose(*(float(a) for a in pose))
     own = moved(truth, own_frame(truth, nominal))
-    return own, layout, layout.in_base(true), {
-        "pose": true.as_dict(),
-        "frame": "the true robot's own (joint 1 as the nominal's, joint 2 at q = 0 in its direction)",
-        "truth_in_own_frame": "truth.yaml",
-    }
+    return (
+        own,
+        layout,
+        layout.in_base(pose),
+        {
+            "pose": pose.as_dict(),
+            "frame": "the true robot's own (joint 1 as the nominal's, joint 2 at q = 0 in its direction)",
+            "truth_in_own_frame": "truth.yaml",
+        },
+    )
 
 
 def cmd_simulate(args) -> int:
@@ -374,7 +379,14 @@ def cmd_simulate(args) -> int:
     if args.measurement == "position":
         from lasercal.collector.cli.position import cmd_simulate_position
 
-        unused(args, "a position session has no reference points", "layout", "per_point", "aim_noise")
+        unused(
+            args,
+            "a position session has no reference points",
+            "layout",
+            "per_point",
+            "aim_noise",
+            "sheet_pose",
+        )
 
         n = load_model(path, base_link=args.base_link, tip_link=args.tip_link).n
         return cmd_simulate_position(
@@ -392,8 +404,10 @@ def cmd_simulate(args) -> int:
     sim = {"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed}
     aimed = layout
     if args.sheet_pose is not None:
+        # a sheet layout's pose is where the sheet lies (at the base: metres), a base layout's a displacement
+        pose = sheet_pose(args.sheet_pose, "--sheet-pose", absolute=layout.frame == "sheet")
         truth, layout, aimed, sim["sheet"] = sheet_world(truth, load_model(nominal, base=path.parent), layout,
-                                                         args.sheet_pose)  # fmt: skip
+                                                         pose)  # fmt: skip
     elif layout.frame == "sheet":
         aimed = layout.in_base()  # the sheet lies where its placement says
     c = simulate_captures(truth, aimed, args.per_point, args.aim_noise, rng, effect=effect)

@@ -96,6 +96,40 @@ def degrees_hint(q: np.ndarray, limits: np.ndarray) -> str | None:
     return None
 
 
+SHEET_POSE = (Range(-1e4, 1e4, "mm"), Range(-1e4, 1e4, "mm"), Range(-360, 360, "deg"))
+"""x_mm, y_mm, yaw_deg of a printed sheet's pose on the table: within 10 m, within a full turn."""
+
+
+def sheet_pose_problem(values, absolute: bool = True) -> tuple[int | None, str] | None:
+    """What is wrong with a sheet's pose ``(x mm, y mm, yaw deg)``: (index of the culprit value, or None
+    for the pose as a whole; phrase), or None.
+
+    A value not finite or out of :data:`SHEET_POSE`; for a placement in the base frame (``absolute``; not
+    a displacement) x and y both within :data:`METRES_BELOW_MM` of the base, where the robot stands:
+    metres.
+    """
+    for i, (v, rng) in enumerate(zip(values, SHEET_POSE)):
+        msg = rng.problem(v)
+        if msg:
+            return i, msg
+    if absolute and metres_hint([values[0], values[1], 0.0]):
+        return None, (
+            f"x, y = {float(values[0]):g}, {float(values[1]):g} mm puts the sheet's centre at the robot's "
+            "base: these look like metres (expected mm)"
+        )
+    return None
+
+
+def radians_hint(deg: float) -> str | None:
+    """A hint when an angle meant in degrees is a round angle (a non-zero multiple of 15 deg) written in
+    radians, e.g. 1.5708 (pi/2); 0.5 or 2 deg pass."""
+    step = math.pi / 12
+    k = round(deg / step)
+    if k and abs(deg) <= 2 * math.pi and abs(deg - k * step) < 5e-3:
+        return f"{deg:g} deg: {k * 15} deg written in radians? (expected degrees)"
+    return None
+
+
 def read_text(path) -> str:
     """A text file's contents: UTF-8 (a leading byte-order mark dropped), or UTF-16 with its byte-order
     mark (what a Windows editor saves as 'Unicode'); line ends normalised to ``\\n``.

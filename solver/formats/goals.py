@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.solver.errors import FormatError
+from lasercal.solver.errors import FormatError, warn
 from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.session import _numeric_block, check_limits
 from lasercal.solver.formats.table import read_csv
@@ -77,9 +77,10 @@ def load_goals(path, model: RobotModel) -> Goals:
     Raises
     ------
     FormatError
-        naming the file, the line and the column: a missing or partial column group, a value that is not a
-        finite number, positions that look like metres, rotation vectors that look like degrees, a joint
-        angle outside the limits (or in degrees)
+        naming the file, the line and the column: a missing or partial column group, a column named twice,
+        a joint column the robot does not have, a value that is not a finite number, a goal that looks like
+        metres, rotation vectors that look like degrees (longer than 2 pi; longer than pi is a warning), a
+        joint angle outside the limits (or in degrees)
     """
     header, rows = read_csv(path)
     n = model.n
@@ -97,21 +98,36 @@ def load_goals(path, model: RobotModel) -> Goals:
         )
     if rotation is not None and position is None:
         raise FormatError(path, "rx,ry,rz need x,y,z (the goal's position, mm)", line=1, field="rx")
+    extra = [c for c in header if c.startswith("q") and c[1:].isdigit() and not 1 <= int(c[1:]) <= n]
+    if extra:  # a program of another robot, or a seed column too many
+        raise FormatError(
+            path, f"{model.name} has {n} joints (q1..q{n}): {extra[0]} is not one", line=1, field=extra[0]
+        )
     lines = [ln for ln, _ in rows]
     if position is not None:
-        hint = metres_hint(position)
-        if hint:
-            raise FormatError(path, f"x, y, z: {hint}", line=lines[0], field="x")
+        # per row: a goal in metres lies within a few mm of the base, where no tool can go
+        near = [i for i, p in enumerate(position) if metres_hint(p)]
+        if near:
+            i = near[0]
+            raise FormatError(path, f"x, y, z: {metres_hint(position[i])}", line=lines[i], field="x")
     if rotation is not None:
-        long = np.linalg.norm(rotation, axis=1) > _ROTVEC_MAX
+        length = np.linalg.norm(rotation, axis=1)
+        long, turned = length > _ROTVEC_MAX, length > np.pi + 1e-9
         if long.any():
             i = int(np.argmax(long))
             raise FormatError(
                 path,
-                f"rotation vector of length {np.linalg.norm(rotation[i]):.4g} rad: longer than a full turn "
+                f"rotation vector of length {length[i]:.4g} rad: longer than a full turn "
                 "(degrees? expected rad)",
                 line=lines[i],
                 field="rx",
+            )
+        if turned.any():  # the orientation of 2 pi - |r| the other way: plausible, but degrees?
+            i = int(np.argmax(turned))
+            warn(
+                f"{path}, line {lines[i]}, column 'rx': rotation vector of length {length[i]:.4g} rad, "
+                f"more than pi ({int(turned.sum())} row(s)): read as the orientation of "
+                f"{2 * np.pi - length[i]:.4g} rad the other way (degrees? expected rad)"
             )
     if q is not None:
         check_limits(path, model, q, lines)

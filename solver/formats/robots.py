@@ -6,14 +6,15 @@ so an installed wheel finds them from any folder.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import Range, metres_hint, read_text
+from lasercal.solver.errors import FormatError, warn
+from lasercal.solver.formats.checks import Range, metres_hint, radians_hint, read_text, sheet_pose_problem
 from lasercal.solver.formats.data import resolve
 from lasercal.solver.identify.prior import DEFAULTS
 from lasercal.solver.kinematics.effects import extension_from_model
@@ -54,23 +55,42 @@ def _checked_screw(w, v, path, where: str, notes: list) -> np.ndarray:
     return S
 
 
-def _sheet(d: dict, key: str, path) -> list | None:
-    """A model's ``sheet`` or ``sheet_std`` mapping {x_mm, y_mm, yaw_deg}, validated (None if absent)."""
+def sheet_values(d: dict, key: str, path, partial: bool = False) -> list | None:
+    """A mapping ``d[key]`` {x_mm, y_mm, yaw_deg} (a sheet's pose or its standard deviations) as three
+    finite numbers (None if absent; a key left out is 0 when ``partial``)."""
     m = d.get(key)
     if m is None:
         return None
-    if not isinstance(m, dict) or set(m) != set(SHEET_KEYS):
-        raise FormatError(path, "expected a mapping {x_mm, y_mm, yaw_deg}", field=key)
+    if not isinstance(m, dict) or set(m) - set(SHEET_KEYS) or (not partial and set(m) != set(SHEET_KEYS)):
+        raise FormatError(path, f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg}}", field=key)
     vals = []
     for k in SHEET_KEYS:
         try:
-            v = float(m[k])
+            v = float(m.get(k, 0.0)) if not isinstance(m.get(k), bool) else math.nan
         except (TypeError, ValueError):
-            v = float("nan")
-        if not np.isfinite(v):
-            raise FormatError(path, f"{m[k]!r} (expected a finite number)", field=f"{key}.{k}")
+            v = math.nan
+        if not math.isfinite(v):
+            raise FormatError(path, f"{m.get(k)!r} (expected a finite number)", field=f"{key}.{k}")
         vals.append(v)
     return vals
+
+
+def sheet_pose(d: dict, key: str, path, placement: bool = False) -> SheetPose | None:
+    """A sheet's pose ``d[key]`` (None if absent), checked by :func:`~checks.sheet_pose_problem`.
+
+    ``placement``: a person's rough placement in the base frame (a layout's or session's ``sheet``; keys
+    may be left out): metres refused, a yaw in radians warned about. Else an identified pose (a model's).
+    """
+    vals = sheet_values(d, key, path, partial=placement)
+    if vals is None:
+        return None
+    bad = sheet_pose_problem(vals, absolute=placement)
+    if bad:
+        raise FormatError(path, bad[1], field=key if bad[0] is None else f"{key}.{SHEET_KEYS[bad[0]]}")
+    hint = radians_hint(vals[2]) if placement else None
+    if hint:
+        warn(f"{path}, field '{key}.yaw_deg': {hint}")
+    return SheetPose(*vals)
 
 
 def model_from_dict(d: dict, path="<model>") -> RobotModel:
@@ -203,7 +223,16 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
     prior = d.get("prior") or {}
     DEFAULTS.updated(prior, path)  # validated here too
-    sheet, sheet_std = (_sheet(d, k, path) for k in ("sheet", "sheet_std"))
+    sheet, sheet_std = sheet_pose(d, "sheet", path), sheet_values(d, "sheet_std", path)
+    if sheet_std is not None and sheet is None:
+        raise FormatError(
+            path, "'sheet_std' needs 'sheet' (the pose it is the uncertainty of)", field="sheet_std"
+        )
+    if sheet_std is not None and min(sheet_std) < 0:
+        k = SHEET_KEYS[int(np.argmin(sheet_std))]
+        raise FormatError(
+            path, f"{min(sheet_std):g} (expected a standard deviation >= 0)", field=f"sheet_std.{k}"
+        )
     nominal = d.get("nominal")
     if nominal is not None and (not isinstance(nominal, str) or not nominal.strip()):
         raise FormatError(
@@ -226,7 +255,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         links=links,
         extensions=dict(d.get("extensions", {}) or {}),
         prior=dict(prior),
-        sheet=None if sheet is None else SheetPose(*sheet),
+        sheet=sheet,
         sheet_std=None if sheet_std is None else dict(zip(SHEET_KEYS, sheet_std)),
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),

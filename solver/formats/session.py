@@ -27,11 +27,10 @@ import yaml
 from lasercal.solver.errors import AimingError, FormatError, warn
 from lasercal.solver.formats.checks import METRES_BELOW_MM, Range, degrees_hint, metres_hint
 from lasercal.solver.formats.data import resolve
-from lasercal.solver.formats.robots import load_model, load_yaml
+from lasercal.solver.formats.robots import load_model, load_yaml, sheet_pose
 from lasercal.solver.formats.table import read_csv
 from lasercal.solver.identify.prior import Tolerances, load_tolerances, robot_tolerances
 from lasercal.solver.kinematics.model import RobotModel
-from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
 from lasercal.solver.kinematics.sheet import SheetPose
 
 SESSION_FORMAT = "lasercal-session/1"
@@ -177,23 +176,9 @@ def _frame(d, path) -> tuple[str, SheetPose | None]:
     frame = d.get("frame", "base") or "base"
     if frame not in FRAMES:
         raise FormatError(path, f"frame {frame!r} (expected 'base' or 'sheet')", field="frame")
-    placement = d.get("sheet")
-    if placement is None:
-        return frame, None
-    if frame != "sheet":
+    if d.get("sheet") is not None and frame != "sheet":
         raise FormatError(path, "'sheet' (a placement) needs 'frame: sheet'", field="sheet")
-    if not isinstance(placement, dict) or set(placement) - set(SHEET_KEYS):
-        raise FormatError(path, "'sheet' must be a mapping {x_mm, y_mm, yaw_deg}", field="sheet")
-    vals = []
-    for k in SHEET_KEYS:
-        try:
-            v = float(placement.get(k, 0.0))
-        except (TypeError, ValueError):
-            v = math.nan
-        if not math.isfinite(v):
-            raise FormatError(path, f"{placement.get(k)!r} (expected a finite number)", field=f"sheet.{k}")
-        vals.append(v)
-    return frame, SheetPose(*vals)
+    return frame, sheet_pose(d, "sheet", path, placement=True)
 
 
 def _names(d, key, points, path) -> tuple:

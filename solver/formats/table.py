@@ -35,8 +35,18 @@ def csv_rows(path) -> list[tuple[int, list[str]]]:
 
 
 def read_csv(path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """A CSV file with a header: (column names, data rows as in :func:`csv_rows`)."""
+    """A CSV file with a header: (column names, data rows as in :func:`csv_rows`).
+
+    Raises
+    ------
+    FormatError
+        An empty file, or a column named twice (naming the line and column).
+    """
     rows = csv_rows(path)
     if not rows:
         raise FormatError(path, "empty file: expected a header line")
-    return rows[0][1], rows[1:]
+    line, header = rows[0]
+    twice = [c for i, c in enumerate(header) if c and c in header[:i]]
+    if twice:  # else the first would be read and the second passed over in silence
+        raise FormatError(path, f"column {twice[0]!r} appears twice in the header", line=line, field=twice[0])
+    return header, rows[1:]

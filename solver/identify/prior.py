@@ -40,7 +40,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from lasercal.solver.errors import FormatError
+from lasercal.solver.errors import FormatError, warn
 
 FORMAT = "lasercal-prior/1"
 
@@ -154,22 +154,44 @@ class Tolerances:
                 vals = dict(self.noise_mm) | {m: _positive(x, path, f"{where}.{k}.{m}") for m, x in v.items()}
                 if any(math.isinf(x) for x in vals.values()):
                     raise FormatError(path, "a noise sigma must be finite (mm)", field=f"{where}.{k}")
+                for m in v:
+                    _plausible(vals[m], "mm", _NOISE_METRES_BELOW_MM, path, f"{where}.{k}.{m}")
                 out[k] = tuple(vals.items())
             else:
                 out[k] = _positive(v, path, f"{where}.{k}")
+                _plausible(out[k], k.rsplit("_", 1)[-1], _TOL_METRES_BELOW_MM, path, f"{where}.{k}")
         if math.isinf(out.get("noise_dof", 1.0)):
             raise FormatError(path, "noise_dof must be finite", field=f"{where}.noise_dof")
         return replace(self, **out)
 
 
+# A length tolerance (noise sigma) below these is tighter than any arm is made (any sensor measures): a
+# value in metres; an angle tolerance above this (57 deg) is no prior at all: a value in degrees.
+_TOL_METRES_BELOW_MM = 0.01
+_NOISE_METRES_BELOW_MM = 1e-3
+_DEGREES_ABOVE_RAD = 1.0
+
+
 def _positive(v, path, field: str) -> float:
     try:
-        x = float(v)
+        x = float(v) if not isinstance(v, bool) else math.nan  # 'yes' is no tolerance
     except (TypeError, ValueError):
         x = math.nan
     if not x > 0:  # NaN fails too
         raise FormatError(path, f"{v!r} (expected a number > 0, or .inf for no prior)", field=field)
     return x
+
+
+def _plausible(x: float, unit: str, metres_below: float, path, field: str) -> None:
+    """Warn about a tolerance that looks like metres (a length below ``metres_below`` mm) or degrees
+    (an angle above :data:`_DEGREES_ABOVE_RAD`); ``unit`` is its key's suffix ('mm', 'rad', 'nm', ...)."""
+    if unit == "mm" and x < metres_below:
+        warn(f"{path}, field '{field}': {x:g} mm is tighter than any arm or sensor: metres? (expected mm)")
+    elif unit == "rad" and math.isfinite(x) and x > _DEGREES_ABOVE_RAD:
+        warn(
+            f"{path}, field '{field}': {x:g} rad ({math.degrees(x):.0f} deg) is hardly a prior: degrees? "
+            "(expected rad)"
+        )
 
 
 DEFAULTS = Tolerances()
@@ -270,6 +292,12 @@ def load_tolerances(spec, model) -> Tolerances | None:
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise FormatError(spec, f"expected a YAML mapping with 'format: {FORMAT}'", field="format")
     units = d.get("units") or {}
-    if units.get("length", "mm") != "mm" or units.get("angle", "rad") != "rad":
+    if not isinstance(units, dict) or units.get("length", "mm") != "mm" or units.get("angle", "rad") != "rad":
         raise FormatError(spec, "units must be length: mm, angle: rad", field="units")
+    # any other key would be ignored in silence ('priors:', a tolerance at the top): a fit on the defaults
+    for k in d:
+        if k in {f.name for f in fields(Tolerances)}:
+            raise FormatError(spec, f"{k} is a tolerance: it belongs under 'prior:'", field=str(k))
+        if k not in ("format", "units", "prior"):
+            raise FormatError(spec, f"unknown key {k!r} (expected format, units, prior)", field=str(k))
     return base.updated(d.get("prior") or {}, spec)
