@@ -233,21 +233,25 @@ def sheet_start(session: Session, model: RobotModel) -> SheetPose:
     return SheetPose(float(t[0]), float(t[1]), float(np.degrees(yaw)))
 
 
+def placed_targets(session: Session, pose: SheetPose) -> np.ndarray:
+    """A sheet session's reference points (m, 3) in the base frame with the sheet at ``pose`` (eq. S1):
+    its ``target`` holds x, y on the sheet and the plane's height in the base frame."""
+    return pose.to_base(session.target[:, :2], session.target[:, 2])
+
+
 def base_targets(session: Session, model: RobotModel) -> np.ndarray:
     """The captures' reference points (m, 3) in the base frame: a sheet session's through ``model``'s sheet
     pose (eq. S1; a model without one, e.g. the nominal, through :func:`sheet_start`)."""
     if session.frame != "sheet":
         return session.target
-    pose = model.sheet or sheet_start(session, model)
-    return pose.to_base(session.target[:, :2], session.target[:, 2])
+    return placed_targets(session, model.sheet or sheet_start(session, model))
 
 
 def in_base_frame(session: Session, pose: SheetPose) -> Session:
     """A sheet session as a base-frame one, its points placed by ``pose`` (eq. S1): for what assumes the
     points are known in the base frame (the capture coach's posterior)."""
     points = {k: pose.to_base(v[None], session.plane_z)[0] for k, v in session.points.items()}
-    target = pose.to_base(session.target[:, :2], session.target[:, 2])
-    return replace(session, points=points, target=target, frame="base", sheet=None)
+    return replace(session, points=points, target=placed_targets(session, pose), frame="base", sheet=None)
 
 
 def identify_lm(
@@ -341,7 +345,7 @@ def identify_lm(
 
     history, iterations = [], 0
     w = np.ones(m)
-    base0 = pose0.to_base(target[:, :2], target[:, 2]) if sheet else target
+    base0 = placed_targets(session, pose0) if sheet else target
     # gross outliers (a wrong point) already stand out against the nominal model: keep them out of the start
     if robust:
         flags, _ = flag_outliers(spot_residuals(start, q, base0), w)
