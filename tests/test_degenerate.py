@@ -108,3 +108,23 @@ def test_full_rank_model_is_marked_complete(session_dir, tmp_path):
     assert main(["solve", str(session_dir), "-o", str(out), "--folds", "0"]) == 0
     idn = yaml.safe_load(out.read_text())["identification"]
     assert idn["partial"] is False and "unidentifiable_combinations" not in idn
+
+
+def test_captures_at_one_point_warn_and_name_what_the_prior_holds(session_dir, tmp_path, capsys):
+    """Beams through one point cannot tell the robot from itself turned about that point (3 directions):
+    the fit exits 0 under the prior, with a warning naming the prior-held combinations."""
+    one = tmp_path / "one"
+    shutil.copytree(session_dir, one)
+    path = one / "captures.csv"
+    rows = list(csv.reader(path.open()))
+    with path.open("w", newline="") as f:
+        csv.writer(f, lineterminator="\n").writerows([rows[0]] + [r for r in rows[1:] if r[0] == "P1"])
+    assert main(["solve", str(one), "-o", str(tmp_path / "m.yaml"), "--folds", "0"]) == 0
+    out = capsys.readouterr().out
+    warning = next(line for line in out.splitlines() if line.startswith("WARNING"))
+    assert "every capture is at one point, P1" in warning and "the prior alone determines" in warning
+    held = yaml.safe_load((tmp_path / "m.yaml").read_text())["identification"]["determined_by"]["from_prior"]
+    assert held and all(d["combination"] in warning for d in held)
+    # and a session at three points has no such warning
+    assert main(["solve", str(session_dir), "-o", str(tmp_path / "m3.yaml"), "--folds", "0"]) == 0
+    assert "one point" not in capsys.readouterr().out

@@ -11,9 +11,9 @@ error the coach promises is the error of the fit ``solve`` will make:
 * estimate (eq. D2 = P2): the MAP fit min sum |spot_i(x) - target_i|^2 / sigma^2 + |(x - x_nom) / s|^2,
   solved by :func:`~lasercal.solver.identify.lsq.fit_subspace` (Levenberg-Marquardt in the
   identifiable subspace, robust loss once there are enough captures).
-* aiming noise (eq. D3 = P3): sigma^2 = (nu0 sigma0^2 + RSS) / (nu0 + dof), a scaled-inverse-chi^2
-  posterior with nu0 pseudo-observations at the operator's nominal aiming noise sigma0, and
-  dof = 2 m - tr(H) with tr(H) the effective number of fitted parameters.
+* aiming noise (eq. D3 = P3): log sigma^2 = (nu0 log sigma0^2 + dof log(RSS / dof)) / (nu0 + dof), the
+  operator's nominal aiming noise sigma0 (nu0 pseudo-observations) and the data's estimate weighed on
+  the log scale, dof = 2 m - tr(H) with tr(H) the effective number of fitted parameters.
 * covariance (eq. D4 = P4): C = (J^T J / sigma^2 + L^T L)^-1 = R V diag(sigma^2 / (S^2 + sigma^2)) V^T R^T
   with R = L^-1 (the prior covariance's root, L = diag(1/s) T of eq. P1) from one SVD
   J R = U S V^T (V completed to p x p), so one decomposition serves

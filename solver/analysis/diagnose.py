@@ -61,6 +61,7 @@ from lasercal.solver.kinematics.effects import (
 )
 from lasercal.solver.kinematics.gravity import gravity_torques, model_torques
 from lasercal.solver.kinematics.laser import spot_joint_jacobian
+from lasercal.solver.streams import Seed, root, stream
 
 _RTOL = 1e-6
 _AMBIGUOUS = (
@@ -353,7 +354,7 @@ def best_test(session: Session, ident: Identification, exts: list, tau) -> Candi
 
 
 def bootstrap(
-    session: Session, ident: Identification, tester: Tester, B: int, n_refit: int, rng: np.random.Generator
+    session: Session, ident: Identification, tester: Tester, B: int, n_refit: int, rng: Seed
 ) -> dict:
     """Parametric bootstrap: the experiment re-simulated on the identified geometric robot.
 
@@ -364,9 +365,12 @@ def bootstrap(
     assumption. (2) ``n_refit`` full simulations (the robot's true configurations polished onto
     noisy targets, a nonlinear refit) give the residual RMS the experiment should show.
     """
+    seed = root(rng)
     N = tester.res.size
     E = np.zeros((N, B))
-    E[: tester.n_capture_rows] = rng.normal(0, ident.sigma_mm, (tester.n_capture_rows, B))
+    E[: tester.n_capture_rows] = stream(seed, "replicates").normal(
+        0, ident.sigma_mm, (tester.n_capture_rows, B)
+    )
     R = E - tester.U @ (tester.U.T @ E)
     best = tester.best_statistic(R)
     observed = float(tester.best_statistic(tester.res[:, None])[0])
@@ -375,7 +379,8 @@ def bootstrap(
     point = s.measurement == "point"
     target = session_targets(s, ident.extra.get("points", {})) if point else base_targets(s, ident.model)
     rms = []
-    for _ in range(n_refit):
+    for i in range(n_refit):
+        rng = stream(seed, "refit", i)  # one stream per refit: a refit's draws never shift another's
         if s.measurement == "position":  # the sensor's noise is on the positions, the poses are exact
             yb = sensor_points(ident.model, s.q, s.point) + rng.normal(0, ident.sigma_mm, s.target.shape)
             rms.append(fit(replace(s, target=yb), nominal=ident.model, robust=False).rms_mm)

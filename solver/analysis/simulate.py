@@ -18,6 +18,7 @@ from lasercal.solver.kinematics.aim import aim, polish
 from lasercal.solver.kinematics.effects import Combination, Extension
 from lasercal.solver.kinematics.gravity import gravity_torques
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.streams import Seed, child, root, stream
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ def simulate_captures(
     layout: Layout,
     per_point: int,
     aim_noise: float,
-    rng: np.random.Generator,
+    rng: Seed,
     points=None,
     effect: Extension | Combination | None = None,
     tau_noise: float = 0.05,
@@ -58,7 +59,9 @@ def simulate_captures(
     layout : Layout
     per_point : int, captures per point
     aim_noise : float, std of the in-plane aiming error per axis, mm
-    rng : numpy Generator
+    rng : int, SeedSequence or Generator, the root of the session's streams (:mod:`solver.streams`): each
+        point's poses and aiming noise, the capture times and the torque noise draw from streams of their
+        own, so a decision flipped by round-off at one point changes nothing elsewhere
     points : list of point names (default: the layout's calibration points)
     effect : Extension, a hidden non-geometric effect with its true parameters: the logged
         angles are the true ones minus the effect's correction (solved by fixed-point
@@ -70,11 +73,13 @@ def simulate_captures(
     SimulatedCaptures, in the order an operator takes them (point by point), t ~ 20 s apart
     """
     names = list(points or layout.calibration)
+    seed = root(rng)
     qs, hits = [], []
     for name in names:
         p = layout.points[name]
-        q = layout.aim_at(truth, name, per_point, rng)
-        hit = p + np.c_[rng.normal(0, aim_noise, (per_point, 2)), np.zeros(per_point)]
+        q = layout.aim_at(truth, name, per_point, child(seed, "poses", name))
+        noise = stream(seed, "aiming", name).normal(0, aim_noise, (per_point, 2))
+        hit = p + np.c_[noise, np.zeros(per_point)]
         if effect is not None and effect.point == name:
             hit[:, :2] += effect.params[:2]
         qs.append(polish(truth, q, hit) if aim_noise > 0 else q)
@@ -82,18 +87,20 @@ def simulate_captures(
     q = np.concatenate(qs)
     if not truth.within_limits(q).all():  # polishing moved a pose by far less than aim()'s limit margin
         raise AimingError("a noisy aim left the joint limits; lower the aiming noise")
-    t = np.cumsum(rng.uniform(10.0, 30.0, len(q)))
+    t = np.cumsum(stream(seed, "times").uniform(10.0, 30.0, len(q)))
     tau_true = gravity_torques(truth, q) if truth.links else None
     if effect is not None and effect.acts_on_joints:
         q = effect.logged_q(q, t, tau_true)
-    tau = None if tau_true is None else tau_true + rng.normal(0, tau_noise, tau_true.shape)
+    tau = None
+    if tau_true is not None:  # the logged torques: the true ones plus sensor noise
+        tau = tau_true + stream(seed, "torques").normal(0, tau_noise, tau_true.shape)
     return SimulatedCaptures(
         np.repeat(np.array(names, dtype=object), per_point), t, q, np.concatenate(hits), tau
     )
 
 
 def validation_spots(
-    truth: RobotModel, model: RobotModel, point, n: int, rng: np.random.Generator, **aim_kw
+    truth: RobotModel, model: RobotModel, point, n: int, rng: Seed, **aim_kw
 ) -> np.ndarray:
     """The thesis's validation (Section 4.3): ``model`` computes n configurations aiming at the
     point; the true robot's beam lands at the returned spots (n, 3), mm."""

@@ -352,6 +352,20 @@ def position_target_stats(ident: Identification, session: Session, used: np.ndar
     return out
 
 
+def one_point_warning(point: str, det) -> str:
+    """Why captures at a single point leave the prior in charge, and what it holds (``det``: a
+    :class:`~lasercal.solver.identify.degenerate.Determination`)."""
+    held = "; ".join(
+        f"{d.combination} ({d.directions} direction{'s' if d.directions > 1 else ''})" for d in det.from_prior
+    )
+    return (
+        f"every capture is at one point, {point}: beams through one point cannot tell the robot from itself "
+        f"turned about that point, so the prior alone determines {det.prior} combination"
+        f"{'s' if det.prior != 1 else ''}{': ' + held if held else ''}; capture at two more points, far "
+        "apart (docs/sessions.md)"
+    )
+
+
 def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
     """The statistics ``lasercal solve`` prints, as a JSON-ready mapping.
 
@@ -417,13 +431,18 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
     if det is not None:
         rep["determined_by"] = det.as_dict()
         s0 = session.tolerances.noise(session.measurement)
+        warnings = []
         # (a 3-D sensor's noise spans three orders, a tracker's 0.01 mm to a camera's 1 mm: no such check)
         if session.measurement != "position" and ident.sigma_mm > MISFIT * s0:
-            rep["warning"] = (
+            warnings.append(
                 f"the fit leaves {ident.rms_mm:.3g} mm RMS, a noise of {ident.sigma_mm:.3g} mm per axis "
                 f"against the prior's {s0:g} mm: these data do not fit this robot (a wrong robot or layout, "
                 "swapped or frozen columns, wrong units?)"
             )
+        if session.measurement != "position" and len(set(session.point[used])) == 1:
+            warnings.append(one_point_warning(str(session.point[used][0]), det))
+        if warnings:
+            rep["warning"] = "; ".join(warnings)
     if cv is not None:
         rep["cross_validation"] = cv.as_dict()
     return rep

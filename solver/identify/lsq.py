@@ -33,7 +33,7 @@ from scipy.special import (
 )
 
 from lasercal.solver.errors import IdentificationError
-from lasercal.solver.identify.prior import Prior
+from lasercal.solver.identify.prior import Prior, noise_sigma
 
 RANK_RTOL = 1e-6
 # Family-wise false-flag rate of the outlier test. Strict on purpose: the test exists for gross mistakes
@@ -104,6 +104,17 @@ def covariance(Jz: np.ndarray, sigma: float) -> np.ndarray:
     inverse)."""
     _, s, Vt = np.linalg.svd(Jz, full_matrices=False)
     return sigma**2 * (Vt.T / s**2) @ Vt
+
+
+def hat_trace(A: np.ndarray, k: int) -> float:
+    """tr H of the first k rows (the data's): H = J (A^T A)^-1 J^T, A = U S V^T the stacked rows (data J,
+    then constraints and the prior's rows at the current sigma), J = U_k S V^T, so tr H = |U_k|_F^2.
+
+    Bounded by the rank whatever sigma is: the form tr(J C J^T) / sigma^2 lost every digit once sigma
+    was small (exact data), where a direction only the prior holds has a singular value ~ sigma.
+    """
+    U = np.linalg.svd(A, full_matrices=False)[0]
+    return float(np.sum(U[:k] ** 2))
 
 
 def flag_outliers(res: np.ndarray, w: np.ndarray, dof_ratio: float = 1.0) -> tuple[np.ndarray, float]:
@@ -354,11 +365,9 @@ def fit_subspace(
             break
         v = v0 + basis @ z
         used = w > 0
-        cov = basis @ covariance(jrows(v, np.sqrt(w)) @ basis, sigma) @ basis.T
-        Ju = jacobian(v)[used].reshape(-1, p)
-        dof = d * used.sum() - float(np.sum((Ju @ cov) * Ju)) / sigma**2  # d m - tr H (eq. P3)
+        dof = d * used.sum() - hat_trace(jrows(v, np.sqrt(w)) @ basis, m * d)  # d m - tr H (eq. P3)
         rss = float(np.sum(res[used] ** 2))
-        new = float(np.sqrt((prior.noise_dof * prior.noise**2 + rss) / (prior.noise_dof + max(dof, 0.0))))
+        new = noise_sigma(prior.noise, prior.noise_dof, rss, dof)
         done = abs(new / sigma - 1) < _SIGMA_RTOL
         sigma = new
         if done:

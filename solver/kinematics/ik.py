@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lasercal.solver.kinematics.poe import skew
+from lasercal.solver.streams import stream
 
 
 @dataclass(frozen=True)
@@ -288,13 +289,13 @@ def solve_ik(
     ep, ew = _measure(screws, M, q, p_goal, R_goal)
     reached = (ep < opts.tol_mm) & (ew < opts.tol_rad)
     starts = np.ones(m, dtype=int)
-    rng = np.random.default_rng(opts.seed)
-    for _ in range(opts.restarts):
+    for restart in range(opts.restarts):
         todo = np.flatnonzero(~reached)
         if not len(todo):
             break
         starts[todo] += 1
-        q0 = rng.uniform(lo[todo], hi[todo])
+        # every goal's start drawn, used or not: which goals a restart takes cannot shift the draws of others
+        q0 = stream(opts.seed, "restart", restart).uniform(lo, hi)[todo]
         Rg = None if R_goal is None else R_goal[todo]
         qt = _start(screws, M, q0, q_seed[todo], p_goal[todo], Rg, lo[todo], hi[todo], opts, pull)
         et, wt = _measure(screws, M, qt, p_goal[todo], Rg)
