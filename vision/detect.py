@@ -227,13 +227,15 @@ def select(
         return _strength(s) * _prior(s, predicted)
 
     warnings = []
-    # The laser's colour is the one its rim shows most clearly (the largest margin over the rule):
-    # an LED or a lit object of the other colour may well add more light.
+    # The laser's colour is the one its rim shows most clearly (the margin over the rule): an LED or
+    # a lit object of the other colour may well add more light.
     score = {c: max((rank(s) for s in spots), default=0.0) for c, (spots, _) in judged.items()}
     clear = {
         c: max((_colour_margin(s, rule) for s in spots), default=-np.inf) for c, (spots, _) in judged.items()
     }
-    colour = max(score, key=lambda c: (clear[c], score[c]))
+    # Of the colours whose rims are about as clear as the clearest (within a factor of 2 in rim
+    # shift: both capped, say), the one with the strongest spot.
+    colour = max(score, key=lambda c: (clear[c] >= max(clear.values()) - np.log(2), score[c]))
     if score[colour] == 0:
         colour = " or ".join(judged) if len(judged) > 1 else colour
         rejected = [r for _, rej in judged.values() for r in rej]

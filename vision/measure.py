@@ -101,7 +101,7 @@ def measure_photo(
     """Detect and measure the spots of one photo, on the plane when the layout has markers.
 
     With a layout the markers are found first, and the spot is sought on the sheet only (the
-    markers' hull grown by half about its centre): red and bright things around it are no candidates.
+    markers' hull grown 2x about its centre): red and bright things around it are no candidates.
 
     Parameters
     ----------
@@ -147,7 +147,7 @@ def measure_photo(
             opts.imagej_box,
             opts.gamma,
             luma,
-            search=None if plane is None else sheet_region(plane, size),
+            search=None if plane is None else sheet_region(plane, layout),
             predicted=predicted,
         )
     if lost is not None:
@@ -183,19 +183,26 @@ def measure_photo(
     return PhotoResult(name, spots, warnings, plane, colour, exposure)
 
 
-def sheet_region(plane: PlaneMap, size: tuple[int, int], grow: float = 1.5) -> np.ndarray:
-    """The part of the photo a spot is sought in when the markers are found: the hull of the inlier
-    fiducials grown by ``grow`` about its centre (markers sit inside the sheet's edge), px.
+def sheet_region(plane: PlaneMap, layout: MarkerLayout, grow: float = 2.0) -> np.ndarray:
+    """The part of the photo a spot is sought in when the markers are found: the hull of all the
+    layout's fiducials on the plane (found in this photo or not), grown by ``grow`` about its centre
+    (markers sit inside the sheet, and spots are measured around them), mapped into the photo, px.
 
     Returns
     -------
-    (n, 2) float32 array, a convex polygon in the stored pixel grid
+    (n, 2) float32 array, a polygon in the stored pixel grid
     """
-    pts = plane.fiducials.image[plane.inliers].astype(np.float32)
-    hull = cv2.convexHull(pts).reshape(-1, 2)
+    pts = [plane.fiducials.plane.reshape(-1, 2)]
+    pts += [np.asarray(c, float).reshape(-1, 2) for c in layout.corners.values()]
+    if layout.charuco is not None:  # the board's outer corners, not only the inner ones found
+        ch = layout.charuco
+        w, h = ch.squares[0] * ch.square, ch.squares[1] * ch.square
+        pts.append(ch.origin + np.array([[0, 0], [w, 0], [w, h], [0, h]]) @ np.array([ch.x_axis, ch.y_axis]))
+    xy = np.concatenate(pts).astype(np.float32)
+    hull = cv2.convexHull(xy).reshape(-1, 2).astype(float)
     centre = hull.mean(axis=0)
-    grown = centre + grow * (hull - centre)
-    return np.clip(grown, 0, np.array(size, np.float32) - 1).astype(np.float32)
+    uv = plane.to_image(centre + grow * (hull - centre))
+    return np.clip(uv, -1e6, 1e6).astype(np.float32)
 
 
 @contextmanager
