@@ -35,7 +35,7 @@ def row(name: str, s: fit.Score, rule=None) -> None:
         if rule is None
         else (
             f"  shift {rule.shift_min:.2f} core {rule.core_shift_min:.2f} dominance {rule.dominance:.2f} "
-            f"p = 1/(1+exp(-({rule.offset:.2f} + {rule.slope:.2f} margin)))"
+            f"p = 1/(1+exp(-({rule.offset:.2f} + {rule.slope:.2f} margin + {rule.clipped:.2f} clipped)))"
         )
     )
     print(

@@ -99,7 +99,7 @@ class DecisionRule:
     # its leave-one-source-out rows score the same procedure on sources it did not see).
     shift_min: float = 2.1
     core_shift_min: float = 1.79
-    dominance: float = 0.2
+    dominance: float = 0.1
     offset: float = -1.85
     slope: float = 1.04
     clipped: float = 1.15
