@@ -281,3 +281,42 @@ def rendered(n: int, seed: int = 0) -> list[Labelled]:
         tries = measure_candidates(img, "auto", None, 2.2, True, rule=PERMISSIVE)
         out.append(Labelled("renderer", f"rendered {i}", labels, [], tries))
     return out
+
+
+def lit_papers(n: int, seed: int = 0) -> list[Labelled]:
+    """Labelled photos of coloured paper lit by a red laser or by warm broadband light, the light that
+    comes closest to a red laser's rim: paper of any colour (linear reflectance 0.15-0.8 per
+    channel), a Gaussian light of sigma 3-6 px peaking 3-30x the paper, clipped, gamma-encoded and
+    saved as a 4:2:0 JPEG (quality 90). One photo in three holds a red laser (leaking 1-10 % of its
+    light into green and blue: a spot); the others a warm lamp (diffuse: the paper's colour times a
+    light with red 1.2-1.6x green, blue 0.6-1.0x green) or a warm glare (specular: the light's own
+    colour), neither of them a spot. 200 x 160 px.
+
+    Returns
+    -------
+    list of Labelled, source "lit paper"
+    """
+    import cv2
+
+    rng = np.random.default_rng([seed, 31])
+    yy, xx = np.mgrid[:160, :200]
+    out = []
+    for i in range(n):
+        paper = rng.uniform(0.15, 0.8, 3)
+        u, v, sigma = *rng.uniform([80, 60], [120, 100]), rng.uniform(3, 6)
+        amp = float(np.exp(rng.uniform(np.log(3), np.log(30))))
+        tint = np.array([rng.uniform(0.6, 1.0), 1.0, rng.uniform(1.2, 1.6)])  # BGR
+        if i % 3 == 0:
+            light = amp * paper.max() * np.array([*rng.uniform(0.01, 0.1, 2), 1.0])
+        elif i % 3 == 1:
+            light = amp * paper * tint
+        else:
+            light = amp * paper.max() * tint / tint.max()
+        g = np.exp(-((xx - u) ** 2 + (yy - v) ** 2) / (2 * sigma**2))[..., None]
+        lin = paper * (1 + 0.01 * rng.standard_normal((160, 200, 3))) + g * light
+        img = np.clip(255 * np.clip(lin, 0, 1) ** (1 / 2.2), 0, 255).astype(np.uint8)
+        img = cv2.imdecode(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1], cv2.IMREAD_COLOR)
+        labels = [dict(x=u, y=v, uncertainty_px=0.5, radius_px=2 * sigma)] if i % 3 == 0 else []
+        tries = measure_candidates(img, "auto", None, 2.2, True, rule=PERMISSIVE)
+        out.append(Labelled("lit paper", f"lit paper {i}", labels, [], tries))
+    return out
