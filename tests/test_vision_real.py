@@ -32,24 +32,41 @@ def tolerance(label: dict) -> float:
     return max(4.0, 2.0 * label["uncertainty_px"])
 
 
+@pytest.fixture(scope="module")
+def measured():
+    """The labelled photos' candidates, measured once with every colour rule off, and rendered ones."""
+    from lasercal.vision import fit
+
+    return fit.measure_labelled(PHOTOS), fit.rendered(40) + fit.lit_papers(60)
+
+
 @needs_photos
-@pytest.mark.parametrize("entry", LABELS, ids=[e["file"] for e in LABELS])
-def test_real_photo_spots_found_and_none_invented(entry):
-    # What a user gets from `lasercal spots PHOTO`: the defaults (one spot expected, colour auto).
-    res = measure_file(PHOTOS / entry["file"], Options())
-    assert res.error is None or "could not be measured" not in res.error, res.error
-    assert res.error is None or "\n" not in res.error
-    labels = entry["spots"]
-    if not labels:
-        assert res.error is not None and "no red or green laser spot found" in res.error, res.spots
-        return
-    assert res.error is None, res.error
-    assert len(res.spots) == len(labels)
-    for lab in labels:
-        d = min(np.hypot(s.u - lab["x"], s.v - lab["y"]) for s in res.spots)
-        assert d <= tolerance(lab), (lab, [(s.u, s.v) for s in res.spots])
-    for s in res.spots:
-        assert s.evidence.rule in ("rim", "view") and 0.5 <= s.evidence.confidence <= 1
+def test_leave_one_source_out_finds_the_spots_and_invents_few(measured):
+    # Issue 30: the rule is fitted without the source it is scored on, as on cameras never seen.
+    # Measured: 18 of 21 found, 3 false, no photo lost, median 0.5 px (bench_vision_loso.py); the
+    # bounds leave a photo's margin either way.
+    from lasercal.vision import fit
+
+    real, synth = measured
+    folds = fit.leave_one_source_out(real, synth)
+    assert set(folds) == {p.source for p in real} and len(folds) == 7
+    total = sum((s for _, s in folds.values()), fit.Score())
+    assert total.labelled == 21 and total.photos == 24
+    assert total.found >= 17 and total.false <= 4 and total.unmeasurable == 0
+    assert total.median <= 2.0
+    for rule, _ in folds.values():  # thresholds a white light (rim shift <= 1 in theory) never reaches
+        assert 1.2 <= min(rule.core_shift_min, rule.shift_min) and 0 < rule.dominance < 1
+    # In-sample can only be as good or better: the protocol is what stands for unseen cameras.
+    everything = fit.fit_rule(real + synth)
+    assert fit.score(real, everything).errors <= total.errors
+
+
+@needs_photos
+def test_white_flashlight_gives_no_spot():
+    # A clipped white hotspot without a laser-coloured fringe is no spot, whatever is expected.
+    entry = next(e for e in LABELS if e["file"].endswith("flashlight.jpg"))
+    res = measure_file(PHOTOS / entry["file"], Options(expect=None))
+    assert res.error is not None and "no red or green laser spot found" in res.error
 
 
 @needs_photos
@@ -168,6 +185,17 @@ def test_rim_shift_tells_laser_light_from_white_light_on_any_paper(paper):
         tints = ([1.3, 1.0, 0.8], [0.6, 1.0, 1.5], [1.6, 1.1, 0.7])
         lights = [amp * p * np.array(t) for t in tints]
         lights += [amp * p.max() * np.ones(3), amp * p.max() * np.array([0.6, 1.0, 1.5])]
-        for light in lights:
-            with pytest.raises(NoSpotError):
-                detect_spots(lit_paper(p, light, seed)[1], colour="auto", luma=True, expect=None)
+        for k, light in enumerate(lights):
+            warm = k in (1, 4)
+            try:
+                spots, warnings = detect_spots(
+                    lit_paper(p, light, seed)[1], colour="auto", luma=True, expect=None
+                )
+            except NoSpotError:
+                continue
+            # Issue 30: a clipped white core with a warm fringe is taken for an overexposed laser
+            # spot (rule "core"); a warm lamp or glare can look like that (rim shift 1.8-2.0 on
+            # yellow and cardboard). It is then reported as unlikely, with the advice to lower the
+            # exposure or take a laser-off photo. White, bluish and cool light never passes.
+            assert warm and all(s.evidence.rule == "core" and s.evidence.confidence < 0.5 for s in spots)
+            assert any("--reference" in w for w in warnings)

@@ -3,7 +3,7 @@
 A laser spot on paper is measured best when it is bright against the paper but clipped
 over few pixels. Clipping hides the spot's profile (only the plateau's edge and the flanks
 are left to measure) and blooming spreads it; a faint spot drowns in noise and speckle.
-The numbers come from the spots' :class:`~vision.detect.Evidence`; units as there
+The numbers come from the spots' :class:`~vision.spot.Evidence`; units as there
 (fractions of full scale, pixels).
 """
 

@@ -96,8 +96,12 @@ def measure_photo(
     camera: Camera | None = None,
     reference: np.ndarray | None = None,
     subsampled: bool = False,
+    predicted: tuple[float, float, float] | None = None,
 ) -> PhotoResult:
     """Detect and measure the spots of one photo, on the plane when the layout has markers.
+
+    With a layout the markers are found first, and the spot is sought on the sheet only (the
+    markers' hull grown 2x about its centre): red and bright things around it are no candidates.
 
     Parameters
     ----------
@@ -108,6 +112,7 @@ def measure_photo(
     camera : Camera or None, lens distortion to undo before the homography
     reference : laser-off photo like ``img`` or None
     subsampled : bool, the photo is a JPEG with chroma subsampling (see ``images.chroma_subsampled``)
+    predicted : (u, v, sigma) px or None, where the spot is expected (see ``detect_spots``)
 
     Raises
     ------
@@ -120,6 +125,15 @@ def measure_photo(
     if camera is not None:
         camera.check_size(size, name)
     luma = opts.channel == "luma" or (opts.channel == "auto" and subsampled)
+    plane, fid, lost = None, None, None
+    if layout is not None:
+        try:  # the markers first: they bound the search; a photo without them is lost all the same
+            with stage(name, "finding the markers"):
+                fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
+            with stage(name, "fitting the plane"):
+                plane = fit_plane(fid, layout, camera, size, name)
+        except VisionError as exc:
+            lost = exc
     with stage(name, "finding the laser spot"):
         spots, warnings = detect_spots(
             img,
@@ -133,19 +147,18 @@ def measure_photo(
             opts.imagej_box,
             opts.gamma,
             luma,
+            search=None if plane is None else sheet_region(plane, layout),
+            predicted=predicted,
         )
+    if lost is not None:
+        raise lost
     exposure = exposure_advice(spots, reference is not None) if opts.method == "precise" else None
     if exposure is not None and exposure.advice:
         warnings.append(exposure.advice)
     colour = next(
         (s.evidence.colour for s in spots if s.evidence is not None and s.evidence.colour), opts.colour
     )
-    plane = None
-    if layout is not None:
-        with stage(name, "finding the markers"):
-            fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
-        with stage(name, "fitting the plane"):
-            plane = fit_plane(fid, layout, camera, size, name)
+    if plane is not None:
         if fid.unknown_ids:
             warnings.append(f"markers not in the layout ignored: ids {', '.join(map(str, fid.unknown_ids))}")
         if (~plane.inliers).any():
@@ -168,6 +181,28 @@ def measure_photo(
                 f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated"
             )
     return PhotoResult(name, spots, warnings, plane, colour, exposure)
+
+
+def sheet_region(plane: PlaneMap, layout: MarkerLayout, grow: float = 2.0) -> np.ndarray:
+    """The part of the photo a spot is sought in when the markers are found: the hull of all the
+    layout's fiducials on the plane (found in this photo or not), grown by ``grow`` about its centre
+    (markers sit inside the sheet, and spots are measured around them), mapped into the photo, px.
+
+    Returns
+    -------
+    (n, 2) float32 array, a polygon in the stored pixel grid
+    """
+    pts = [plane.fiducials.plane.reshape(-1, 2)]
+    pts += [np.asarray(c, float).reshape(-1, 2) for c in layout.corners.values()]
+    if layout.charuco is not None:  # the board's outer corners, not only the inner ones found
+        ch = layout.charuco
+        w, h = ch.squares[0] * ch.square, ch.squares[1] * ch.square
+        pts.append(ch.origin + np.array([[0, 0], [w, 0], [w, h], [0, h]]) @ np.array([ch.x_axis, ch.y_axis]))
+    xy = np.concatenate(pts).astype(np.float32)
+    hull = cv2.convexHull(xy).reshape(-1, 2).astype(float)
+    centre = hull.mean(axis=0)
+    uv = plane.to_image(centre + grow * (hull - centre))
+    return np.clip(uv, -1e6, 1e6).astype(np.float32)
 
 
 @contextmanager

@@ -28,20 +28,27 @@ class Evidence:
     clipped_px : int, spot pixels clipped in the laser's channel
     white_px : int, spot pixels (nearly) clipped in all three channels, >= 97 % of full scale (a white core)
     area : int, pixels in the spot's blob
-    confidence : float in [0, 1], a score, not a probability: the lower of how far the excess, the
-        luma's rise and the rim shift pass their thresholds (0.5 at a threshold, -> 1 well above it)
+    confidence : float in [0, 1], the probability that the candidate is laser light, from its rim
+        shift against the threshold of its rule (a logistic model fitted on labelled candidates, see
+        :mod:`vision.decide`; 0 until judged)
     rim_ratio : float or None, the light the candidate adds in the laser's channel over what it adds
         in another channel, summed over its rim, in linear light (capped at 20)
     paper_ratio : float or None, the same ratio of the paper's own light under that rim
     rim_shift : float or None, ``rim_ratio / max(1, paper_ratio)`` against the laser's neighbours in
         wavelength (red: green; green: red and blue, both shifted by at least 1.2): <= 1 for white
-        light on any paper in theory, ~2 at most measured; a spot needs 2.2 (``detect.SHIFT_MIN``)
+        light on any paper in theory; the threshold a spot needs is its rule's (:mod:`vision.decide`)
     rule : str or None, which rule took the candidate for laser light: "rim" (its rim shifts towards
-        the laser's hue), "view" (a clipped core in a surround of nearly monochromatic laser light: the
-        spot's own halo fills the view), "grey" (a grey photo: brightness only); None when none did
+        the laser's hue), "core" (a compact clipped white core with a laser-ward fringe: a spot
+        exposed far past clipping), "view" (a clipped core in a surround of nearly monochromatic
+        laser light: the spot's own halo fills the view), "grey" (a grey photo: brightness only);
+        None when none did
     flux : float, light the spot adds in the laser's channel, summed over its blob, linear, DN px
         (of the full photo); one laser adds about the same wherever it lands
     cut : bool, the photo's edge cuts the spot
+    surround : float or None, the laser channel over the brighter other one in the box's surround
+        (linear): >= 20 only where the laser's own halo fills the view
+    lit : float, how far the spot clears the brightness it needs: the smaller of log(excess / need)
+        and log(luma rise / its need)
     """
 
     colour: str | None
@@ -60,6 +67,8 @@ class Evidence:
     rule: str | None = None
     flux: float = 0.0
     cut: bool = False
+    surround: float | None = None
+    lit: float = 0.0
 
     @property
     def strength(self) -> float:
@@ -92,6 +101,8 @@ class Evidence:
             "rule": self.rule,
             "flux": round(self.flux, 1),
             "cut": self.cut,
+            "surround": None if self.surround is None else round(self.surround, 2),
+            "lit": round(self.lit, 3),
         }
 
     def describe(self) -> str:

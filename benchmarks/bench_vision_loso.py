@@ -1,0 +1,94 @@
+"""Leave-one-source-out benchmark of the spot decision rule (issue 30), beside the renderer.
+
+Run from the repository root::
+
+    python benchmarks/bench_vision_loso.py                 # ~3 min on 2 cores
+    python benchmarks/bench_vision_loso.py --rendered 60   # fewer rendered photos
+
+The labelled real photos are read from ``../shared/data/real-photos`` (``labels.json``; see its
+``PROVENANCE.md``; never copied into the repository). Each photo's candidates are measured once
+with every colour rule off, then each rule is applied as ``lasercal spots --json --expect any PHOTO``
+applies it (``vision.fit``). The rule's thresholds and its probability's calibration are fitted on
+every source but one, together with rendered photos sampled wide (``vision.fit.rendered``) and
+photos of coloured paper lit by a laser or by warm light (``vision.fit.lit_papers``), and
+scored on the source left out: found / labelled (within max(4 px, 2 x the label's uncertainty)),
+false spots (farther than 3 x radius + 6 px from every labelled and uncertain spot), photos lost
+("could not be measured") and the median distance of the found spots. Then the rule fitted on all
+sources (the one :data:`lasercal.vision.decide.RULE` holds) in-sample, and the rule in
+``vision/decide.py`` as it stands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from lasercal.vision import fit
+from lasercal.vision.decide import RULE
+
+PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-photos"
+
+
+def row(name: str, s: fit.Score, rule=None) -> None:
+    r = (
+        ""
+        if rule is None
+        else (
+            f"  shift {rule.shift_min:.2f} core {rule.core_shift_min:.2f} dominance {rule.dominance:.2f} "
+            f"p = 1/(1+exp(-({rule.offset:.2f} + {rule.slope:.2f} margin + {rule.clipped:.2f} clipped)))"
+        )
+    )
+    print(
+        f"{name:<34} {s.photos:>6} {s.found:>5}/{s.labelled:<4} {s.false:>6} {s.unmeasurable:>6} "
+        f"{s.median:>9.2f}{r}"
+    )
+
+
+def header(title: str) -> None:
+    print(f"\n## {title}")
+    print(f"{'source':<34} {'photos':>6} {'found':>10} {'false':>6} {'lost':>6} {'median px':>9}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--photos", type=Path, default=PHOTOS, help="folder with labels.json")
+    ap.add_argument("--rendered", type=int, default=120, help="rendered photos in every training set")
+    a = ap.parse_args()
+    t = time.perf_counter()
+    real = fit.measure_labelled(a.photos)
+    synth = fit.rendered(a.rendered) + fit.lit_papers(60)
+    print(f"measured {len(real)} real and {len(synth)} rendered photos in {time.perf_counter() - t:.0f} s")
+
+    header("Leave one source out: fitted without the source, scored on it")
+    total = fit.Score()
+    for src, (rule, s) in fit.leave_one_source_out(real, synth).items():
+        row(src, s, rule)
+        total = total + s
+    row("all (held out)", total)
+
+    header("In-sample: the rule fitted on all sources and the renderer")
+    everything = fit.fit_rule(real + synth)
+    for src in sorted({p.source for p in real}):
+        row(src, fit.score([p for p in real if p.source == src], everything))
+    row("all real", fit.score(real, everything))
+    row("renderer", fit.score([p for p in synth if p.source == "renderer"], everything))
+    row(
+        "lit paper (laser, warm lamps, warm glare)",
+        fit.score([p for p in synth if p.source != "renderer"], everything),
+    )
+    print(f"fitted: {everything}")
+
+    header("The rule in vision/decide.py (RULE)")
+    row("all real", fit.score(real, RULE))
+    row("renderer", fit.score([p for p in synth if p.source == "renderer"], RULE))
+    row(
+        "lit paper (laser, warm lamps, warm glare)",
+        fit.score([p for p in synth if p.source != "renderer"], RULE),
+    )
+    print(f"RULE: {RULE}")
+    print(f"\n(benchmark took {time.perf_counter() - t:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

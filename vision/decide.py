@@ -1,0 +1,482 @@
+"""Stage 3 of spot detection: is a candidate laser light? Then its centre (stage 4, :mod:`vision.refine`).
+
+:func:`measure_spot` measures one candidate (:mod:`vision.features`), rejects it when it is not
+brighter than the paper in the laser's channel *and* in the luma (red ink: a phone's colour
+correction lifts its red above the paper's, but it takes light away), when its rim does not shift
+towards the laser's hue relative to the paper (white light of any kind, see
+:func:`~vision.features._rim_shift`), when it is smaller than any lens-blurred spot, not a compact
+ellipse, or a JPEG fringe beside ink (weak, next to darker pixels, or dark at its centre). The spots
+left are ranked by the light they add (:attr:`~vision.spot.Evidence.strength`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from lasercal.vision.candidates import Candidate
+from lasercal.vision.errors import SpotCountError
+from lasercal.vision.features import (
+    CLIP,
+    LUMA,
+    LUMA_CLIP,
+    _ellipse_fit,
+    _evidence,
+    _ink,
+    _label_at,
+    _light_need,
+    _linear,
+    _plane_background,
+    _surround,
+    _touches_border,
+)
+from lasercal.vision.images import full_scale
+from lasercal.vision.refine import (
+    FIT_STRAY,
+    _border_noise,
+    _centroid_sigma,
+    _fit_profile,
+    _laser_plane,
+    _weighted_centroid,
+)
+from lasercal.vision.spot import CHANNEL, Evidence, Spot
+
+MEASURE_SIDE = 160  # px: a candidate's box wider than this is measured on a shrunk copy
+GROW_MAX = 2 * MEASURE_SIDE  # px: a box grows no further (larger spots are the coarse pass's)
+
+# Laser light adds light: the luma rises by at least a quarter of the laser channel's weight in it
+# times the channel's rise (a phone's colour matrix leaks up to half of it away: 0.48 measured for
+# green on the renderer). Red objects and ink redden a patch while its other channels fall.
+LIGHT_SHARE = 0.25
+
+
+# A lens and demosaicing blur any spot by sigma >= 1 px: its blob (>= 15 % of its peak after the
+# sigma-1 smoothing) covers >= 24 px. A hot photosite (one red 2x2 block) covers ~12.
+MIN_BLOB = 20
+
+
+MIN_FILL = 0.8  # area over the moment ellipse: 1 for an ellipse, ~0.95 cut, >= 0.91 for real spots
+
+
+MAX_ASPECT = 2.5  # a beam 66 deg off the normal: far past any pose that aims a laser at a sheet
+
+
+# A surround whose laser channel outshines the others this much (linear) is no paper under room
+# light: the laser's own halo fills the view (a tight crop), and the clipped core in it is the spot.
+MONO = 20.0
+
+
+@dataclass(frozen=True)
+class DecisionRule:
+    """The parameters of the decision "laser light or not", from a candidate's :class:`Evidence`.
+
+    White light, whatever the surface, gives a rim shift <= 1 in theory (see
+    :func:`~vision.features._rim_shift`); a light whose colour temperature differs from the white
+    balance, and the tone curve's shoulder, push it up (measured: up to ~2.1 for light that is not a
+    laser). A spot exposed far past clipping keeps only a faint fringe around its clipped white core,
+    and blooming whitens even that: a compact white core with any laser-ward fringe (rule "core")
+    needs a lower shift than a spot without one (rule "rim"). The thresholds, the dominance and the
+    probability's calibration are fitted on labelled candidates, leaving each source of real photos
+    out in turn (``benchmarks/bench_vision_loso.py``).
+
+    Attributes
+    ----------
+    shift_min : float, the rim shift a spot needs (rule "rim")
+    core_shift_min : float, the rim shift a spot with a clipped white core needs (rule "core")
+    dominance : float, with any number of spots expected, a spot whose strength is below this
+        fraction of the photo's strongest is dropped: one laser adds about the same light
+        wherever it lands, and red objects that pass every rule add far less
+    offset, slope, clipped : float, the probability
+        ``1 / (1 + exp(-(offset + slope * margin + clipped * c)))`` of a candidate whose evidence
+        clears its threshold by ``margin`` (see :func:`margin`), with ``c`` = 1 when its laser channel
+        is clipped (a laser pointer's spot outshines room light many times over; a lit object
+        seldom clips), else 0
+    """
+
+    # Fitted on the 24 real photos, 120 rendered ones and 60 of lit paper (bench_vision_loso.py,
+    # in-sample; its leave-one-source-out rows score the same procedure on sources it did not see).
+    shift_min: float = 2.1
+    core_shift_min: float = 1.79
+    dominance: float = 0.1
+    offset: float = -1.83
+    slope: float = 1.07
+    clipped: float = 1.05
+
+    def probability(self, margin: float, clipped: bool = False) -> float:
+        """The calibrated probability of laser light at a margin (see the class)."""
+        z = self.offset + self.slope * margin + self.clipped * clipped
+        return float(1 / (1 + np.exp(-np.clip(z, -50, 50))))
+
+
+RULE = DecisionRule()
+SHIFT_MIN = RULE.shift_min  # the rim shift a spot without a clipped white core needs
+# Every candidate that passes the physical gates, judged later: to collect evidence for a fit.
+PERMISSIVE = DecisionRule(shift_min=0.0, core_shift_min=0.0, dominance=0.0)
+
+
+def has_core(ev: Evidence) -> bool:
+    """Whether a spot has a clipped white core: clipped in the laser's channel and white in all three."""
+    return ev.white_px > 0 and ev.clipped_px > 0
+
+
+def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
+    """The evidence with the rule that takes it for laser light (or None) and its probability.
+
+    Parameters
+    ----------
+    ev : Evidence measured by :func:`~vision.features._evidence`
+    rule : DecisionRule
+
+    Returns
+    -------
+    Evidence with ``rule`` ("rim", "core", "view", "grey" or None) and ``confidence`` (probability)
+    """
+    if ev.colour is None:  # a grey photo: brightness is all there is
+        return replace(ev, rule="grey", confidence=rule.probability(ev.lit, ev.clipped_px > 0))
+    shift = ev.rim_shift or 0.0
+    if shift >= rule.shift_min:
+        name = "rim"
+    elif has_core(ev) and shift >= rule.core_shift_min:
+        name = "core"
+    elif ev.white_px and (ev.surround or 0.0) >= MONO:
+        return replace(ev, rule="view", confidence=0.75)
+    else:
+        name = None
+    return replace(ev, rule=name, confidence=rule.probability(margin(ev, rule), ev.clipped_px > 0))
+
+
+def margin(ev: Evidence, rule: DecisionRule = RULE) -> float:
+    """How far a candidate's evidence clears its rule: the log of its rim shift over the threshold
+    of its rule (a clipped white core's, when it has one), or the log-margin of its brightness
+    (:attr:`Evidence.lit`), whichever is smaller; the brightness alone on a grey photo."""
+    if ev.colour is None:
+        return float(ev.lit)
+    thr = min(rule.shift_min, rule.core_shift_min) if has_core(ev) else rule.shift_min
+    return float(min(np.log(max(ev.rim_shift or 0.0, 1e-9) / max(thr, 1e-9)), ev.lit))
+
+
+REASONS = {
+    "dim": "not brighter than the paper (printed marks?)",
+    "white": "white, not laser-coloured (reflections?)",
+    "shape": "not a compact ellipse (a wire, a frame or an object's edge?)",
+    "unlit": "coloured but adds too little light (a red object, ink or a sensor defect?)",
+    "fringe": "a faint coloured fringe beside ink or a ring (JPEG artefact)",
+    "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
+}
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """Why a candidate is not a laser spot (``kind`` is a key of :data:`REASONS`)."""
+
+    kind: str
+    u: float
+    v: float
+    evidence: Evidence | None = None
+
+    def describe(self) -> str:
+        """One line: where, why, and the evidence when it was measured."""
+        ev = "" if self.evidence is None else f" ({self.evidence.describe()})"
+        return f"at ({self.u:.0f}, {self.v:.0f}) px: {REASONS[self.kind]}{ev}"
+
+
+def measure_spot(
+    img: np.ndarray,
+    cand: Candidate,
+    colour: str = "red",
+    reference: np.ndarray | None = None,
+    others: list[Candidate] = (),
+    gamma: float = 2.2,
+    luma: bool = False,
+    rule: DecisionRule = RULE,
+) -> Spot | Rejection:
+    """Measure one candidate with the precise method.
+
+    Parameters
+    ----------
+    img : (h, w, 3) BGR or (h, w) grey array
+    cand : Candidate
+    colour : "red" or "green"
+    reference : laser-off photo like ``img``, or None
+    others : the other candidates, whose pixels are kept out of the window
+    gamma : float, the photo's encoding gamma (for the fit when ink lies under the spot)
+    luma : bool, centroid on the luma instead of the laser's channel: a JPEG with
+        chroma subsampling keeps only the luma at full resolution
+    rule : DecisionRule, the thresholds of the colour rules (see :func:`judge`)
+
+    Returns
+    -------
+    Spot, or Rejection when the candidate is not laser light.
+    """
+    h, w = img.shape[:2]
+    ch = CHANNEL[colour] if img.ndim == 3 else 0
+    full = full_scale(img)
+    x0, y0, x1, y1 = cand.box
+    for attempt in range(4):  # grow the box until the spot no longer touches its border
+        roi = img[y0:y1, x0:x1].astype(np.float32).reshape(y1 - y0, x1 - x0, -1)
+        if reference is not None:
+            roi = roi - reference[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)
+        bg, noise = _plane_background(roi)
+        delta = roi - bg
+        sig = delta[..., ch]
+        peak_d = float(sig.max())
+        whole = (x0, y0, x1, y1) == (0, 0, w, h) or max(x1 - x0, y1 - y0) >= GROW_MAX
+        # The spot's own light is laser-coloured: a white surface lit brighter than the paper the
+        # border found (a white arm before a grey wall) is no reason to grow.
+        lase = sig if roi.shape[2] == 1 else sig - np.delete(delta, ch, axis=2).max(axis=2)
+        if whole or attempt == 3 or not _touches_border(lase, noise[ch], float(lase.max())):
+            break
+        gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
+        x0, y0, x1, y1 = max(x0 - gx, 0), max(y0 - gy, 0), min(x1 + gx, w), min(y1 + gy, h)
+    # Not brighter than the paper: ink or a JPEG fringe, not light. A reference photo
+    # removes ink and fringes, so fainter spots are believed then.
+    contrast = (0.05 if reference is not None else 0.08) * full
+    smooth = cv2.GaussianBlur(sig, (0, 0), 1.0)  # speckle would split a spot into several blobs
+    plain = img[y0:y1, x0:x1].astype(np.float32).reshape(roi.shape)  # the photo itself, not a difference
+    base = plain - delta  # what the photo would show without the laser (paper, or reference + paper)
+    if img.ndim == 3 and _surround(base, ch, full, gamma) >= MONO:
+        return _core_in_halo(plain, delta, cand, (x0, y0), ch, full, noise, peak_d, colour, gamma)
+    need = max(8 * noise[ch], contrast)
+    thr = max(4 * noise[ch], 0.15 * peak_d)
+    bright = (smooth > thr).astype(np.uint8)
+    ink = _ink(plain, base, ch) if img.ndim == 3 else None
+    if ink is not None:
+        # A printed cross under the spot cuts it into pieces: bridge them over the ink.
+        bright |= (ink & cv2.dilate(bright, np.ones((7, 7), np.uint8)).astype(bool)).astype(np.uint8)
+    n, labels = cv2.connectedComponents(bright, connectivity=8)
+    if n <= 1:
+        return Rejection(
+            "dim", cand.u, cand.v, _evidence(plain, delta, None, ch, full, noise, peak_d, need, colour, gamma)
+        )
+    # The brightest blob, unless it is another candidate's (a grown box may reach a brighter
+    # neighbour, such as red ink, that is measured on its own).
+    ours = labels > 0
+    mine = _label_at(labels, cand.u - x0, cand.v - y0)
+    for o in others:
+        theirs = _label_at(labels, o.u - x0, o.v - y0)
+        if theirs and theirs != mine:
+            ours &= labels != theirs
+    if not ours.any():
+        ours = labels > 0
+    iy, ix = np.unravel_index(np.argmax(np.where(ours, smooth, -np.inf)), sig.shape)
+    blob = labels == labels[iy, ix]
+    raw = plain[..., ch]
+    clipped = raw >= CLIP * full
+    if clipped[blob].any():
+        # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped and
+        # half the headroom (or 8 sigma) brighter than the paper is bright enough, where the paper
+        # is textured (a large spot's box holds the scene) at least 3 sigma.
+        headroom = 0.5 * (full - float(np.median(base[..., ch])))
+        need = max(3 * noise[ch], min(8 * noise[ch], contrast, headroom))
+    if peak_d < need or blob.sum() < MIN_BLOB:  # dim or tiny: no need to weigh its colour
+        return Rejection(
+            "dim", cand.u, cand.v, _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
+        )
+    ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma)
+    # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
+    if ev.light * full < _light_need(noise, full):
+        return Rejection("dim", cand.u, cand.v, ev)
+    if img.ndim == 3 and ev.light < LIGHT_SHARE * LUMA[ch] * ev.excess:
+        return Rejection("unlit", cand.u, cand.v, ev)
+    # A JPEG fringe is colour without light: its luma, kept at full resolution, barely rises.
+    faint = ev.clipped_px == 0 and ev.light * full < 2 * _light_need(noise, full)
+    if img.ndim == 3 and reference is None and peak_d < 0.15 * full and faint:
+        # JPEG's coarse colour planes leave a faint laser-coloured fringe beside ink: a
+        # weak blob next to pixels darker than the paper in the other channels is one.
+        around = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
+        if np.max(np.delete(delta, ch, axis=2), axis=2)[around].min() < -0.15 * full:
+            return Rejection("fringe", cand.u, cand.v, ev)
+    # A white reflection (clipped or not) is as bright in the other channels as in the laser's;
+    # laser light keeps its colour in a halo around a clipped white core.
+    ev = judge(ev, rule)
+    if ev.rule is None:
+        return Rejection("white", cand.u, cand.v, ev)
+    # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
+    # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.
+    fill, aspect = _ellipse_fit(blob)
+    if fill < MIN_FILL or aspect > MAX_ASPECT:
+        return Rejection("shape", cand.u, cand.v, ev)
+    exclude = np.zeros(sig.shape, bool)
+    for o in others:
+        ox, oy = int(round(o.u)) - x0, int(round(o.v)) - y0
+        if 0 <= ox < sig.shape[1] and 0 <= oy < sig.shape[0] and labels[oy, ox] > 0 and not blob[oy, ox]:
+            exclude |= labels == labels[oy, ox]
+    r_eq = np.sqrt(blob.sum() / np.pi)
+    m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
+    start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
+    use_luma = luma and img.ndim == 3
+    cen = delta @ LUMA if use_luma else sig
+    u, v, wgt = _weighted_centroid(cen, start, 1.1 * r_eq + 1, exclude)
+    # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
+    if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max() and ink is None and faint:
+        return Rejection("fringe", cand.u, cand.v, ev)
+    Y, X = np.mgrid[: sig.shape[0], : sig.shape[1]]
+    on_ink = ink is not None and bool(((np.hypot(X - u, Y - v) <= 1.5 * r_eq + 2) & ink).any())
+    saturated = bool(clipped[blob].any())
+    # Fit the profile in linear light over the spot and its flanks; clipped pixels bound it
+    # from below, ink and other spots are left out.
+    rec, under = (plain @ LUMA, base @ LUMA) if use_luma else (raw, base[..., ch])
+    top = (LUMA_CLIP if use_luma else CLIP) * full
+    lin_base = _linear(under, full, gamma)
+    window = (np.hypot(X - u, Y - v) <= 2 * r_eq + 3) & ~exclude
+    if ink is not None:
+        window &= ~ink
+    # The background's noise in linear units: the encoding's slope at the paper level.
+    slope = gamma * float(np.median(np.clip(under[window] / full, 1e-3, 1))) ** (gamma - 1)
+    n_rec = float(noise @ LUMA) if use_luma else float(noise[ch])
+    d_fit, n_fit, clip_fit = _linear(rec, full, gamma) - lin_base, n_rec * slope, rec >= top
+    if use_luma and not (clip_fit[window].any() or clipped[window].any()):
+        # An unclipped spot in a 4:2:0 JPEG: the luma plus a little of the chroma (see CHROMA_WEIGHT).
+        d_fit = (plain - base) @ _laser_plane(ch)
+        n_fit = _border_noise(d_fit)
+    fit = _fit_profile(
+        d_fit,
+        window,
+        clip_fit,
+        _linear(np.full_like(rec, top), full, gamma) - lin_base,
+        (u, v),
+        r_eq,
+        n_fit,
+    )
+    # A fit that strays over a pixel from the windowed centroid fell for clutter in its wider
+    # window (JPEG fringes of nearby ink): keep the centroid then.
+    if fit is not None and (on_ink or np.hypot(fit[0] - u, fit[1] - v) <= FIT_STRAY):
+        u, v, su, sv = fit
+    elif on_ink:
+        return Rejection("dim", cand.u, cand.v, ev)
+    else:
+        su, sv = _centroid_sigma(cen, wgt, u, v)
+    # Laser light lies where its colour is. Red ink on bright paper can clip in red and pass for a
+    # clipped spot, but its luma is darker than the paper's: the luma centroid over it runs off to
+    # whatever is brighter nearby, off the blob.
+    near = cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8))
+    if not _label_at(near, u, v):
+        return Rejection("stray", cand.u, cand.v, ev)
+    # A blob cut by the photo's edge shows only part of its light, and its centre is extrapolated.
+    cut = (x0 == 0 and blob[:, 0].any()) or (y0 == 0 and blob[0].any())
+    cut |= (x0 + blob.shape[1] == w and blob[:, -1].any()) or (y0 + blob.shape[0] == h and blob[-1].any())
+    return Spot(
+        u + x0,
+        v + y0,
+        su,
+        sv,
+        float(raw[blob].max()),
+        saturated,
+        int(blob.sum()),
+        on_ink=on_ink,
+        evidence=replace(ev, cut=bool(cut)),
+    )
+
+
+def _core_in_halo(
+    plain: np.ndarray,
+    delta: np.ndarray,
+    cand: Candidate,
+    origin: tuple[int, int],
+    ch: int,
+    full: float,
+    noise: np.ndarray,
+    peak_d: float,
+    colour: str,
+    gamma: float,
+) -> Spot | Rejection:
+    """A spot whose own halo fills the box (a tight crop): its clipped white core, in a surround of
+    nearly monochromatic laser light (see :data:`MONO`), is the spot; the centre is the core's.
+
+    The surround is the laser's light, so the rim rule has no paper to compare with and the laser's
+    channel is clipped over the core and most of the halo: only the core's outline is left. The
+    sigma is a floor, the pixel quantisation of a disc's outline: each of its ~2 pi r edge pixels
+    is in or out (variance 1/12) at a lever r cos(theta), so var = pi r**3 / (12 N**2) = 1 / (12 pi r)
+    for N = pi r**2 pixels; speckle on the core's edge adds to it.
+    """
+    white = (plain >= LUMA_CLIP * full).all(axis=2).astype(np.uint8)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
+    if n <= 1 or stats[1:, 4].max() < 4:
+        return Rejection("dim", cand.u, cand.v, None)
+    i = 1 + int(np.argmax(stats[1:, 4]))
+    blob = labels == i
+    ev = judge(_evidence(plain, delta, blob, ch, full, noise, peak_d, peak_d, colour, gamma))
+    if ev.rule != "view":
+        return Rejection("white", cand.u, cand.v, ev)
+    area = int(stats[i, 4])
+    sigma = float(1 / np.sqrt(12 * np.pi * np.sqrt(area / np.pi)))
+    u, v = cents[i]
+    x0, y0 = origin
+    raw = plain[..., ch]
+    return Spot(u + x0, v + y0, sigma, sigma, float(raw[blob].max()), True, area, evidence=ev)
+
+
+def _strength(s: Spot) -> float:
+    """How convincing a spot is, to rank it against others (see :attr:`Evidence.strength`)."""
+    return 0.0 if s.evidence is None else s.evidence.strength
+
+
+def _dedupe(spots: list[Spot]) -> list[Spot]:
+    """Drop spots found twice: two candidates of one spot converge within its radius."""
+    out: list[Spot] = []
+    # Of two measurements of one spot, keep the one whose blob holds more of its light.
+    for s in sorted(spots, key=lambda s: -s.peak * s.area):
+        if all(np.hypot(s.u - o.u, s.v - o.v) > max(3.0, np.sqrt(max(s.area, o.area) / np.pi)) for o in out):
+            out.append(s)
+    return out
+
+
+CLOSE = 0.5  # a runner-up this close to the weakest kept spot, in strength, is not ruled out
+
+
+def _where(s: Spot, rank) -> str:
+    return f"({s.u:.1f}, {s.v:.1f}) px (confidence {s.evidence.confidence:.2f}, strength {rank(s):.3g})"
+
+
+def _keep_strongest(spots: list[Spot], expect: int, name: str, rank=_strength) -> tuple[list[Spot], str]:
+    """The ``expect`` most convincing spots, and a warning naming the others.
+
+    One laser makes spots of about the same light (flux) wherever it lands; glints, LEDs and red
+    objects that pass every rule are mostly far weaker. When the runner-up comes within
+    :data:`CLOSE` of the weakest kept spot the photo cannot say which is the laser: both are named,
+    with their confidence, and the photo is lost.
+
+    Parameters
+    ----------
+    spots : list of Spot; expect : int; name : str, the photo's name
+    rank : callable, Spot -> float, how convincing a spot is (its strength, times the predicted
+        position's density when there is one)
+
+    Raises
+    ------
+    SpotCountError
+        The runner-up is close in strength to the weakest kept spot.
+    """
+    ranked = sorted(spots, key=rank, reverse=True)
+    kept, rest = ranked[:expect], ranked[expect:]
+    if rank(rest[0]) >= CLOSE * rank(kept[-1]):
+        raise SpotCountError(
+            f"{name}: {len(spots)} spots found where {expect} {'is' if expect == 1 else 'are'} expected, "
+            f"close in evidence: {'; '.join(_where(s, rank) for s in ranked[:6])}"
+            f"{' ...' if len(spots) > 6 else ''} (use --expect N for photos with several spots, or take "
+            "a laser-off photo of the same view and pass it as --reference)"
+        )
+    others = "; ".join(_where(s, rank) for s in rest[:3]) + (" ..." if len(rest) > 3 else "")
+    return kept, f"kept the {expect} most convincing spot{'s' * (expect > 1)}; weaker candidates: {others}"
+
+
+def _dominant(spots: list[Spot], dominance: float, rank=_strength) -> tuple[list[Spot], str | None]:
+    """With any number of spots expected: those at least ``dominance`` times as convincing as the
+    strongest (see :attr:`DecisionRule.dominance`), and a warning naming the others.
+
+    Returns
+    -------
+    kept : list of Spot; note : str or None
+    """
+    top = max(rank(s) for s in spots)
+    kept = [s for s in spots if rank(s) >= dominance * top]
+    rest = sorted((s for s in spots if rank(s) < dominance * top), key=rank, reverse=True)
+    if not rest:
+        return kept, None
+    others = "; ".join(_where(s, rank) for s in rest[:3]) + (" ..." if len(rest) > 3 else "")
+    return kept, (
+        f"left out {len(rest)} candidate{'s' * (len(rest) > 1)} far weaker than the strongest spot "
+        f"(below {dominance:.2g} of its strength): {others}; a laser-off photo (--reference) would tell"
+    )
