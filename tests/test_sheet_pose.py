@@ -74,7 +74,7 @@ def test_simulate_writes_a_sheet_session_and_solve_finds_the_sheet(displaced, tm
         q = np.concatenate([aim(truth, np.r_[x, y, z], 4, rng) for x, y in points])
         e = np.linalg.norm((predict_spots(model, q, z)[0] - predict_spots(truth, q, z)[0])[:, :2], axis=1)
         e0 = np.linalg.norm((predict_spots(NOMINAL, q, z)[0] - predict_spots(truth, q, z)[0])[:, :2], axis=1)
-        assert np.sqrt(np.mean(e**2)) < 1.5 < 10 < np.sqrt(np.mean(e0**2))  # the noise floor ~0.5 mm
+        assert np.sqrt(np.mean(e**2)) < 1.5 < 5 < np.sqrt(np.mean(e0**2))  # the noise floor ~0.5 mm
 
 
 def test_without_a_placement_the_pose_starts_from_the_data(displaced, tmp_path):
