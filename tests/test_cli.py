@@ -52,7 +52,7 @@ def test_simulate_solve_predict_round_trip(session_dir, tmp_path, capsys):
     capsys.readouterr()
     assert main(["solve", str(session_dir), "-o", str(tmp_path / "m.yaml"), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
-    assert rep["converged"] and rep["iterations"] < 40  # LM steps over the noise fixed point's passes (eq. P3)
+    assert rep["converged"] and rep["iterations"] < 40  # LM steps over the noise passes (eq. P3)
     assert (
         rep["points"]["P1"]["before"]["error_mean"] > 5 and rep["points"]["P1"]["after"]["error_mean"] < 1.0
     )
