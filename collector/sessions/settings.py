@@ -184,6 +184,8 @@ def validate_settings(
     camera: str | None = None,
     guide: bool = False,
     max_step: float = MAX_STEP,
+    sheet_from: str | None = None,
+    sheet_pose=None,
 ) -> ValidateSettings:
     """The settings of a new validation run (``output``) or a resumed one (``resume``: its own are kept).
 
@@ -196,6 +198,10 @@ def validate_settings(
     layout : str or None, layout file or built-in name (None: the thesis layout, fake backend only)
     point, n, camera, guide, max_step : the run's validation point, configurations, camera, whether to
         guide the operator, largest joint step (rad); a resumed run keeps its own
+    sheet_from : str or None, on a sheet layout: the model (file or name) whose identified sheet pose the
+        model under test is validated with (None: the model's own)
+    sheet_pose : SheetPose or None, on the fake backend: where the simulated sheet truly lies, in the true
+        robot's own frame (None: the sheet's session, or the layout's placement)
 
     Returns
     -------
@@ -228,10 +234,14 @@ def validate_settings(
             "camera": camera,
             "guide": guide,
             "max_step": max_step,
+            "sheet_from": str(resolve("robots", sheet_from).resolve()) if sheet_from else None,
+            "sheet_pose": None if sheet_pose is None else list(sheet_pose.as_dict().values()),
         }
         return ValidateSettings({**DEFAULTS, **given}, run, output, False)
-    if output or model or layout or point:
-        raise SessionError("--resume DIR continues that run with its own model, layout and point: drop them")
+    if output or model or layout or point or sheet_from or sheet_pose is not None:
+        raise SessionError(
+            "--resume DIR continues that run with its own model, layout, point and sheet: drop them"
+        )
     folder = Path(resume)
     if not (folder / "validation.yaml").is_file():
         raise SessionError(

@@ -253,8 +253,10 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
             f"{model.plane_z:g} mm (expected the layout of the table the model was calibrated on)",
             field="plane",
         )
-    session = Path(str(model.identification.get("session", "")))
-    if model.identification.get("session") and (session / "session.yaml").is_file():
+    from lasercal.collector.sessions.world import model_session
+
+    session = model_session(model, model_ref)
+    if session is not None:
         from lasercal.solver.formats.robots import load_yaml
 
         meta = load_yaml(session / "session.yaml")
