@@ -85,11 +85,28 @@ class Robot:
     """
 
     def __init__(self, model: RobotModel, nominal: RobotModel, options: IKOptions = DEFAULT_IK, path=None):
-        self.model, self.nominal, self.options = model, nominal, options
+        self.model, self.nominal, self.options, self.path = model, nominal, options, path
         self.extension = extension_from_model(model.extensions, path or model.name, model.n)
         joint_effect(self.extension)
         self.flange = flange(model)
         self.nominal_flange = flange(nominal)
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether the model is a calibration's (``lasercal solve`` wrote it) rather than a nominal one."""
+        return bool(self.model.identification)
+
+    def __repr__(self) -> str:
+        """What the robot is: e.g. ``<Robot panda_thesis_identified: calibrated (lm, model.yaml), nominal
+        panda, 7 joints, tools flange>`` or ``<Robot panda: nominal, 7 joints, tools flange>``."""
+        where = f", {self.path}" if self.path is not None else ""
+        if self.calibrated:
+            method = self.model.identification.get("method", "?")
+            what = f"calibrated ({method}{where}), nominal {self.nominal.name}"
+        else:
+            what = f"nominal{where}"
+        effects = f", effects {self.extension.effect}" if self.extension is not None else ""
+        return f"<Robot {self.model.name}: {what}, {self.n} joints, tools {', '.join(self.tools)}{effects}>"
 
     @property
     def n(self) -> int:
@@ -212,4 +229,4 @@ def load_model(path, options: IKOptions = DEFAULT_IK) -> Robot:
     """
     model = load_robot_model(path)
     ref = path if Path(str(path)).is_file() else None
-    return Robot(model, nominal_model(model, ref), options, path)
+    return Robot(model, nominal_model(model, ref), options, ref)
