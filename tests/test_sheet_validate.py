@@ -185,3 +185,25 @@ def test_the_docs_recipe_runs_as_written_on_the_simulated_robot(tmp_path, monkey
     before, after = map(float, re.match(r"calibrated: ([\d.]+) → ([\d.]+) mm at P6", v).groups())
     # capture's simulated world (the truth, the sheet at its placement) is validate's: the bounds above
     assert after < 3.0 * AIM_NOISE < before
+
+
+def test_session_and_validation_files_name_their_files_relative_to_themselves(walkthrough, tmp_path):
+    """Moved together, a session, a model and its validation runs still find each other."""
+    from shutil import copytree
+
+    from lasercal.collector.sessions.settings import ValidateSettings
+
+    session = yaml.safe_load((walkthrough / "session" / "session.yaml").read_text())
+    assert session["robot"] == "panda" and session["simulated"]["truth"] == "panda_thesis_identified"
+    moved = copytree(walkthrough, tmp_path / "elsewhere")
+    meta = yaml.safe_load((moved / "before" / "validation.yaml").read_text())
+    run = meta["collector"]["run"]
+    assert (run["model"], run["layout"], run["sheet_from"]) == (
+        "panda",
+        "../sheet/layout.yaml",
+        "../model.yaml",
+    )
+    s = ValidateSettings(meta["collector"]["settings"], run, str(moved / "before"), True)
+    assert Path(s.file("layout")).resolve() == (moved / "sheet" / "layout.yaml").resolve()
+    assert Path(s.file("sheet_from")).resolve() == (moved / "model.yaml").resolve()
+    assert s.file("model") == "panda"

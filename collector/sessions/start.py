@@ -280,17 +280,21 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     )
 
     cfg, run = settings.cfg, settings.run
-    layout = load_layout(run["layout"])
+    model_ref, layout_ref = settings.file("model"), settings.file("layout")
+    layout = load_layout(layout_ref)
     point = validation_point(layout, run["point"])
-    model = load_model(run["model"])
-    check_layout(layout, model, run["model"], point)
-    sheet, world = sheet_world(cfg, run, layout, model)
+    model = load_model(model_ref)
+    check_layout(layout, model, model_ref, point)
+    sheet_pose = run.get("sheet_pose")
+    sheet, world = sheet_world(
+        cfg, layout, model, model_ref, settings.file("sheet_from"), sheet_pose and SheetPose(*sheet_pose)
+    )
     if sheet is not None:  # a printed sheet: its points where a calibration found the sheet (eq. S1)
         layout = layout.in_base(sheet)
     nominal = load_model(cfg["robot"])
     robot = make_robot(cfg, nominal, layout, truth=world and world.truth)
     placed = world and world.sheet
-    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"], sheet, placed)
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, layout_ref, sheet, placed)
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
@@ -310,20 +314,28 @@ def _pose_text(pose) -> str:
     return f"x {pose.x_mm:.2f} mm, y {pose.y_mm:.2f} mm, yaw {pose.yaw_deg:.3f} deg"
 
 
-def sheet_world(cfg: dict, run: dict, layout: Layout, model: RobotModel):
+def sheet_world(
+    cfg: dict,
+    layout: Layout,
+    model: RobotModel,
+    model_ref: str,
+    sheet_from: str | None = None,
+    pose: SheetPose | None = None,
+):
     """Where a sheet layout's sheet lies for the model under test, and the fake backend's world.
 
-    The sheet's pose is the one a calibration identified: ``run["sheet_from"]``'s (any model, the
-    nominal included, can be validated with it) or the model's own. On the fake backend the simulated
-    world is :func:`sessions.world.validation_world`'s: ``run["sheet_pose"]`` (the sheet's true pose),
-    else the session that pose was identified from, else the layout's placement.
+    The sheet's pose is the one a calibration identified: ``sheet_from``'s (any model, the nominal
+    included, can be validated with it) or the model's own. On the fake backend the simulated world is
+    :func:`sessions.world.validation_world`'s: ``pose`` (the sheet's true pose), else the session the
+    sheet's pose was identified from, else the layout's placement.
 
     Parameters
     ----------
     cfg : dict, the robot settings (``backend``, ``robot``, ``truth``, ``perturb_seed``)
-    run : dict, the run's ``model``, ``sheet_from`` and ``sheet_pose`` ([x mm, y mm, yaw deg] or None)
     layout : Layout, as loaded (sheet or base frame)
-    model : RobotModel, the model under test
+    model : RobotModel, the model under test; model_ref : str, its file or name
+    sheet_from : str or None, the model (file or name) whose sheet pose to validate with
+    pose : SheetPose or None, where the simulated sheet truly lies (fake backend), in the truth's own frame
 
     Returns
     -------
@@ -335,9 +347,8 @@ def sheet_world(cfg: dict, run: dict, layout: Layout, model: RobotModel):
     FormatError
         No sheet pose to validate with; a sheet pose from a model of another robot.
     LasercalError
-        ``sheet_from`` or ``sheet_pose`` on a base-frame layout, ``sheet_pose`` off the fake backend.
+        ``sheet_from`` or ``pose`` on a base-frame layout, ``pose`` off the fake backend.
     """
-    sheet_from, pose = run.get("sheet_from"), run.get("sheet_pose")
     if layout.frame != "sheet":
         if sheet_from or pose:
             raise LasercalError(
@@ -347,7 +358,7 @@ def sheet_world(cfg: dict, run: dict, layout: Layout, model: RobotModel):
         return None, None
     if pose is not None and cfg["backend"] != "fake":
         raise LasercalError("--sheet-pose lays the simulated sheet: it needs --backend fake")
-    ref = sheet_from or run["model"]
+    ref = sheet_from or model_ref
     source = load_model(ref) if sheet_from else model
     if source.sheet is None:
         raise FormatError(
@@ -357,14 +368,14 @@ def sheet_world(cfg: dict, run: dict, layout: Layout, model: RobotModel):
             field="sheet",
         )
     if sheet_from:
-        check_same_frame(model, run["model"], source, ref)
+        check_same_frame(model, model_ref, source, ref)
     if cfg["backend"] != "fake":
         return source.sheet, None
     world = validation_world(
         cfg,
         load_model(cfg["robot"]),
         model_session(source, ref),
-        None if pose is None else SheetPose(*pose),
+        pose,
         layout.sheet,
     )
     if world.sheet is None:
