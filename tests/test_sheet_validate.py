@@ -207,3 +207,10 @@ def test_session_and_validation_files_name_their_files_relative_to_themselves(wa
     assert Path(s.file("layout")).resolve() == (moved / "sheet" / "layout.yaml").resolve()
     assert Path(s.file("sheet_from")).resolve() == (moved / "model.yaml").resolve()
     assert s.file("model") == "panda"
+
+
+def test_every_output_folder_gets_the_permissions_mkdir_gives(walkthrough, tmp_path):
+    (tmp_path / "made").mkdir()
+    expected = (tmp_path / "made").stat().st_mode & 0o777
+    for name in ("sheet", "session", "before", "after", "report"):
+        assert (walkthrough / name).stat().st_mode & 0o777 == expected, name
