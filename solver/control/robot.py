@@ -93,16 +93,18 @@ class Robot:
 
     @property
     def calibrated(self) -> bool:
-        """Whether the model is a calibration's (``lasercal solve`` wrote it) rather than a nominal one."""
-        return bool(self.model.identification)
+        """Whether the model calibrates another (``lasercal solve`` wrote it, or it names its ``nominal``)
+        rather than being a nominal model itself."""
+        return bool(self.model.identification or self.model.nominal)
 
     def __repr__(self) -> str:
         """What the robot is: e.g. ``<Robot panda_thesis_identified: calibrated (lm, model.yaml), nominal
         panda, 7 joints, tools flange>`` or ``<Robot panda: nominal, 7 joints, tools flange>``."""
         where = f", {self.path}" if self.path is not None else ""
         if self.calibrated:
-            method = self.model.identification.get("method", "?")
-            what = f"calibrated ({method}{where}), nominal {self.nominal.name}"
+            method = self.model.identification.get("method")
+            how = f"{method}{where}" if method else where.removeprefix(", ")
+            what = f"calibrated{f' ({how})' if how else ''}, nominal {self.nominal.name}"
         else:
             what = f"nominal{where}"
         effects = f", effects {self.extension.effect}" if self.extension is not None else ""
