@@ -58,7 +58,10 @@ def walkthrough(tmp_path_factory):
     val = ["--layout", layout, "--point", "P6", "-n", str(N), "--backend", "fake"]
     assert main(["validate", "panda", "--sheet-from", str(model), *val, "-o", str(root / "before")]) == 0
     assert main(["validate", str(model), *val, "-o", str(root / "after")]) == 0
-    report = ["report", str(session), str(root / "before"), str(root / "after"), "-o", str(root / "report")]
+    p7 = ["validate", str(model), "--layout", layout, "--point", "P7", "-n", "3", "--backend", "fake"]
+    assert main(p7 + ["-o", str(root / "after_p7")]) == 0
+    runs = [str(root / k) for k in ("before", "after", "after_p7")]
+    report = ["report", str(session), *runs, "-o", str(root / "report")]
     assert main(report + ["--bootstrap", "0", "--refits", "0"]) == 0
     return root
 
@@ -117,11 +120,13 @@ def test_report_shows_before_and_after_at_p6(walkthrough):
     stats = {
         run: spot_stats(_validation(walkthrough / run)[1], layout.points["P6"]) for run in ("before", "after")
     }
+    p7 = spot_stats(_validation(walkthrough / "after_p7")[1], layout.points["P7"])
     verdict = _paragraph(text, "verdict")
-    assert verdict == (
+    assert verdict == (  # a part per validation point, in the order the runs were given
         f"calibrated: {stats['before'].error_mean:.2g} → {stats['after'].error_mean:.2g} mm at P6, "
-        f"{N} of {N} configurations"
+        f"{N} of {N} configurations; {p7.error_mean:.2g} mm at P7 (after_p7), 3 of 3 configurations"
     )
+    assert 'id="validation-stats-P7"' in text and 'src="validation_spots_P7.png"' in text
     rows = re.findall(r"<tr><td>(before|after)</td><td>[^<]*</td><td>[^<]*</td>((?:<td>[^<]*</td>)+)", text)
     assert [r[0] for r in rows] == ["before", "after"]
     for run, cells in rows:
