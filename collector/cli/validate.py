@@ -47,8 +47,8 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "--sheet-from",
         type=ROBOT,
         metavar="MODEL.yaml",
-        help="sheet layout: validate with the sheet pose this model's calibration identified (e.g. the "
-        "nominal, before calibration; default: the model's own)",
+        help="sheet layout: place the points where this model's calibration found the sheet, for the model "
+        "under test (e.g. the nominal: the 'before'; default: the model's own sheet pose)",
     )
     p.add_argument(
         "--sheet-pose",

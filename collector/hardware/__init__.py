@@ -59,7 +59,7 @@ def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None):
         from lasercal.collector.hardware.base import FakeClock
         from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 
-        truth = truth or fake_truth(cfg, nominal)
+        truth = fake_truth(cfg, nominal) if truth is None else truth
         pts = {k: layout.points[k] for k in layout.calibration}
         operator = (
             FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())
