@@ -515,9 +515,9 @@ def write_report(
     session : Session, the calibration session (laser spots)
     ident : Identification, its calibration (parameter table, residuals, identifiability)
     diagnosis : Diagnosis or None
-    validations : sequence of Validation at one point, in the order to show (e.g. nominal first)
+    validations : sequence of Validation, in the order to show (e.g. nominal first); a section per point
     reference : dict label -> {scatter_mean, scatter_std, error_mean, error_max}, published figures
-        shown beside
+        shown beside the first point's runs
     title : str, the page's heading
 
     Returns
@@ -554,8 +554,13 @@ def write_report(
     ]
 
     check_not_calibration_points(session, ident, validations)
-    for k, runs in enumerate(by_point(validations).values()):
-        parts += validation_section(runs, reference, out, "" if k == 0 else f"_{runs[0].point}")
+    for k, runs in enumerate(
+        by_point(validations).values()
+    ):  # the published figures beside the first point's
+        first = k == 0
+        parts += validation_section(
+            runs, reference if first else {}, out, "" if first else f"_{runs[0].point}"
+        )
 
     prow = [
         [
