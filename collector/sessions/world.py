@@ -87,7 +87,7 @@ def session_world(folder) -> SimulatedWorld | None:
             raise FormatError(path, "expected {pose, truth_in_own_frame}", field="simulated.sheet")
         pose = sheet_pose(truth_sheet, "pose", path)
         truth = load_model(folder / str(truth_sheet["truth_in_own_frame"]))
-        return SimulatedWorld(truth, pose, f"the session {folder} (simulated, sheet at its true pose)")
+        return SimulatedWorld(truth, pose, f"session {folder.name!r}: simulated, the sheet at its true pose")
     collector = meta.get("collector")
     if isinstance(collector, dict) and collector.get("backend") == "fake":  # capture --backend fake
         truth = fake_truth(collector, load_model(collector.get("robot", "panda")), folder)
@@ -97,7 +97,7 @@ def session_world(folder) -> SimulatedWorld | None:
         return None
     if placed is None:
         return None
-    return SimulatedWorld(truth, placed, f"the session {folder} (simulated, sheet at its placement)")
+    return SimulatedWorld(truth, placed, f"session {folder.name!r}: simulated, the sheet at its placement")
 
 
 def model_session(model: RobotModel, model_path) -> Path | None:
