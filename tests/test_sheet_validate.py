@@ -219,3 +219,20 @@ def test_every_output_folder_gets_the_permissions_mkdir_gives(walkthrough, tmp_p
     expected = (tmp_path / "made").stat().st_mode & 0o777
     for name in ("sheet", "session", "before", "after", "report"):
         assert (walkthrough / name).stat().st_mode & 0o777 == expected, name
+
+
+def test_the_world_of_each_kind_of_session(walkthrough, tmp_path):
+    """simulate on a sheet without --sheet-pose lays the sheet at its placement under the truth it names (in
+    the truth file's frame); a measured session has no simulated world."""
+    from lasercal.collector.sessions.world import session_world
+
+    layout = str(walkthrough / "sheet" / "layout.yaml")
+    s = tmp_path / "s"
+    assert main(["simulate", "panda_thesis_identified", "--layout", layout, "-o", str(s)]) == 0
+    world = session_world(s)
+    assert world.sheet == SheetPose(450.0, 0.0, 0.0)  # the layout's placement (sheet --place 450 0 0)
+    assert world.truth.screws == pytest.approx(load_model("panda_thesis_identified").screws, abs=1e-12)
+    meta = yaml.safe_load((s / "session.yaml").read_text())
+    del meta["simulated"]
+    (s / "session.yaml").write_text(yaml.safe_dump(meta))
+    assert session_world(s) is None
