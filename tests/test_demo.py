@@ -32,11 +32,18 @@ from lasercal.solver.kinematics.gravity import gravity_torques
 LIGHT = {"n_validation": 12, "n_boot": 200, "n_refit": 2}
 
 
+class _Terminal(io.StringIO):
+    """A captured stream that says it is a terminal."""
+
+    def isatty(self) -> bool:
+        return True
+
+
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
     """``lasercal demo -o DIR`` once, with light options; its stdout, stderr and folder."""
     out = tmp_path_factory.mktemp("demo") / "demo"
-    stdout, stderr = io.StringIO(), io.StringIO()
+    stdout, stderr = io.StringIO(), _Terminal()  # the bar shows on a terminal only (tests/test_newcomer.py)
     with (
         pytest.MonkeyPatch.context() as mp,
         contextlib.redirect_stdout(stdout),
@@ -146,7 +153,7 @@ def test_demo_prints_the_summary_and_a_progress_bar(demo):
         f"report: {out / 'report' / 'index.html'}",
     ):
         assert phrase in stdout
-    assert "validate extended" in stderr and "%|" in stderr  # tqdm's bar, on stderr
+    assert "validate extended" in stderr and "%|" in stderr  # tqdm's bar, on stderr (a terminal)
 
 
 def test_demo_ends_with_the_payoff_of_lasercal_correct(demo):

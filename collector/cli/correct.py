@@ -64,7 +64,7 @@ def cmd_correct(args) -> int:
 
     from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.control.robot import load_model
-    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.errors import FormatError, LasercalError
     from lasercal.solver.formats.checks import metres_hint
     from lasercal.solver.formats.goals import load_goals, write_commands
     from lasercal.solver.kinematics.ik import IKOptions
@@ -75,11 +75,14 @@ def cmd_correct(args) -> int:
         )
     robot = load_model(args.model, IKOptions(margin=args.margin, restarts=args.restarts))
     goals = load_goals(args.goals, robot.model)
-    tool = robot.tool(args.tool or args.tcp)
+    try:
+        tool = robot.tool(args.tool or args.tcp)
+    except FormatError as e:  # the library names its Python argument, the user typed an option
+        raise LasercalError(f"argument {'--tool' if args.tool else '--tcp'}: {e.reason}") from None
     c = robot.correct(goals.goal(), q=goals.q if goals.program else None, seed=goals.q, tool=tool)
     comment = (
-        f"lasercal correct {robot.model.name} (nominal {robot.nominal.name}), tool {tool.name}: angles rad, "
-        "positions mm, rotation vectors rad, base frame"
+        f"lasercal correct {args.model} ({robot.model.name}, nominal {robot.nominal.name}), tool "
+        f"{tool.name}: angles rad, positions mm, rotation vectors rad, base frame"
     )
     with atomic_output(args.output) as tmp:
         write_commands(tmp, goals, c, comment)

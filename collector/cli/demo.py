@@ -29,8 +29,8 @@ def cmd_demo(args) -> int:
 
     opts = DemoOptions(seed=args.seed)
     with tqdm(
-        total=opts.units(), desc="demo", unit="step", leave=False, delay=0.5
-    ) as bar:  # delay: no bar for an instant error
+        total=opts.units(), desc="demo", unit="step", leave=False, delay=0.5, disable=None
+    ) as bar:  # delay: no bar for an instant error; disable=None: none when stderr is not a terminal
 
         def progress(stage: str) -> None:
             bar.set_description(stage, refresh=False)

@@ -12,6 +12,7 @@ the handler runs (:func:`outputs_checked`).
 from __future__ import annotations
 
 import argparse
+import copy
 import importlib
 import sys
 import warnings
@@ -146,6 +147,34 @@ class UsageArgumentParser(argparse.ArgumentParser):
         raise LasercalError(message)
 
 
+class DefaultsHelpFormatter(argparse.HelpFormatter):
+    """``--help`` with every option's default: ``(default: X)`` after a help text that names none.
+
+    Like argparse's ``ArgumentDefaultsHelpFormatter``, but silent where the default is no value (None,
+    False: an option not given) or the help already says it (``default ...``), and an option without a
+    help text still shows its default.
+    """
+
+    @staticmethod
+    def _has_default(action) -> bool:
+        d = action.default
+        return bool(action.option_strings) and d is not None and d is not False and d is not argparse.SUPPRESS
+
+    def _format_action(self, action) -> str:
+        if action.help is None and self._has_default(action):
+            action = copy.copy(action)
+            action.help = "(default: %(default)s)"
+        return super()._format_action(action)
+
+    def _get_help_string(self, action) -> str:
+        text = action.help or ""
+        if "default" in text or not self._has_default(action):
+            return text
+        d = action.default
+        shown = " ".join(map(str, d)) if isinstance(d, list | tuple) else d
+        return f"{text} (default: {str(shown).replace('%', '%%')})"
+
+
 def load(cmd: Command):
     """The command's module, imported now (``lasercal.collector.cli.<module>``)."""
     return importlib.import_module(f"lasercal.collector.cli.{cmd.module}")
@@ -184,7 +213,12 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for c in COMMANDS:
-        p = sub.add_parser(c.name, help=c.help, description=c.description or c.help[:1].upper() + c.help[1:])
+        p = sub.add_parser(
+            c.name,
+            help=c.help,
+            description=c.description or c.help[:1].upper() + c.help[1:],
+            formatter_class=DefaultsHelpFormatter,
+        )
         if c.name == selected:
             mod = load(c)
             getattr(mod, "args_" + c.name.replace("-", "_"))(p)

@@ -11,8 +11,9 @@ from scipy.spatial.transform import Rotation
 
 from lasercal.solver.analysis.simulate import random_configs, simulate_positions
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.data import truth_references
 from lasercal.solver.formats.positions import position_meta, write_position_session
-from lasercal.solver.formats.robots import load_model, load_yaml
+from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_configs
 from lasercal.solver.identify.position import sensor_points, target_start
 from lasercal.solver.kinematics.effects import extension_from_model
@@ -42,8 +43,7 @@ def cmd_simulate_position(args, truth_path: Path, effect) -> int:
     """``lasercal simulate TRUTH --measurement position``: random in-limit poses, every target each pose."""
     chain = {k: v for k, v in (("base_link", args.base_link), ("tip_link", args.tip_link)) if v}
     truth = load_model(truth_path, **chain)
-    raw = load_yaml(truth_path) if truth_path.suffix.lower() != ".urdf" else {}
-    nominal = args.robot or raw.get("nominal") or str(truth_path.resolve())
+    truth_ref, nominal = truth_references(truth_path, args.output, args.robot)  # relative to the session
     if not truth.targets:
         truth = truth.replace(targets=default_targets(truth, args.targets))
     if truth.sensor_pose is None:
@@ -54,7 +54,7 @@ def cmd_simulate_position(args, truth_path: Path, effect) -> int:
     tg = np.tile(names, args.configs)
     tau, src = model_torques(truth, q)
     y = simulate_positions(truth, q, tg, args.noise, rng, effect, tau)
-    sim = {"truth": str(truth_path.resolve()), "noise_mm": args.noise, "seed": args.seed, "torques": src}
+    sim = {"truth": truth_ref, "noise_mm": args.noise, "seed": args.seed, "torques": src}
     if effect is not None:
         sim["effect"] = {"name": effect.effect, **effect.to_dict()}
     meta = position_meta(nominal, names, **chain, noise_mm=args.noise, simulated=sim)

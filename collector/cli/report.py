@@ -62,8 +62,6 @@ def args_export(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_report(args) -> int:
-    import numpy as np
-
     from lasercal.collector.errors import SessionError
     from lasercal.collector.report.html import load_validation, write_report
     from lasercal.collector.sessions.store import atomic_output
@@ -88,15 +86,6 @@ def cmd_report(args) -> int:
             f"{len(sessions)}"
         )
     session = load_session(sessions[0], **session_robot(args))
-    for v in validations:
-        for nm in sorted(set(session.point)):
-            if np.linalg.norm(session.points[nm] - v.xyz) < 1.0:
-                raise FormatError(
-                    v.folder / "validation.yaml",
-                    f"validated at {v.point}, which is calibration point {nm} of the session (expected a "
-                    "point the model was not fitted to)",
-                    field="point",
-                )
     if session.measurement != "laser":
         raise FormatError(
             sessions[0], "the report covers laser sessions (spots on a plane)", field="measurement"

@@ -372,6 +372,7 @@ def cmd_simulate(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.data import truth_references
     from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
@@ -401,7 +402,8 @@ def cmd_simulate(args) -> int:
     layout = load_layout(args.layout)
     rng = np.random.default_rng(args.seed)
     effect = hidden_effect(args, layout, truth.n, rng)
-    sim = {"truth": str(path.resolve()), "aim_noise_mm": args.aim_noise, "seed": args.seed}
+    truth_ref, nominal_ref = truth_references(path, args.output, args.robot)  # relative to the session
+    sim = {"truth": truth_ref, "aim_noise_mm": args.aim_noise, "seed": args.seed}
     aimed = layout
     if args.sheet_pose is not None:
         # a sheet layout's pose is where the sheet lies (at the base: metres), a base layout's a displacement
@@ -413,7 +415,7 @@ def cmd_simulate(args) -> int:
     c = simulate_captures(truth, aimed, args.per_point, args.aim_noise, rng, effect=effect)
     if effect is not None:
         sim["effect"] = {"name": effect.effect, **effect.to_dict()}
-    meta = session_meta(nominal, layout, truth.aperture[2], simulated=sim)
+    meta = session_meta(nominal_ref, layout, truth.aperture[2], simulated=sim)
     with atomic_output(args.output, folder=True) as tmp:
         write_session(tmp, meta, c.point, c.t, c.q, tau=c.tau)
         if args.sheet_pose is not None:

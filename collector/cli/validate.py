@@ -12,7 +12,9 @@ from lasercal.collector.cli.options import (
     backend_arguments,
     count,
     motion_arguments,
+    number,
     output_argument,
+    sheet_pose,
 )
 
 
@@ -40,6 +42,22 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "--layout",
         type=LAYOUT,
         help="layout YAML (required for a real robot; default with --backend fake: the thesis layout)",
+    )
+    p.add_argument(
+        "--sheet-from",
+        type=ROBOT,
+        metavar="MODEL.yaml",
+        help="sheet layout: place the points where this model's calibration found the sheet, for the model "
+        "under test (e.g. the nominal: the 'before'; default: the model's own sheet pose)",
+    )
+    p.add_argument(
+        "--sheet-pose",
+        type=number(-1e4, 1e4),
+        nargs=3,
+        metavar=("X", "Y", "YAW"),
+        help="--backend fake, sheet layout: the simulated sheet truly lies here (mm, mm, deg, in the true "
+        "robot's own frame, as simulate --sheet-pose; default: where the sheet model's simulated session "
+        "put it, else the layout's placement)",
     )
     motion_arguments(p)
     p.add_argument(
@@ -70,6 +88,8 @@ def cmd_validate(args) -> int:
         camera=args.camera,
         guide=args.guide,
         max_step=args.max_step,
+        sheet_from=args.sheet_from,
+        sheet_pose=sheet_pose(args.sheet_pose, "--sheet-pose") if args.sheet_pose else None,
     )
     started = start_validation(settings, yes=args.yes)
     res = started.run(sys.stdout)

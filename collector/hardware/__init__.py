@@ -20,7 +20,23 @@ def _desk(cfg: dict):
     return cfg["desk_user"], os.environ.get("LASERCAL_DESK_PASSWORD", "")
 
 
-def make_robot(cfg: dict, nominal, layout, per_point: int = 0):
+def fake_truth(cfg: dict, nominal, base=None):
+    """The fake backend's true robot of the settings ``cfg``: ``perturb_seed`` (a seeded perturbation of
+    ``nominal``) or ``truth`` (a robot file or name; a relative path tried in the folder ``base`` first).
+
+    Returns
+    -------
+    RobotModel
+    """
+    from lasercal.collector.hardware.fake import perturbed_model
+    from lasercal.solver.formats.robots import load_model
+
+    if cfg.get("perturb_seed") is not None:
+        return perturbed_model(nominal, cfg["perturb_seed"])
+    return load_model(cfg["truth"], base=base)
+
+
+def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None):
     """The robot adapter a settings mapping asks for.
 
     Parameters
@@ -29,24 +45,21 @@ def make_robot(cfg: dict, nominal, layout, per_point: int = 0):
     nominal : RobotModel, the robot the session names
     layout : Layout, the reference points (the simulated operator aims at the calibration points)
     per_point : int, captures per point the simulated operator takes (0: no operator)
+    truth : RobotModel or None, the fake robot's true geometry (None: the settings' ``truth`` or
+        ``perturb_seed``; a validation on a sheet passes its simulated world's, :mod:`sessions.world`)
 
     Returns
     -------
     RobotAdapter
     """
     from lasercal.solver.errors import LasercalError
-    from lasercal.solver.formats.robots import load_model
 
     backend = cfg["backend"]
     if backend == "fake":
         from lasercal.collector.hardware.base import FakeClock
-        from lasercal.collector.hardware.fake import FakeOperator, FakeRobot, perturbed_model
+        from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 
-        truth = (
-            perturbed_model(nominal, cfg["perturb_seed"])
-            if cfg.get("perturb_seed") is not None
-            else load_model(cfg["truth"])
-        )
+        truth = fake_truth(cfg, nominal) if truth is None else truth
         pts = {k: layout.points[k] for k in layout.calibration}
         operator = (
             FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())

@@ -277,27 +277,18 @@ def verdict(
 ) -> str:
     """The report in one sentence, e.g. 'calibrated: 9.2 → 0.54 mm at P4, 60 of 60 configurations'.
 
-    With two or more validation runs: the first run's mean error (e.g. the nominal model's) to the last
-    one's, at the validation point, and how many of the last run's planned configurations were measured;
-    with one: its error; with none: the RMS spot error on the calibration captures, nominal → identified
-    (outliers left out). A
-    rank-deficient fit is 'partial', a fit that did not converge says so, and the combinations the
-    prior rather than the data determined (``from_prior``, names) are named.
+    At each validation point (in the order the runs are given), with two or more runs there: the first
+    run's mean error (e.g. the nominal model's) to the last one's, and how many of the last run's planned
+    configurations were measured; with one: its error; with none: the RMS spot error on the calibration
+    captures, nominal → identified (outliers left out). A rank-deficient fit is 'partial', a fit that did
+    not converge says so, and the combinations the prior rather than the data determined (``from_prior``,
+    names) are named.
     """
     state = "NOT calibrated" if warning else "partial calibration" if missing else "calibrated"
     if not ident.converged:
         state += " (NOT converged)"
-    if len(validations) >= 2:
-        a, b = validations[0], validations[-1]
-        text = (
-            f"{state}: {a.stats.error_mean:.2g} → {b.stats.error_mean:.2g} mm at {b.point}, "
-            f"{b.completeness} configurations"
-        )
-    elif validations:
-        b = validations[0]
-        text = (
-            f"{state}: {b.stats.error_mean:.2g} mm at {b.point} ({b.label}), {b.completeness} configurations"
-        )
+    if validations:
+        text = f"{state}: " + "; ".join(_point_verdict(runs) for runs in by_point(validations).values())
     else:
         used = ident.weights > 0
         r = spot_residuals(ident.nominal, session.q, base_targets(session, ident.nominal))[used]
@@ -313,6 +304,47 @@ def verdict(
     if warning:
         text += f"; {warning}"
     return text
+
+
+def by_point(validations) -> dict:
+    """The validation runs grouped by point: point name -> runs there, both in the order given."""
+    out: dict = {}
+    for v in validations:
+        out.setdefault(v.point, []).append(v)
+    return out
+
+
+def _point_verdict(runs) -> str:
+    """'9.2 → 0.54 mm at P4, 60 of 60 configurations' (first run to last), or one run's error."""
+    b = runs[-1]
+    if len(runs) == 1:
+        return f"{b.stats.error_mean:.2g} mm at {b.point} ({b.label}), {b.completeness} configurations"
+    before = runs[0].stats.error_mean
+    return f"{before:.2g} → {b.stats.error_mean:.2g} mm at {b.point}, {b.completeness} configurations"
+
+
+def check_not_calibration_points(session: Session, ident: Identification, validations) -> None:
+    """A model is not validated on the data it was fitted to: no run's point may be a calibration point of
+    the session (a sheet session's points placed where the calibration found the sheet, eq. S1).
+
+    Raises
+    ------
+    FormatError
+        Naming the run's validation.yaml and the calibration point.
+    """
+    names = sorted(set(session.point))
+    xyz = np.array([session.points[nm] for nm in names], dtype=float)
+    if session.frame == "sheet" and ident.model.sheet is not None:
+        xyz = ident.model.sheet.to_base(xyz, session.plane_z)
+    for v in validations:
+        for nm, p in zip(names, xyz):
+            if np.linalg.norm(p - v.xyz) < 1.0:
+                raise FormatError(
+                    v.folder / "validation.yaml",
+                    f"validated at {v.point}, which is calibration point {nm} of the session (expected a "
+                    "point the model was not fitted to)",
+                    field="point",
+                )
 
 
 # ------------------------------------------------------------------ plots
@@ -433,6 +465,39 @@ def _img(name: str, alt: str) -> str:
     return f'<img src="{name}" alt="{html.escape(alt)}">'
 
 
+def validation_section(runs, reference: dict, out: Path, suffix: str = "") -> list[str]:
+    """The HTML of the runs at one validation point (in the order given, e.g. nominal first): their
+    statistics (table ``validation-stats`` + ``suffix``) beside the published ``reference``, and Figures 4.5
+    and 4.6 written into ``out`` (``validation_spots`` + ``suffix`` + ``.png``, ``validation_errors``...).
+    """
+    esc = html.escape
+    v0 = runs[0]
+    spots, errors = f"validation_spots{suffix}.png", f"validation_errors{suffix}.png"
+    scatter_plot(runs, out / spots)
+    error_bars(runs, reference, out / errors)
+    rows = [
+        [v.label, v.model, v.completeness] + [f"{v.stats.as_dict()[k]:.3f}" for k in _STAT_KEYS] for v in runs
+    ]
+    rows += [[lab, "published", ""] + [f"{r[k]:.3f}" for k in _STAT_KEYS] for lab, r in reference.items()]
+    classes = [""] * len(runs) + ["ref"] * len(reference)
+    return [
+        f"<h2>Validation at {esc(v0.point)} {esc(str(tuple(float(c) for c in v0.xyz)))}</h2>",
+        (
+            '<p class="note">Each model computes configurations that put its beam on the point; the arm '
+            "goes there and a camera photographs the spot. Scatter radius: distance of each spot from the "
+            "spots' mean; error: distance from the point (thesis Figures 4.5 and 4.6).</p>"
+        ),
+        _table(
+            f"validation-stats{suffix.replace('_', '-')}",
+            ["run", "model", "spots measured", "scatter mean", "scatter std", "error mean", "error max"],
+            rows,
+            classes,
+        ),
+        _img(spots, f"laser spots at {v0.point} (Figure 4.5)"),
+        _img(errors, f"mean and max error at {v0.point} (Figure 4.6)"),
+    ]
+
+
 def write_report(
     out,
     session: Session,
@@ -450,9 +515,9 @@ def write_report(
     session : Session, the calibration session (laser spots)
     ident : Identification, its calibration (parameter table, residuals, identifiability)
     diagnosis : Diagnosis or None
-    validations : sequence of Validation at one point, in the order to show (e.g. nominal first)
+    validations : sequence of Validation, in the order to show (e.g. nominal first); a section per point
     reference : dict label -> {scatter_mean, scatter_std, error_mean, error_max}, published figures
-        shown beside
+        shown beside the first point's runs
     title : str, the page's heading
 
     Returns
@@ -488,40 +553,14 @@ def write_report(
         ),
     ]
 
-    if validations:
-        points = {v.point for v in validations}
-        if len(points) > 1:
-            raise FormatError(
-                validations[1].folder,
-                f"validations at different points ({', '.join(sorted(points))}): report one point at a time",
-            )
-        v0 = validations[0]
-        scatter_plot(validations, out / "validation_spots.png")
-        error_bars(validations, reference, out / "validation_errors.png")
-        rows = [
-            [v.label, v.model, v.completeness] + [f"{v.stats.as_dict()[k]:.3f}" for k in _STAT_KEYS]
-            for v in validations
-        ]
-        rows += [[lab, "published", ""] + [f"{r[k]:.3f}" for k in _STAT_KEYS] for lab, r in reference.items()]
-        classes = [""] * len(validations) + ["ref"] * len(reference)
-        parts += [
-            f"<h2>Validation at {esc(v0.point)} {esc(str(tuple(float(c) for c in v0.xyz)))}</h2>",
-            (
-                '<p class="note">Each model computes configurations that put its beam on the point; the arm '
-                "goes there and a "
-                "camera photographs the spot. Scatter radius: distance of each spot from the spots' mean; "
-                "error: distance from "
-                "the point (thesis Figures 4.5 and 4.6).</p>"
-            ),
-            _table(
-                "validation-stats",
-                ["run", "model", "spots measured", "scatter mean", "scatter std", "error mean", "error max"],
-                rows,
-                classes,
-            ),
-            _img("validation_spots.png", "laser spots at the validation point (Figure 4.5)"),
-            _img("validation_errors.png", "mean and max error at the validation point (Figure 4.6)"),
-        ]
+    check_not_calibration_points(session, ident, validations)
+    for k, runs in enumerate(
+        by_point(validations).values()
+    ):  # the published figures beside the first point's
+        first = k == 0
+        parts += validation_section(
+            runs, reference if first else {}, out, "" if first else f"_{runs[0].point}"
+        )
 
     prow = [
         [

@@ -25,6 +25,7 @@ from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.formats.data import reference
 from lasercal.solver.formats.session import Layout, check_aperture, session_layout, session_meta
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.model import RobotModel
@@ -301,7 +302,7 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
     collector = {
         **cfg,
         "aperture_z": aperture,
-        "layout": str(Path(layout_path).resolve()),
+        "layout": reference("layouts", layout_path, folder),  # relative to the session: it can move
         "aiming": layout.aiming,
         "extra_columns": columns,
         "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),

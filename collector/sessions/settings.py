@@ -8,6 +8,7 @@ the captures already on disk mean.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,7 +17,7 @@ from lasercal.collector.errors import SessionError
 from lasercal.collector.sessions.motion import MAX_STEP
 from lasercal.collector.sessions.store import check_output
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.data import builtin_dir, resolve
+from lasercal.solver.formats.data import builtin_dir, reference
 from lasercal.solver.formats.robots import load_yaml
 from lasercal.solver.formats.session import Layout, load_layout, session_layout
 
@@ -160,7 +161,8 @@ class ValidateSettings:
     Attributes
     ----------
     cfg : dict, the robot settings: :data:`DEFAULTS`, then a resumed run's stored ones, then those given
-    run : dict, what the run measures: ``model`` and ``layout`` (absolute paths), ``point`` (None: the
+    run : dict, what the run measures: ``model``, ``layout`` and ``sheet_from`` (built-in names, or paths
+        relative to ``folder``: :meth:`file`), ``point`` (None: the
         layout's first validation point), ``n``, ``camera``, ``guide``, ``max_step``
     folder : str, the run's folder
     resume : bool, the folder is an interrupted run to continue
@@ -170,6 +172,16 @@ class ValidateSettings:
     run: dict
     folder: str
     resume: bool
+
+    def file(self, key: str) -> str | None:
+        """The file (or built-in name) ``run[key]`` names, as a path from the working folder: a relative
+        path is relative to the run's folder (as validation.yaml stores it), an absolute one (older runs)
+        stays."""
+        ref = self.run.get(key)
+        if ref is None:
+            return None
+        inside = os.path.normpath(os.path.join(self.folder, str(ref)))  # lexically: the folder may be new
+        return inside if not Path(str(ref)).is_absolute() and Path(inside).exists() else str(ref)
 
 
 def validate_settings(
@@ -184,6 +196,8 @@ def validate_settings(
     camera: str | None = None,
     guide: bool = False,
     max_step: float = MAX_STEP,
+    sheet_from: str | None = None,
+    sheet_pose=None,
 ) -> ValidateSettings:
     """The settings of a new validation run (``output``) or a resumed one (``resume``: its own are kept).
 
@@ -196,6 +210,10 @@ def validate_settings(
     layout : str or None, layout file or built-in name (None: the thesis layout, fake backend only)
     point, n, camera, guide, max_step : the run's validation point, configurations, camera, whether to
         guide the operator, largest joint step (rad); a resumed run keeps its own
+    sheet_from : str or None, on a sheet layout: the model (file or name) whose identified sheet pose the
+        model under test is validated with (None: the model's own)
+    sheet_pose : SheetPose or None, on the fake backend: where the simulated sheet truly lies, in the true
+        robot's own frame (None: the sheet's session, or the layout's placement)
 
     Returns
     -------
@@ -220,18 +238,22 @@ def validate_settings(
                 "table (there is no default for real robots)"
             )
         check_output(output, folder=True, instead=f"resume it with --resume {output}")
-        run = {
-            "model": str(resolve("robots", model).resolve()),
-            "layout": str(resolve("layouts", layout).resolve()) if layout else str(THESIS_LAYOUT),
+        run = {  # files by their path relative to the run's folder (built-ins by name): the folder can move
+            "model": reference("robots", model, output),
+            "layout": reference("layouts", layout or THESIS_LAYOUT, output),
             "point": point,
             "n": n,
             "camera": camera,
             "guide": guide,
             "max_step": max_step,
+            "sheet_from": reference("robots", sheet_from, output) if sheet_from else None,
+            "sheet_pose": None if sheet_pose is None else list(sheet_pose.as_dict().values()),
         }
         return ValidateSettings({**DEFAULTS, **given}, run, output, False)
-    if output or model or layout or point:
-        raise SessionError("--resume DIR continues that run with its own model, layout and point: drop them")
+    if output or model or layout or point or sheet_from or sheet_pose is not None:
+        raise SessionError(
+            "--resume DIR continues that run with its own model, layout, point and sheet: drop them"
+        )
     folder = Path(resume)
     if not (folder / "validation.yaml").is_file():
         raise SessionError(

@@ -24,10 +24,17 @@ from lasercal.collector.sessions.capture import (
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.collector.sessions.world import (
+    SimulatedWorld,
+    check_same_frame,
+    model_session,
+    validation_world,
+)
 from lasercal.solver.errors import FormatError, LasercalError
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout, load_layout
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.sheet import SheetPose
 
 if TYPE_CHECKING:  # annotations only: sessions.validate loads OpenCV, which a capture does not need
     from lasercal.collector.sessions.validate import ValidateOptions, ValidationResult
@@ -193,6 +200,7 @@ class StartedValidation:
     robot : RobotAdapter; camera : the camera; measure : how its photos are measured, or None
     trigger : Trigger or None (None: the robot moves itself to each configuration)
     opts : ValidateOptions
+    world : SimulatedWorld or None, the fake backend's true robot and sheet on a sheet layout
     """
 
     settings: ValidateSettings
@@ -204,6 +212,7 @@ class StartedValidation:
     measure: object
     trigger: Trigger | None
     opts: ValidateOptions
+    world: SimulatedWorld | None = None
 
     def run(self, out=sys.stdout) -> ValidationResult:
         """Run the validation (:func:`run_validation`) on screen ``out``; it closes the robot and camera.
@@ -219,6 +228,13 @@ class StartedValidation:
         from lasercal.collector.sessions.validate import run_validation
 
         s = self.settings
+        extra = {"collector": {"settings": s.cfg, "run": s.run}}
+        if self.world is not None:
+            out.write(
+                f"simulated world: true robot {self.world.truth.name}, sheet at "
+                f"{_pose_text(self.world.sheet)} (from {self.world.source})\n"
+            )
+            extra["simulated_world"] = self.world.as_dict()
         return run_validation(
             s.folder,
             self.model,
@@ -231,7 +247,7 @@ class StartedValidation:
             self.trigger,
             self.measure,
             out=out,
-            meta_extra={"collector": {"settings": s.cfg, "run": s.run}},
+            meta_extra=extra,
             resume=s.resume,
             confirm_moves=s.cfg["backend"] != "fake",
         )
@@ -264,25 +280,21 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     )
 
     cfg, run = settings.cfg, settings.run
-    layout = load_layout(run["layout"])
+    model_ref, layout_ref = settings.file("model"), settings.file("layout")
+    layout = load_layout(layout_ref)
     point = validation_point(layout, run["point"])
-    model = load_model(run["model"])
-    check_layout(layout, model, run["model"], point)
-    sheet = placed = None
-    if layout.frame == "sheet":  # a printed sheet: its points where the model found the sheet (eq. S1)
-        sheet = model.sheet
-        if sheet is None:
-            raise FormatError(
-                run["model"],
-                "the layout's points are on a sheet (frame: sheet) but the model has no sheet pose: validate "
-                "a model solved from a session on that sheet",
-                field="sheet",
-            )
-        if cfg["backend"] == "fake":  # the simulated table holds the sheet at its placement, as in capture
-            placed = layout.sheet or layout.in_base().sheet  # (in_base names a layout without a placement)
+    model = load_model(model_ref)
+    check_layout(layout, model, model_ref, point)
+    sheet_pose = run.get("sheet_pose")
+    sheet, world = sheet_world(
+        cfg, layout, model, model_ref, settings.file("sheet_from"), sheet_pose and SheetPose(*sheet_pose)
+    )
+    if sheet is not None:  # a printed sheet: its points where a calibration found the sheet (eq. S1)
         layout = layout.in_base(sheet)
-    robot = make_robot(cfg, load_model(cfg["robot"]), layout)
-    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, run["layout"], sheet, placed)
+    nominal = load_model(cfg["robot"])
+    robot = make_robot(cfg, nominal, layout, truth=world and world.truth)
+    placed = world and world.sheet
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, layout_ref, sheet, placed)
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
@@ -295,4 +307,77 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
         yes=yes,
         max_step=run["max_step"],
     )
-    return StartedValidation(settings, model, layout, point, robot, camera, measure, trigger, opts)
+    return StartedValidation(settings, model, layout, point, robot, camera, measure, trigger, opts, world)
+
+
+def _pose_text(pose) -> str:
+    return f"x {pose.x_mm:.2f} mm, y {pose.y_mm:.2f} mm, yaw {pose.yaw_deg:.3f} deg"
+
+
+def sheet_world(
+    cfg: dict,
+    layout: Layout,
+    model: RobotModel,
+    model_ref: str,
+    sheet_from: str | None = None,
+    pose: SheetPose | None = None,
+):
+    """Where a sheet layout's sheet lies for the model under test, and the fake backend's world.
+
+    The sheet's pose is the one a calibration identified: ``sheet_from``'s (any model, the nominal
+    included, can be validated with it) or the model's own. On the fake backend the simulated world is
+    :func:`sessions.world.validation_world`'s: ``pose`` (the sheet's true pose), else the session the
+    sheet's pose was identified from, else the layout's placement.
+
+    Parameters
+    ----------
+    cfg : dict, the robot settings (``backend``, ``robot``, ``truth``, ``perturb_seed``)
+    layout : Layout, as loaded (sheet or base frame)
+    model : RobotModel, the model under test; model_ref : str, its file or name
+    sheet_from : str or None, the model (file or name) whose sheet pose to validate with
+    pose : SheetPose or None, where the simulated sheet truly lies (fake backend), in the truth's own frame
+
+    Returns
+    -------
+    (SheetPose or None, SimulatedWorld or None): None, None for a base-frame layout; no world off the
+    fake backend
+
+    Raises
+    ------
+    FormatError
+        No sheet pose to validate with; a sheet pose from a model of another robot.
+    LasercalError
+        ``sheet_from`` or ``pose`` on a base-frame layout, ``pose`` off the fake backend.
+    """
+    if layout.frame != "sheet":
+        if sheet_from or pose:
+            raise LasercalError(
+                f"{'--sheet-from' if sheet_from else '--sheet-pose'}: the layout {layout.path} is in the "
+                "base frame (its points are measured there: there is no sheet to place)"
+            )
+        return None, None
+    if pose is not None and cfg["backend"] != "fake":
+        raise LasercalError("--sheet-pose lays the simulated sheet: it needs --backend fake")
+    ref = sheet_from or model_ref
+    source = load_model(ref) if sheet_from else model
+    if source.sheet is None:
+        raise FormatError(
+            ref,
+            "the layout's points are on a sheet (frame: sheet) but the model has no sheet pose: validate "
+            "with the sheet pose of a model solved on that sheet (--sheet-from MODEL.yaml)",
+            field="sheet",
+        )
+    if sheet_from:
+        check_same_frame(model, model_ref, source, ref)
+    if cfg["backend"] != "fake":
+        return source.sheet, None
+    world = validation_world(
+        cfg,
+        load_model(cfg["robot"]),
+        model_session(source, ref),
+        pose,
+        layout.sheet,
+    )
+    if world.sheet is None:
+        layout.in_base()  # raises: no placement to lay the simulated sheet at (names the layout file)
+    return source.sheet, world

@@ -107,6 +107,13 @@ def check_output(
     return p
 
 
+def _umask() -> int:
+    """The process's umask (read by setting it, the only portable way, and set back at once)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextmanager
 def atomic_output(path, *, folder: bool = False) -> Iterator[Path]:
     """A temporary sibling of ``path`` to write; on success it replaces ``path`` in one rename.
@@ -118,6 +125,8 @@ def atomic_output(path, *, folder: bool = False) -> Iterator[Path]:
     p = Path(path)
     parent = p.resolve().parent
     tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    if folder:  # mkdtemp makes it private (0700): an output folder gets what mkdir gives, as every other
+        tmp.chmod(0o777 & ~_umask())
     target = tmp if folder else tmp / p.name
     try:
         yield target

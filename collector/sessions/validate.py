@@ -94,6 +94,13 @@ def fake_view(centre_xy, plane_z: float, size=(1600, 1200), mm_per_px: float = 0
     return look_down(size=size, mm_per_px=mm_per_px, centre=tuple(centre_xy), height=800.0, z=plane_z)
 
 
+# The fake camera of `validate`: 160 x 120 mm around the point (a nominal model's spots land up to ~30 mm
+# off) at 0.2 mm/px, where the spot (sigma 2.5 px, 0.5 mm) is measured to ~0.01 mm; a quarter of the pixels
+# of 0.1 mm/px, which made rendering, measuring and storing the photos 80 % of a run's time.
+FAKE_VIEW_PX = (800, 600)
+FAKE_MM_PER_PX = 0.2
+
+
 @dataclass(frozen=True)
 class SpotLook:
     """How the fake laser spot looks: Gaussian sigma (px), peak (full scale), speckle contrast."""
@@ -186,7 +193,7 @@ def make_camera(
     if spec == "fake":
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
-        view = fake_view(layout.points[point][:2], layout.plane_z)
+        view = fake_view(layout.points[point][:2], layout.plane_z, FAKE_VIEW_PX, FAKE_MM_PER_PX)
 
         def measure(img, name):
             xy, advice = measure_known_view(img, name, view)
@@ -253,8 +260,10 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
             f"{model.plane_z:g} mm (expected the layout of the table the model was calibrated on)",
             field="plane",
         )
-    session = Path(str(model.identification.get("session", "")))
-    if model.identification.get("session") and (session / "session.yaml").is_file():
+    from lasercal.collector.sessions.world import model_session
+
+    session = model_session(model, model_ref)
+    if session is not None:
         from lasercal.solver.formats.robots import load_yaml
 
         meta = load_yaml(session / "session.yaml")

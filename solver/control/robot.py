@@ -85,11 +85,30 @@ class Robot:
     """
 
     def __init__(self, model: RobotModel, nominal: RobotModel, options: IKOptions = DEFAULT_IK, path=None):
-        self.model, self.nominal, self.options = model, nominal, options
+        self.model, self.nominal, self.options, self.path = model, nominal, options, path
         self.extension = extension_from_model(model.extensions, path or model.name, model.n)
         joint_effect(self.extension)
         self.flange = flange(model)
         self.nominal_flange = flange(nominal)
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether the model calibrates another (``lasercal solve`` wrote it, or it names its ``nominal``)
+        rather than being a nominal model itself."""
+        return bool(self.model.identification or self.model.nominal)
+
+    def __repr__(self) -> str:
+        """What the robot is: e.g. ``<Robot panda_thesis_identified: calibrated (lm, model.yaml), nominal
+        panda, 7 joints, tools flange>`` or ``<Robot panda: nominal, 7 joints, tools flange>``."""
+        where = f", {self.path}" if self.path is not None else ""
+        if self.calibrated:
+            method = self.model.identification.get("method")
+            how = f"{method}{where}" if method else where.removeprefix(", ")
+            what = f"calibrated{f' ({how})' if how else ''}, nominal {self.nominal.name}"
+        else:
+            what = f"nominal{where}"
+        effects = f", effects {self.extension.effect}" if self.extension is not None else ""
+        return f"<Robot {self.model.name}: {what}, {self.n} joints, tools {', '.join(self.tools)}{effects}>"
 
     @property
     def n(self) -> int:
@@ -212,4 +231,4 @@ def load_model(path, options: IKOptions = DEFAULT_IK) -> Robot:
     """
     model = load_robot_model(path)
     ref = path if Path(str(path)).is_file() else None
-    return Robot(model, nominal_model(model, ref), options, path)
+    return Robot(model, nominal_model(model, ref), options, ref)

@@ -95,12 +95,12 @@ def make_tool(model: RobotModel, flange_T: np.ndarray, tool=None) -> Tool:
         points = identified_points(model)
         if tool not in points:
             known = ", ".join([FLANGE] + list(points))
-            raise FormatError("--tool", f"{model.name!r} has no tool {tool!r} (it has: {known})")
+            raise FormatError("tool", f"{model.name!r} has no tool {tool!r} (it has: {known})")
         T = inv_T(flange_T) @ points[tool]
         if tool != "ee":
             T[:3, :3] = np.eye(3)  # a point: the flange's orientation
         return Tool(tool, T)
     tcp = np.asarray(tool, dtype=float).ravel()
     if tcp.shape != (3,) or not np.all(np.isfinite(tcp)):
-        raise FormatError("--tcp", f"a TCP is 3 finite numbers x y z (mm, flange frame), got {tool!r}")
+        raise FormatError("tool", f"a TCP is 3 finite numbers x y z (mm, flange frame), got {tool!r}")
     return Tool("tcp", _at(tcp))

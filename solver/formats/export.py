@@ -248,7 +248,7 @@ def to_urdf(model: RobotModel) -> str:
         '<?xml version="1.0"?>',
         (
             f"<!-- lasercal export of {model.name}: joint frames at q = 0 with z along the identified axes "
-            "(see solver/export.py); kinematics only -->"
+            f"(written by {__name__}); kinematics only -->"
         ),
     ]
     note = _extension_note(model)

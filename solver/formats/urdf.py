@@ -317,7 +317,10 @@ def calibrated_urdf(model: RobotModel) -> str:
         ET.SubElement(jt, "child", link=nm)
         _set_origin(jt, inv_T(T_parent) @ F)
     root.append(
-        ET.Comment(" calibrated by lasercal: joint origins and axes of the chain; fixed lasercal_* links ")
+        ET.Comment(
+            f" calibrated by lasercal ({__name__}): joint origins and axes of the chain; fixed lasercal_* "
+            "links "
+        )
     )
     ET.indent(tree)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"

@@ -1,0 +1,168 @@
+"""The simulated world of a validation on the fake backend: the true robot, and where the sheet truly lies.
+
+On a printed sheet (``frame: sheet``) the model under test aims at the points where a calibration found
+the sheet (eq. S1, in the robot's own base frame, eq. S2); the simulated camera sees where the true beam
+meets the sheet where it truly lies. That world is, in order:
+
+1. ``--sheet-pose X Y YAW`` (mm, mm, deg): the settings' true robot in its own frame (eq. S2) and the
+   sheet at that pose -- the world ``lasercal simulate --sheet-pose`` makes;
+2. the world the session was simulated in, the session the sheet's pose was identified from (a model's
+   ``identification.session``): ``simulate --sheet-pose`` stores its truth in its own frame
+   (``truth.yaml``) and the sheet's pose; ``simulate`` without it and ``capture --backend fake`` lay the
+   sheet at its placement under the truth they name;
+3. otherwise the settings' true robot, with the sheet at the layout's placement (as ``capture --backend
+   fake`` lays it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lasercal.collector.hardware import fake_truth
+from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.robots import load_model, load_yaml, sheet_pose
+from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
+
+SAME_AXIS_MM = 1e-3  # two models share a base frame when joint 1's screws agree this well (mm, and 1e-6 rad)
+
+
+@dataclass(frozen=True)
+class SimulatedWorld:
+    """The fake backend's world.
+
+    Attributes
+    ----------
+    truth : RobotModel, the true robot (in the frame the sheet's pose is given in)
+    sheet : SheetPose or None, where the sheet truly lies in the truth's base frame (None: no sheet)
+    source : str, where both come from (one line, for the operator and validation.yaml)
+    """
+
+    truth: RobotModel
+    sheet: SheetPose | None
+    source: str
+
+    def as_dict(self) -> dict:
+        """``{truth, sheet, from}``: what validation.yaml records of the world (the truth by name)."""
+        return {
+            "truth": self.truth.name,
+            "sheet": None if self.sheet is None else self.sheet.as_dict(),
+            "from": self.source,
+        }
+
+
+def session_world(folder) -> SimulatedWorld | None:
+    """The world a simulated session was captured in, or None for a measured one (or no sheet session).
+
+    Parameters
+    ----------
+    folder : a session folder (session.yaml)
+
+    Returns
+    -------
+    SimulatedWorld or None
+
+    Raises
+    ------
+    FormatError
+        A simulated session whose truth or sheet pose cannot be read (naming session.yaml and the field).
+    """
+    folder = Path(folder)
+    path = folder / "session.yaml"
+    meta = load_yaml(path)
+    sim = meta.get("simulated") if isinstance(meta, dict) else None
+    if not sim or meta.get("frame") != "sheet":
+        return None
+    if not isinstance(sim, dict):
+        raise FormatError(
+            path, "'simulated' must be a mapping (truth, aim_noise_mm, seed)", field="simulated"
+        )
+    placed = sheet_pose(meta, "sheet", path, placement=True)
+    truth_sheet = sim.get("sheet")
+    if truth_sheet is not None:  # simulate --sheet-pose: the truth in its own frame, the sheet's true pose
+        if not isinstance(truth_sheet, dict) or not truth_sheet.get("truth_in_own_frame"):
+            raise FormatError(path, "expected {pose, truth_in_own_frame}", field="simulated.sheet")
+        pose = sheet_pose(truth_sheet, "pose", path)
+        truth = load_model(folder / str(truth_sheet["truth_in_own_frame"]))
+        return SimulatedWorld(truth, pose, f"session {folder.name!r}: simulated, the sheet at its true pose")
+    collector = meta.get("collector")
+    if isinstance(collector, dict) and collector.get("backend") == "fake":  # capture --backend fake
+        truth = fake_truth(collector, load_model(collector.get("robot", "panda")), folder)
+    elif sim.get("truth"):  # simulate on a sheet layout: the sheet lies at its placement
+        truth = load_model(str(sim["truth"]), base=folder)
+    else:
+        return None
+    if placed is None:
+        return None
+    return SimulatedWorld(truth, placed, f"session {folder.name!r}: simulated, the sheet at its placement")
+
+
+def model_session(model: RobotModel, model_path) -> Path | None:
+    """The session folder a model was identified from (``identification.session``, relative to the model
+    file's folder or absolute), or None when it names none or it is gone."""
+    ref = model.identification.get("session")
+    if not ref:
+        return None
+    p = Path(str(ref))
+    if not p.is_absolute():
+        p = Path(model_path).parent / p
+    return p if (p / "session.yaml").is_file() else None
+
+
+def check_same_frame(model: RobotModel, model_ref: str, sheet_model: RobotModel, sheet_ref: str) -> None:
+    """A sheet's pose identified with ``sheet_model`` is in its robot's own base frame (eq. S2): joint 1
+    as the nominal's. ``model`` must have that joint 1 too (the nominal does; so does every model solved
+    on a sheet of the same robot).
+
+    Raises
+    ------
+    FormatError
+        Naming the sheet model's file: the two models' joint 1 differ.
+    """
+    a, b = model.screws[0], sheet_model.screws[0]
+    if (
+        model.n != sheet_model.n
+        or np.abs(a[:3] - b[:3]).max() > 1e-6
+        or np.abs(a[3:] - b[3:]).max() > SAME_AXIS_MM
+    ):
+        raise FormatError(
+            sheet_ref,
+            f"its sheet pose is in its robot's own base frame (joint 1 as the nominal's), but joint 1 of "
+            f"{model_ref} is not that robot's (expected models of one robot: the nominal, or one solved on "
+            "the sheet)",
+            field="sheet",
+        )
+
+
+def validation_world(
+    cfg: dict,
+    nominal: RobotModel,
+    sheet_session: Path | None = None,
+    pose: SheetPose | None = None,
+    placement: SheetPose | None = None,
+) -> SimulatedWorld:
+    """The fake backend's world for a validation on a sheet (the module's rules 1-3).
+
+    Parameters
+    ----------
+    cfg : dict, the validation settings (``truth`` or ``perturb_seed``)
+    nominal : RobotModel, the robot the settings name
+    sheet_session : Path or None, the session the sheet's pose was identified from
+    pose : SheetPose or None, the sheet's true pose given (``--sheet-pose``), in the truth's own frame
+    placement : SheetPose or None, the layout's placement of the sheet
+
+    Returns
+    -------
+    SimulatedWorld
+    """
+    if pose is not None:
+        truth = fake_truth(cfg, nominal)
+        truth = moved(truth, own_frame(truth, nominal))
+        return SimulatedWorld(truth, pose, "--sheet-pose, the truth in its own frame")
+    world = session_world(sheet_session) if sheet_session is not None else None
+    if world is not None:
+        return world
+    return SimulatedWorld(fake_truth(cfg, nominal), placement, "the layout's placement")
