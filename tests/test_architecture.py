@@ -3,6 +3,10 @@
 - ``lasercal.solver`` is the core: it imports neither ``vision`` nor ``collector``, and never prints.
 - ``lasercal.vision`` stands alone (no ``solver``, no ``collector``) and has no import cycles.
 - ``lasercal.collector`` is the application; argparse lives only in its ``cli`` package.
+- ``lasercal`` itself (the folder ``solver/api``) is the top floor, the workflow as Python: it may use
+  ``collector.report`` (the report, the printed summary) and ``vision`` (spots), only inside its functions
+  (``import lasercal`` loads nothing), and never ``collector.cli``; nothing in ``solver`` or ``vision``
+  imports it.
 - every command in the table imports and declares its arguments and handler.
 """
 
@@ -21,26 +25,49 @@ from lasercal.collector.cli.main import COMMANDS, build_parser, load
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"solver": ROOT / "solver", "vision": ROOT / "vision", "collector": ROOT / "collector"}
+API = ROOT / "solver" / "api"  # the package ``lasercal`` itself (pyproject's package-dir)
+# what the top floor may reach of the application, inside its functions
+API_REACHES = ("lasercal.collector.report", "lasercal.vision")
+
+
+def module_name(f: Path) -> str:
+    """The dotted name of a source file (``solver/api/x.py`` is ``lasercal.x``)."""
+    if f.is_relative_to(API):
+        parts = ("lasercal",) + f.relative_to(API).with_suffix("").parts
+    else:
+        parts = ("lasercal",) + f.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
 def modules(pkg: str) -> dict[str, Path]:
-    """Dotted module name -> file, for every module of ``lasercal.<pkg>``."""
-    out = {}
-    for f in sorted(PACKAGES[pkg].rglob("*.py")):
-        parts = f.relative_to(ROOT).with_suffix("").parts
-        parts = parts[:-1] if parts[-1] == "__init__" else parts
-        out["lasercal." + ".".join(parts)] = f
-    return out
+    """Dotted module name -> file, for every module of ``lasercal.<pkg>`` ('api': of ``lasercal`` itself;
+    'solver' leaves the api out)."""
+    if pkg == "api":
+        return {module_name(f): f for f in sorted(API.rglob("*.py"))}
+    files = [f for f in sorted(PACKAGES[pkg].rglob("*.py")) if not f.is_relative_to(API)]
+    return {module_name(f): f for f in files}
 
 
-def imports(path: Path) -> set[str]:
-    """The lasercal modules a file imports (absolute imports; the project uses no relative ones)."""
+def every_module() -> dict[str, Path]:
+    return {k: v for pkg in (*PACKAGES, "api") for k, v in modules(pkg).items()}
+
+
+def imports(path: Path, top_level_only: bool = False) -> set[str]:
+    """The lasercal modules a file imports (absolute imports; the project uses no relative ones), lazy and
+    annotation-only imports included unless ``top_level_only``. ``from lasercal.x import y`` names the
+    module ``lasercal.x.y`` when y is a module."""
+    known = every_module()
+    tree = ast.parse(path.read_text())
+    nodes = tree.body if top_level_only else ast.walk(tree)
     found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in nodes:
         if isinstance(node, ast.ImportFrom):
             assert node.level == 0, f"{path}: relative import"
             if node.module and node.module.startswith("lasercal"):
                 found.add(node.module)
+                found.update(
+                    f"{node.module}.{a.name}" for a in node.names if f"{node.module}.{a.name}" in known
+                )
         elif isinstance(node, ast.Import):
             found.update(a.name for a in node.names if a.name.startswith("lasercal"))
     return found
@@ -90,6 +117,19 @@ def test_vision_has_no_import_cycles():
         return seen
 
     assert not [m for m in graph if m in reach(m, set())]
+
+
+def test_the_top_floor_reaches_the_application_lazily():
+    """``lasercal`` (solver/api) takes collector.report and vision inside its functions only, never the
+    command line; neither solver nor vision imports it."""
+    api = modules("api")
+    for name, f in api.items():
+        app = {m for m in imports(f) if m.split(".")[1] in ("collector", "vision")}
+        assert all(m.startswith(API_REACHES) for m in app), (name, app)
+        assert not {m for m in imports(f, top_level_only=True) if m.split(".")[1] in ("collector", "vision")}
+    for pkg in ("solver", "vision"):
+        for name, f in modules(pkg).items():
+            assert not [m for m in imports(f) if m in api and m != "lasercal"], name
 
 
 def test_every_declared_command_imports_with_arguments_and_handler():

@@ -355,6 +355,9 @@ class Session:
         ``target`` holds their x, y there with z the plane's height in the base frame; the sheet's pose
         is identified with the robot (:mod:`solver.kinematics.sheet`)
     sheet : SheetPose or None, a sheet session's stated rough placement (the prior's mean), if any
+    robot_source : (str, Path or None) or None, how the robot was named and the folder a relative path is
+        relative to: ``(meta['robot'], path)``, or a ``load_session(robot=...)`` override's ``(robot, None)``
+        (relative to the working folder); a calibrated model names its nominal from it
     """
 
     path: Path
@@ -379,6 +382,7 @@ class Session:
     tolerances: Tolerances | None | str = "robot"
     frame: str = "base"
     sheet: SheetPose | None = None
+    robot_source: tuple | None = None
 
     def __post_init__(self):
         if isinstance(self.tolerances, str):  # "robot": the nominal's tolerances (a frozen field, set once)
@@ -425,6 +429,7 @@ class Session:
             self.tolerances,
             self.frame,
             self.sheet,
+            self.robot_source,
         )
 
 
@@ -624,9 +629,10 @@ def load_session(
     Session
     """
     session = _load_session(Path(folder), robot, base_link, tip_link)
+    source = (str(robot), None) if robot else (str(session.meta.get("robot")), session.path)
     if prior is None:
-        return session
-    return replace(session, tolerances=load_tolerances(prior, session.robot))
+        return replace(session, robot_source=source)
+    return replace(session, tolerances=load_tolerances(prior, session.robot), robot_source=source)
 
 
 def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
