@@ -189,8 +189,8 @@ def calibrate(
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
+    from lasercal.solver.formats.tolerances import load_tolerances
     from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
-    from lasercal.solver.identify.prior import load_tolerances
 
     if not hasattr(session, "measurement"):
         session = load_session(session)

@@ -142,7 +142,8 @@ def sheet_world(truth: RobotModel, nominal: RobotModel, layout: Layout, pose: Sh
 
     import numpy as np
 
-    from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
+    from lasercal.solver.kinematics.frames import moved, own_frame
+    from lasercal.solver.kinematics.sheet import SheetPose
 
     if layout.frame == "base":
         pts = {k: np.r_[v[:2], 0.0] for k, v in layout.points.items()}
