@@ -163,3 +163,27 @@ def test_spots_of_an_array_a_file_and_a_lost_photo(tmp_path):
         assert r.error is None and len(r.spots) == 1
         assert np.hypot(r.spots[0].u - u, r.spots[0].v - v) < 0.1  # the detector's 0.05 px, with margin
     assert lost.error and not lost.spots
+
+
+def test_calibrate_fullpose_writes_the_model_file_fullpose_writes(tmp_path, capsys):
+    """Noise-free circle points of a known truth: the API's file is the command's, byte for byte, and the
+    calibrated poses match the measured ones to round-off (the paper's method recovers the truth)."""
+    m = tmp_path / "m.csv"
+    sim = ["simulate-fullpose", "--robot", "panda_thesis_identified", "--configs", "12", "--noise", "0"]
+    assert main([*sim, "--seed", "2", "-o", str(m)]) == 0
+    for flags, kw in (([], {}), (["--method", "circle", "--folds", "3"], {"method": "circle", "folds": 3})):
+        capsys.readouterr()
+        assert (
+            main(
+                ["fullpose", str(m), "--robot", "panda", "-o", str(tmp_path / "cli.yaml"), "--force", *flags]
+            )
+            == 0
+        )
+        printed = capsys.readouterr().out
+        res = lasercal.calibrate_fullpose("panda", m, **kw)
+        res.save(tmp_path / "api.yaml")
+        assert (tmp_path / "cli.yaml").read_bytes() == (tmp_path / "api.yaml").read_bytes()
+        untimed_text = lambda text: re.sub(r"iterations, [0-9.]+ s", "iterations, T s", text)  # noqa: E731
+        assert untimed_text(printed) == untimed_text(res.summary() + f"\nwrote {tmp_path / 'cli.yaml'}\n")
+        after = res.statistics["accuracy"]["after"]
+        assert after["position_mm"]["max"] < 1e-3, after

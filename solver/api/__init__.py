@@ -30,6 +30,8 @@ _LAZY = {
     "simulate": "lasercal.simulation",
     "plan": "lasercal.planning",
     "spots": "lasercal.photos",
+    "calibrate_fullpose": "lasercal.fullpose",
+    "FullPoseResult": "lasercal.fullpose",
     "CapturePlan": "lasercal.planning",
     "Simulation": "lasercal.simulation",
     "Calibration": "lasercal.calibration",
