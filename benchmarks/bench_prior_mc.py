@@ -22,10 +22,11 @@ from lasercal.solver.analysis.simulate import random_configs, simulate_captures,
 from lasercal.solver.formats.positions import position_session
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Session, load_layout
+from lasercal.solver.formats.tolerances import robot_tolerances
 from lasercal.solver.formats.urdf import load_urdf
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.position import PositionParams, target_start
-from lasercal.solver.identify.prior import make_prior, robot_tolerances
+from lasercal.solver.identify.prior import make_prior
 from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.minimal import anchor_heights

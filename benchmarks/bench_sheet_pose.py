@@ -31,8 +31,9 @@ from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout, Session, load_layout
 from lasercal.solver.identify.spot import identify_lm, predict_spots
 from lasercal.solver.kinematics.aim import aim
+from lasercal.solver.kinematics.frames import moved, own_frame
 from lasercal.solver.kinematics.poe import fk
-from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
+from lasercal.solver.kinematics.sheet import SheetPose
 
 NOMINAL = load_model("panda")
 TRUTH = moved(

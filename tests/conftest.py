@@ -55,7 +55,7 @@ def franka_flange(q: np.ndarray) -> np.ndarray:
 
 def perturbed(nominal, rng, rot=1e-3, mm=1.0):
     """The nominal with every joint screw moved by random eta (rad, mm), a sensor 2.5 m away, 3 targets."""
-    from lasercal.collector.cli.position import default_sensor, default_targets
+    from lasercal.simulation import default_sensor, default_targets
     from lasercal.solver.identify.position import eta_sizes
     from lasercal.solver.kinematics.minimal import link_frame, screw_from_eta
 

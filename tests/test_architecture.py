@@ -1,8 +1,17 @@
 """The house rules, read from the source: who may import whom, one command table, no stray packages.
 
 - ``lasercal.solver`` is the core: it imports neither ``vision`` nor ``collector``, and never prints.
-- ``lasercal.vision`` stands alone (no ``solver``, no ``collector``) and has no import cycles.
+- ``lasercal.vision`` stands alone (no ``solver``, no ``collector``).
 - ``lasercal.collector`` is the application; argparse lives only in its ``cli`` package.
+- ``lasercal`` itself (the folder ``solver/api``) is the top floor, the workflow as Python: it may use
+  ``collector.report`` (the report, the printed summary) and ``vision`` (spots), only inside its functions
+  (``import lasercal`` loads nothing), and never ``collector.cli``; nothing in ``solver`` or ``vision``
+  imports it.
+- the solver's floors: ``kinematics`` < ``formats`` < ``identify``, ``control`` < ``analysis`` < the top
+  floor; a module imports its own floor and those below (``formats`` never takes a name from ``identify``:
+  the one exception is listed in :data:`UPWARD`).
+- no file-level import circles anywhere, lazy (function-level) and annotation-only imports included: two
+  files that need each other share a name that belongs in a third, or in one of them.
 - every command in the table imports and declares its arguments and handler.
 """
 
@@ -21,29 +30,90 @@ from lasercal.collector.cli.main import COMMANDS, build_parser, load
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"solver": ROOT / "solver", "vision": ROOT / "vision", "collector": ROOT / "collector"}
+API = ROOT / "solver" / "api"  # the package ``lasercal`` itself (pyproject's package-dir)
+# the solver's floors (lasercal.solver.<floor>); a module imports its own floor and the ones below
+FLOORS = {"errors": 0, "kinematics": 1, "formats": 2, "identify": 3, "control": 3, "analysis": 4}
+# the known upward import: a full-pose file's reader computes each pose from its circle points (Section 2.3)
+UPWARD = {("lasercal.solver.formats.fullpose_io", "lasercal.solver.identify.circlepoint")}
+# what the top floor may reach of the application, inside its functions
+API_REACHES = ("lasercal.collector.report", "lasercal.vision")
+
+
+def module_name(f: Path) -> str:
+    """The dotted name of a source file (``solver/api/x.py`` is ``lasercal.x``)."""
+    if f.is_relative_to(API):
+        parts = ("lasercal",) + f.relative_to(API).with_suffix("").parts
+    else:
+        parts = ("lasercal",) + f.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
 def modules(pkg: str) -> dict[str, Path]:
-    """Dotted module name -> file, for every module of ``lasercal.<pkg>``."""
-    out = {}
-    for f in sorted(PACKAGES[pkg].rglob("*.py")):
-        parts = f.relative_to(ROOT).with_suffix("").parts
-        parts = parts[:-1] if parts[-1] == "__init__" else parts
-        out["lasercal." + ".".join(parts)] = f
-    return out
+    """Dotted module name -> file, for every module of ``lasercal.<pkg>`` ('api': of ``lasercal`` itself;
+    'solver' leaves the api out)."""
+    if pkg == "api":
+        return {module_name(f): f for f in sorted(API.rglob("*.py"))}
+    files = [f for f in sorted(PACKAGES[pkg].rglob("*.py")) if not f.is_relative_to(API)]
+    return {module_name(f): f for f in files}
 
 
-def imports(path: Path) -> set[str]:
-    """The lasercal modules a file imports (absolute imports; the project uses no relative ones)."""
+def every_module() -> dict[str, Path]:
+    return {k: v for pkg in (*PACKAGES, "api") for k, v in modules(pkg).items()}
+
+
+def imports(path: Path, top_level_only: bool = False) -> set[str]:
+    """The lasercal modules a file imports (absolute imports; the project uses no relative ones), lazy and
+    annotation-only imports included unless ``top_level_only``. ``from lasercal.x import y`` names the
+    module ``lasercal.x.y`` when y is a module."""
+    known = every_module()
+    tree = ast.parse(path.read_text())
+    nodes = tree.body if top_level_only else ast.walk(tree)
     found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in nodes:
         if isinstance(node, ast.ImportFrom):
             assert node.level == 0, f"{path}: relative import"
             if node.module and node.module.startswith("lasercal"):
                 found.add(node.module)
+                found.update(
+                    f"{node.module}.{a.name}" for a in node.names if f"{node.module}.{a.name}" in known
+                )
         elif isinstance(node, ast.Import):
             found.update(a.name for a in node.names if a.name.startswith("lasercal"))
     return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the modules of the project it imports (a package's ``__init__`` not counted as a step)."""
+    mods = every_module()
+    return {m: {i for i in imports(f) if i in mods and i != m and i != "lasercal"} for m, f in mods.items()}
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles: strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while not comp or comp[-1] != v:
+                comp.append(stack.pop())
+                on.discard(comp[-1])
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
 
 
 @pytest.mark.parametrize(
@@ -78,18 +148,39 @@ def test_argparse_only_in_the_cli_package():
                 assert "import argparse" not in f.read_text(), name
 
 
-def test_vision_has_no_import_cycles():
-    mods = modules("vision")
-    graph = {m: {i for i in imports(f) if i in mods and i != "lasercal.vision"} for m, f in mods.items()}
+def test_no_file_imports_itself_through_others():
+    """No import circles, two files or more, lazy imports included (in all of lasercal)."""
+    assert circles(import_graph()) == []
 
-    def reach(start, seen):
-        for nxt in graph[start]:
-            if nxt not in seen:
-                seen.add(nxt)
-                reach(nxt, seen)
-        return seen
 
-    assert not [m for m in graph if m in reach(m, set())]
+def test_circles_are_found():
+    """The circle finder on a graph with a two-file circle, a three-file circle and a chain."""
+    g = {"a": {"b"}, "b": {"a"}, "c": {"d"}, "d": {"e"}, "e": {"c"}, "f": {"a"}}
+    assert sorted(circles(g)) == [["a", "b"], ["c", "d", "e"]]
+
+
+def test_the_solver_imports_no_floor_above_its_own():
+    up = set()
+    for name, f in modules("solver").items():
+        floor = name.split(".")[2] if name.count(".") >= 2 else None
+        for m in imports(f):
+            target = m.split(".")[2] if m.startswith("lasercal.solver.") else None
+            if floor in FLOORS and target in FLOORS and FLOORS[target] > FLOORS[floor]:
+                up.add((name, m))
+    assert up == UPWARD
+
+
+def test_the_top_floor_reaches_the_application_lazily():
+    """``lasercal`` (solver/api) takes collector.report and vision inside its functions only, never the
+    command line; neither solver nor vision imports it."""
+    api = modules("api")
+    for name, f in api.items():
+        app = {m for m in imports(f) if m.split(".")[1] in ("collector", "vision")}
+        assert all(m.startswith(API_REACHES) for m in app), (name, app)
+        assert not {m for m in imports(f, top_level_only=True) if m.split(".")[1] in ("collector", "vision")}
+    for pkg in ("solver", "vision"):
+        for name, f in modules(pkg).items():
+            assert not [m for m in imports(f) if m in api and m != "lasercal"], name
 
 
 def test_every_declared_command_imports_with_arguments_and_handler():

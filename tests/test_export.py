@@ -14,9 +14,9 @@ from scipy.spatial.transform import Rotation
 
 from lasercal.collector.cli.main import main
 from lasercal.collector.hardware.fake import perturbed_model
-from lasercal.solver.formats.export import EE_LINK, FRANKA_ORIGINS, export, kinematic_frames, to_dh, to_urdf
+from lasercal.solver.formats.export import FRANKA_ORIGINS, export, kinematic_frames, to_dh, to_urdf
 from lasercal.solver.formats.robots import load_model, model_from_dict
-from lasercal.solver.formats.urdf import load_urdf
+from lasercal.solver.formats.urdf import EE_LINK, load_urdf
 from lasercal.solver.kinematics.laser import beam
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.poe import poe_chain, space_jacobian

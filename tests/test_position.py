@@ -18,10 +18,10 @@ from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.positions import position_meta, write_position_session
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_session
+from lasercal.solver.formats.tolerances import robot_tolerances
 from lasercal.solver.formats.urdf import calibrated_urdf, load_urdf
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.position import sensor_points
-from lasercal.solver.identify.prior import robot_tolerances
 from tests.conftest import perturbed
 
 DATA = Path(__file__).parent / "data"

@@ -21,8 +21,8 @@ from lasercal.solver.analysis.simulate import simulate_captures
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Session, load_layout
+from lasercal.solver.formats.tolerances import DEFAULTS, load_tolerances, robot_tolerances
 from lasercal.solver.identify.measurement import determined_by, fit, unidentifiable
-from lasercal.solver.identify.prior import DEFAULTS, load_tolerances, robot_tolerances
 from lasercal.solver.identify.spot import identify, laser_prior
 from lasercal.solver.kinematics.laser import LaserParams
 from tests.test_identify import heldout_configs, heldout_error

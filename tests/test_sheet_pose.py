@@ -17,8 +17,9 @@ from lasercal.solver.formats.session import load_session
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim
+from lasercal.solver.kinematics.frames import moved, own_frame
 from lasercal.solver.kinematics.laser import beam
-from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
+from lasercal.solver.kinematics.sheet import SheetPose
 
 NOMINAL = load_model("panda")
 

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from lasercal.collector.cli.options import (
     FOLDS,
@@ -18,10 +15,6 @@ from lasercal.collector.cli.options import (
     output_argument,
     unused,
 )
-
-if TYPE_CHECKING:  # annotations only: the modules load when a command runs
-    from lasercal.solver.identify.fullpose import FullPoseCalibration
-    from lasercal.solver.identify.fullpose_ml import PointCalibration
 
 
 def args_fullpose(p: argparse.ArgumentParser) -> None:
@@ -104,179 +97,28 @@ def args_simulate_fullpose(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
-def _header(path: Path) -> list:
-    """The first non-comment line's column names (to tell circle points from poses)."""
-    from lasercal.solver.errors import FormatError
-    from lasercal.solver.formats.checks import read_text
-
-    for line in read_text(path).splitlines():
-        if line.strip() and not line.lstrip().startswith("#"):
-            return [c.strip() for c in line.split(",")]
-    raise FormatError(path, "the file is empty")
-
-
-def report(cal: FullPoseCalibration | PointCalibration, cv, source: str) -> dict:
-    """The JSON-ready statistics of a full-pose calibration (from poses, or from every circle point)."""
-    f = cal.fit
-    idf = f.identifiability
-    if hasattr(cal, "circle"):  # maximum likelihood from the points
-        head = {
-            "method": "fullpose-ml (every circle point, position model, LM; circle-point start)",
-            "measurements": source,
-            "poses": int(cal.after.n),
-            "points": int(len(f.residuals)),
-            "outliers": list(f.outliers),
-            "converged": f.converged,
-            "iterations": f.iterations,
-            "seconds": f.seconds + cal.circle.fit.seconds,
-            "sigma_mm": float(f.sigma_mm),
-            "gauge": f.extra["gauge"],
-            "circle_start": {"accuracy_after": cal.circle.after.to_dict()},
-        }
-    else:
-        head = {
-            "method": "fullpose-poe (thesis eq. 2.3.29, Levenberg-Marquardt)",
-            "measurements": source,
-            "poses": int(len(f.residuals)),
-            "converged": f.converged,
-            "iterations": f.iterations,
-            "seconds": f.seconds,
-            "sigma_rad": float(f.sigma[0]),
-            "sigma_mm": float(f.sigma[1]),
-        }
-    rep = {
-        **head,
-        "identifiability": {
-            "parameters": idf.n_params,
-            "rank": idf.rank,
-            "condition": idf.condition,
-            "unidentifiable": list(idf.unidentifiable),
-        },
-        "accuracy": {
-            "before": cal.before.to_dict(),
-            "after": cal.after.to_dict(),
-            "units": "mm; Euler angles x-y-z of R_pred^T R_meas, deg",
-        },
-        "std_errors": f.std_errors,
-        "history": list(f.history),
-    }
-    if cal.alignment is not None:
-        rep["frames"] = {
-            "base": cal.alignment.base.tolist(),
-            "tool": cal.alignment.tool.tolist(),
-            "ee_nominal": cal.alignment.ee_nominal.tolist(),
-        }
-    if cv is not None:
-        rep["cross_validation"] = {
-            "folds": cv.folds,
-            "seed": cv.seed,
-            "per_fold": list(cv.per_fold),
-            **{
-                k: getattr(cv, k).to_dict()
-                for k in ("nominal_train", "nominal_test", "calibrated_train", "calibrated_test")
-            },
-        }
-    return rep
-
-
 def cmd_fullpose(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.control.nominal import robot_reference
-    from lasercal.solver.formats.fullpose_io import read_circlepoint_csv, read_pose_csv
-    from lasercal.solver.formats.robots import load_model, resolve_robot_path
-    from lasercal.solver.identify.fullpose import calibrate_fullpose, cross_validate, format_table
-    from lasercal.solver.identify.fullpose_ml import calibrate_points, cross_validate_points
+    from lasercal.fullpose import calibrate_fullpose
 
     if not args.folds:
         unused(args, "it shuffles the folds of --folds K", "seed")
-    model = load_model(args.robot, base_link=args.base_link, tip_link=args.tip_link)
-    path = Path(args.measurements)
-    estimate = True if args.estimate_frames else None
-    points = None
-    if "r11" in _header(path):
-        d = read_pose_csv(path, model.n)
-        q, T = d.q, d.T
-    else:
-        points = read_circlepoint_csv(path, model.n)
-        q, T = points.poses()
-    if points is not None and args.method == "ml":
-        cal = calibrate_points(model, points, estimate)
-        cv = cross_validate_points(model, points, args.folds, args.seed, estimate) if args.folds else None
-    else:
-        cal = calibrate_fullpose(model, q, T, estimate)
-        cv = cross_validate(model, q, T, args.folds, args.seed, estimate) if args.folds else None
-    rep = report(cal, cv, str(path.resolve()))
-    meta = {
-        k: rep[k]
-        for k in (
-            "method",
-            "measurements",
-            "poses",
-            "converged",
-            "iterations",
-            "sigma_mm",
-            "identifiability",
-            "accuracy",
-            "std_errors",
-        )
-    }
-    for k in ("sigma_rad", "points", "outliers", "gauge", "frames", "cross_validation"):
-        if k in rep:
-            meta[k] = rep[k]
-    meta["units"] = "mm, rad"
-    meta["robot"] = str(resolve_robot_path(args.robot).resolve())
+    res = calibrate_fullpose(
+        args.robot,
+        args.measurements,
+        method=args.method,
+        folds=args.folds,
+        seed=args.seed,
+        estimate_frames=args.estimate_frames,
+        base_link=args.base_link,
+        tip_link=args.tip_link,
+    )
     with atomic_output(args.output) as tmp:
-        nominal = robot_reference(args.robot)
-        cal.model.replace(identification=json.loads(json.dumps(meta)), nominal=nominal).save(tmp)
+        res.save(tmp)
     if args.json:
-        print(json.dumps(rep, indent=2))
+        print(res.to_json())
         return 0
-    f = cal.fit
-    idf = f.identifiability
-    what = (
-        f"{len(q)} poses"
-        if points is None or args.method == "circle"
-        else f"{len(q)} poses, {rep['points']} points"
-    )
-    print(
-        f"{what}; {'converged' if f.converged else 'NOT converged'} after {f.iterations} iterations, "
-        f"{rep['seconds']:.2f} s"
-    )
-    print(f"identifiable: rank {idf.rank} of {idf.n_params} parameters, condition number {idf.condition:.3g}")
-    for u in idf.unidentifiable:
-        print(f"  not seen by the data (held at the start value): {u}")
-    if "points" in rep:
-        print(f"maximum likelihood from every point; gauge: {rep['gauge']}")
-        print(
-            f"residual RMS per axis: {rep['sigma_mm']:.4g} mm; {len(rep['outliers'])} point(s) flagged as "
-            "outliers"
-        )
-    else:
-        print(
-            f"residual RMS per component: rotation {f.sigma[0] * 1e3:.4g} mrad, position {f.sigma[1]:.4g} mm"
-        )
-    if cal.alignment is not None:
-        t = cal.alignment.tool[:3, 3]
-        print(
-            f"estimated base and tool first: tool offset ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm from the "
-            "nominal end-effector frame"
-        )
-    print()
-    print(
-        format_table(
-            [("nominal", cal.before), ("calibrated", cal.after)],
-            "accuracy on the measured poses (Table 4 form)",
-        )
-    )
-    if cv is not None:
-        rows = [
-            ("nominal train", cv.nominal_train),
-            ("nominal test", cv.nominal_test),
-            ("calibrated train", cv.calibrated_train),
-            ("calibrated test", cv.calibrated_test),
-        ]
-        print()
-        print(format_table(rows, f"{cv.folds}-fold cross-validation"))
+    print(res.summary(), end="")
     print(f"\nwrote {args.output}")
     return 0
 

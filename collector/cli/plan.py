@@ -3,11 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import sys
-
-import numpy as np
 
 from lasercal.collector.cli.options import (
     INFOLDER,
@@ -20,8 +16,6 @@ from lasercal.collector.cli.options import (
     output_argument,
     session_robot,
 )
-
-MIN_SHEET_CAPTURES = 9  # captures from which a sheet session's own fit places the sheet (else its placement)
 
 
 def args_plan(p: argparse.ArgumentParser) -> None:
@@ -60,68 +54,30 @@ def args_plan(p: argparse.ArgumentParser) -> None:
 
 def cmd_plan(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.analysis.design import Coach, DesignError, posterior
-    from lasercal.solver.formats.session import load_layout, load_session, session_layout
-    from lasercal.solver.identify.spot import identify_lm, in_base_frame
+    from lasercal.planning import plan
+    from lasercal.solver.formats.session import load_session
 
-    session = load_session(args.session, **session_robot(args))
-    if session.measurement != "laser":
-        raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
-    # the session's own layout keeps its aiming hints (tilt, length), which the constraints obey
-    layout = load_layout(args.layout) if args.layout else session_layout(session.meta, session.path)
-    if session.frame == "sheet":  # the sheet where the captures so far put it (or its stated placement)
-        pose = identify_lm(session).model.sheet if session.m >= MIN_SHEET_CAPTURES else layout.sheet
-        layout = layout.in_base(pose)
-        session = in_base_frame(session, pose)  # (a pose is known: in_base refused the layout without one)
-    nominal = session.robot
-    if session.aperture_z is not None:
-        nominal = nominal.replace(aperture=np.r_[nominal.aperture[:2], session.aperture_z])
-    if session.tolerances is None:
-        raise DesignError("plan predicts from a prior: --prior none leaves no prediction to make")
-    tol = session.tolerances
-    if args.aim_noise is not None:
-        tol = tol.with_noise("laser", args.aim_noise)
-    post = posterior(nominal, session.q, session.target, tol)
     ws = None if args.workspace is None else (args.workspace[:3], args.workspace[3:])
-    coach = Coach(nominal, layout, args.seed, tol, workspace=ws, model=post.model, lookahead=args.next)
-    coach.post = post
-    st = coach.status(session.q)
-    plan = st.plan
-    header = ["point"] + [f"q{i}" for i in range(1, nominal.n + 1)] + ["expected_mm"]
-    rows = [
-        [str(nm)] + [f"{a:.6f}" for a in q] + [f"{e:.4f}"]
-        for nm, q, e in zip(plan.point, plan.q, plan.expected)
-    ]
-    if args.output:
-        with atomic_output(args.output) as tmp, open(tmp, "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(header)
-            w.writerows(rows)
-    if args.json:
-        print(
-            json.dumps(
-                {
-                    "captures": session.m,
-                    "identifiable": {"rank": st.rank, "of": st.n_identifiable, "parameters": st.n_params},
-                    "region": st.region,
-                    "predicted_mm": round(st.predicted, 4),
-                    "uncertainty_mm": round(st.uncertainty, 4),
-                    "sigma_mm": round(post.sigma, 4),
-                    "next": [dict(zip(header, r)) for r in rows],
-                },
-                indent=2,
-            )
-        )
-        return 0
-    print(
-        f"{session.m} captures; identifiable {st.rank} of {st.n_identifiable} ({st.n_params} parameters); "
-        f"predicted error at {st.region}: {st.predicted:.2f} ± {st.uncertainty:.2f} mm"
+    p = plan(
+        load_session(args.session, **session_robot(args)),
+        next=args.next,
+        layout=args.layout,
+        workspace=ws,
+        aim_noise=args.aim_noise,
+        seed=args.seed,
     )
+    if args.output:
+        with atomic_output(args.output) as tmp:
+            p.save(tmp)
+    if args.json:
+        print(p.to_json())
+        return 0
+    print(p.summary())
     if not args.output:
-        csv.writer(sys.stdout, lineterminator="\n").writerows([header] + rows)
+        sys.stdout.write(p.csv())
     else:
         print(
-            f"wrote {args.output}: {len(rows)} configurations, predicted error after them "
-            f"{plan.expected[-1]:.2f} mm"
+            f"wrote {args.output}: {len(p.rows)} configurations, predicted error after them "
+            f"{p.plan.expected[-1]:.2f} mm"
         )
     return 0

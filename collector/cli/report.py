@@ -62,13 +62,12 @@ def args_export(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_report(args) -> int:
+    from lasercal.calibration import calibrate
     from lasercal.collector.errors import SessionError
-    from lasercal.collector.report.html import load_validation, write_report
+    from lasercal.collector.report.html import load_validation
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.analysis.diagnose import diagnose
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import check_data, fit
 
     sessions, validations = [], []
     for f in map(Path, args.folders):
@@ -90,11 +89,9 @@ def cmd_report(args) -> int:
         raise FormatError(
             sessions[0], "the report covers laser sessions (spots on a plane)", field="measurement"
         )
-    check_data(session)
-    ident = fit(session, method=args.method)
-    d = diagnose(session, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
+    cal = calibrate(session, method=args.method, folds=0, allow_partial=True)
     with atomic_output(args.output, folder=True) as tmp:
-        write_report(tmp, session, ident, d, validations)
+        cal.report(tmp, validations, n_boot=args.bootstrap, n_refit=args.refits, seed=args.seed)
     print(f"wrote {Path(args.output) / 'index.html'}")
     return 0
 

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import sys
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from lasercal.collector.cli.options import (
     FOLDS,
@@ -27,11 +24,6 @@ from lasercal.collector.cli.options import (
     whole_numbers,
 )
 from lasercal.solver.kinematics.effects import JOINT_EFFECTS
-
-if TYPE_CHECKING:  # annotations only: the modules load when a command runs
-    import numpy as np
-
-    from lasercal.solver.kinematics.effects import Extension
 
 
 def args_solve(p: argparse.ArgumentParser) -> None:
@@ -138,104 +130,24 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_solve(args) -> int:
-    from lasercal.collector.report.text import format_diagnosis, format_solve
+    from lasercal.calibration import calibrate
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.analysis.diagnose import diagnose
-    from lasercal.solver.analysis.stats import cross_validate, solve_report
-    from lasercal.solver.control.nominal import robot_reference
-    from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
-    from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
-    from lasercal.solver.kinematics.effects import robot_extensions
 
-    session = load_session(args.session, **session_robot(args))
-    check_data(session)
-    if args.folds > session.m:
-        raise IdentificationError(
-            f"--folds {args.folds}: more folds than the session's {session.m} captures (expected 2 .. "
-            f"{session.m}, or 0 for none)"
-        )
-    diagnosis = None
-    robust = not args.no_robust
-    if args.extend != "none" and args.method != "lm":
-        raise IdentificationError("--extend needs --method lm")
-    if args.extend != "none":
-        diagnosis = diagnose(
-            session,
-            n_boot=0,  # the decision needs no bootstrap
-            k=args.folds,
-            effect=None if args.extend == "auto" else args.extend,
-            robust=robust,
-        )
-        ident = diagnosis.extended or diagnosis.geometric
-        session = diagnosis.session
-    else:
-        if session.measurement == "point" and args.method != "lm":
-            raise IdentificationError("point sessions are identified by --method lm")
-        ident = fit(session, method=args.method, robust=robust)
-    missing = unidentifiable(session, ident)
-    if not args.allow_partial:
-        refuse_partial(missing)
-    cv = (
-        cross_validate(
-            session,
-            args.method,
-            args.folds,
-            inlier=ident.weights > 0,
-            robust=robust,
-            extension=diagnosis.extension if diagnosis else None,
-        )
-        if args.folds and args.folds > 1
-        else None
+    cal = calibrate(
+        load_session(args.session, **session_robot(args)),
+        method=args.method,
+        extend=args.extend,
+        folds=args.folds,
+        robust=not args.no_robust,
+        allow_partial=args.allow_partial,
     )
-    rep = solve_report(session, ident, cv)
-    if diagnosis is not None:
-        rep["diagnosis"] = diagnosis.as_dict()
-    meta = {
-        k: rep[k]
-        for k in (
-            "method",
-            "converged",
-            "iterations",
-            "captures",
-            "fit_rms_mm",
-            "sigma_mm",
-            "identifiability",
-        )
-    }
-    meta.update(
-        {
-            "measurement": session.measurement,
-            "session": str(Path(args.session).resolve()),
-            "units": "mm, rad",
-            "std_errors": rep.get("std_errors", {}),
-        }
-    )
-    rep["partial"] = meta["partial"] = bool(missing)
-    if missing:
-        rep["unidentifiable_combinations"] = meta["unidentifiable_combinations"] = [
-            {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
-        ]
-    for k in ("prior", "determined_by", "cross_validation", "diagnosis"):
-        if k in rep:
-            meta[k] = rep[k]
-    # MODEL.yaml carries robot effects only: a session effect (drift, a misplaced point) was fitted so that
-    # it does not bend the geometry, and is reported in identification.diagnosis, not applied at run time
-    # the nominal it calibrates, named so that it is found from anywhere (lasercal correct needs it)
-    ref = (args.robot, None) if args.robot else (session.meta["robot"], session.path)
-    nominal = robot_reference(*ref)
     with atomic_output(args.output) as tmp:
-        ident.model.replace(
-            identification=meta, extensions=robot_extensions(ident.model.extensions), nominal=nominal
-        ).save(tmp)
+        cal.save(tmp)
     if args.json:
-        print(json.dumps(rep, indent=2))
+        print(cal.to_json())
     else:
-        sys.stdout.write(format_solve(rep))
-        for d in missing:
-            print(f"PARTIAL: not identified: {d}")
-        if diagnosis is not None:
-            print("\n" + format_diagnosis(diagnosis))
+        sys.stdout.write(cal.summary())
         print(f"\nwrote {args.output}")
     return 0
 
@@ -295,91 +207,12 @@ def cmd_predict(args) -> int:
     return 0
 
 
-def hidden_effect(args, layout, n: int, rng: np.random.Generator) -> Extension | None:
-    """The effect ``simulate --effect`` hides, with its true parameters (random phase/direction from the
-    seed)."""
-    import numpy as np
-
-    from lasercal.solver.errors import FormatError
-    from lasercal.solver.kinematics.effects import Extension
-
-    if not args.effect:
-        given = [
-            f for f, v in (("--effect-size", args.effect_size), ("--effect-point", args.effect_point)) if v
-        ]
-        if given:
-            raise FormatError(
-                "--effect", f"{given[0]} was given without --effect NAME (which effect to hide?)"
-            )
-        return None
-    if args.effect_size is None:
-        raise FormatError("--effect-size", "give the size of the hidden effect")
-    size = args.effect_size
-    if args.effect == "reference_point_offset":
-        if layout is None or args.effect_point not in layout.points:
-            raise FormatError(
-                args.layout,
-                f"--effect-point {args.effect_point!r} is not a point of the layout",
-                field="points",
-            )
-        phi = rng.uniform(0, 2 * np.pi)
-        return Extension(args.effect, (), args.effect_point, size * np.array([np.cos(phi), np.sin(phi)]))
-    joints = tuple(args.effect_joints)
-    if any(not 1 <= j <= n for j in joints):
-        raise FormatError("--effect-joints", f"joints are numbered 1..{n}")
-    if args.effect == "encoder_eccentricity":
-        phi = rng.uniform(0, 2 * np.pi, len(joints))
-        params = np.stack([size * np.cos(phi), size * np.sin(phi)], axis=1).ravel()
-    else:
-        params = np.full(len(joints), size)
-    return Extension(args.effect, joints, None, params)
-
-
-def sheet_world(truth, nominal, layout, pose):
-    """``simulate --sheet-pose``: the true robot in its own frame (eq. S2), the layout as a sheet (a base
-    layout's points become sheet coordinates, placed where the layout says), the points where the sheet
-    truly lies (``pose``, a SheetPose), and what the session records of it.
-
-    Returns
-    -------
-    (truth in its own frame, the sheet layout, the layout at the true pose (base frame), dict)
-    """
-    from dataclasses import replace
-
-    import numpy as np
-
-    from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
-
-    if layout.frame == "base":
-        pts = {k: np.r_[v[:2], 0.0] for k, v in layout.points.items()}
-        layout = replace(layout, points=pts, frame="sheet", sheet=SheetPose())
-    own = moved(truth, own_frame(truth, nominal))
-    return (
-        own,
-        layout,
-        layout.in_base(pose),
-        {
-            "pose": pose.as_dict(),
-            "frame": "the true robot's own (joint 1 as the nominal's, joint 2 at q = 0 in its direction)",
-            "truth_in_own_frame": "truth.yaml",
-        },
-    )
-
-
 def cmd_simulate(args) -> int:
-    import numpy as np
-
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.analysis.simulate import simulate_captures
-    from lasercal.solver.errors import FormatError
-    from lasercal.solver.formats.data import truth_references
-    from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
-    from lasercal.solver.formats.session import load_layout, session_meta, write_session
+    from lasercal.simulation import simulate
+    from lasercal.solver.formats.session import load_layout
 
-    path = Path(args.truth) if str(args.truth).lower().endswith(".urdf") else resolve_robot_path(args.truth)
     if args.measurement == "position":
-        from lasercal.collector.cli.position import cmd_simulate_position
-
         unused(
             args,
             "a position session has no reference points",
@@ -388,43 +221,32 @@ def cmd_simulate(args) -> int:
             "aim_noise",
             "sheet_pose",
         )
-
-        n = load_model(path, base_link=args.base_link, tip_link=args.tip_link).n
-        return cmd_simulate_position(
-            args, path, hidden_effect(args, None, n, np.random.default_rng(args.seed + 1))
-        )
-    if not args.layout:
-        raise FormatError("--layout", "a laser session needs a layout (--layout)")
-    unused(args, "an option of --measurement position", "configs", "targets", "noise")
-    truth = load_model(path, base_link=args.base_link, tip_link=args.tip_link)
-    raw = load_yaml(path)
-    nominal = args.robot or raw.get("nominal") or str(path.resolve())
-    layout = load_layout(args.layout)
-    rng = np.random.default_rng(args.seed)
-    effect = hidden_effect(args, layout, truth.n, rng)
-    truth_ref, nominal_ref = truth_references(path, args.output, args.robot)  # relative to the session
-    sim = {"truth": truth_ref, "aim_noise_mm": args.aim_noise, "seed": args.seed}
-    aimed = layout
-    if args.sheet_pose is not None:
+    elif args.layout:  # (without a layout the simulation refuses to run)
+        unused(args, "an option of --measurement position", "configs", "targets", "noise")
+    pose = None
+    if args.sheet_pose is not None and args.measurement == "laser" and args.layout:
         # a sheet layout's pose is where the sheet lies (at the base: metres), a base layout's a displacement
-        pose = sheet_pose(args.sheet_pose, "--sheet-pose", absolute=layout.frame == "sheet")
-        truth, layout, aimed, sim["sheet"] = sheet_world(truth, load_model(nominal, base=path.parent), layout,
-                                                         pose)  # fmt: skip
-    elif layout.frame == "sheet":
-        aimed = layout.in_base()  # the sheet lies where its placement says
-    c = simulate_captures(truth, aimed, args.per_point, args.aim_noise, rng, effect=effect)
-    if effect is not None:
-        sim["effect"] = {"name": effect.effect, **effect.to_dict()}
-    meta = session_meta(nominal_ref, layout, truth.aperture[2], simulated=sim)
+        pose = sheet_pose(args.sheet_pose, "--sheet-pose", absolute=load_layout(args.layout).frame == "sheet")
     with atomic_output(args.output, folder=True) as tmp:
-        write_session(tmp, meta, c.point, c.t, c.q, tau=c.tau)
-        if args.sheet_pose is not None:
-            truth.save(Path(tmp) / sim["sheet"]["truth_in_own_frame"])
-    hidden = (
-        f", hidden {effect.effect} {effect.names} = {np.round(effect.params, 9).tolist()}" if effect else ""
-    )
-    print(
-        f"wrote {args.output}: {len(c.q)} captures at {', '.join(layout.calibration)} (truth {truth.name}, "
-        f"aiming noise {args.aim_noise} mm{hidden})"
-    )
+        sim = simulate(
+            args.truth,
+            tmp,
+            layout=args.layout,
+            measurement=args.measurement,
+            per_point=args.per_point,
+            aim_noise=args.aim_noise,
+            seed=args.seed,
+            robot=args.robot,
+            sheet_pose=pose,
+            effect=args.effect,
+            effect_joints=args.effect_joints,
+            effect_point=args.effect_point,
+            effect_size=args.effect_size,
+            configs=args.configs,
+            targets=args.targets,
+            noise=args.noise,
+            base_link=args.base_link,
+            tip_link=args.tip_link,
+        )
+    print(f"wrote {args.output}: {sim.summary}")
     return 0

@@ -10,8 +10,9 @@ def format_diagnosis(d) -> str:
     o = d.as_dict()
     lines = []
     if o["effect"] == "none":
-        best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
-        best = best if d.tests else "no candidate the data can see"
+        best = "no candidate the data can see"
+        if d.tests:
+            best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
         lines.append(f"finding: none -- the geometric model and aiming noise explain the data ({best})")
     else:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(map(str, o["joints"]))

@@ -322,7 +322,7 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
 def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
     """The capture coach of a session: the nominal model with the session's measured aperture height."""
     from lasercal.solver.analysis.design import Coach
-    from lasercal.solver.identify.prior import robot_tolerances
+    from lasercal.solver.formats.tolerances import robot_tolerances
 
     aperture_z = store.meta.get("laser", {}).get("aperture_z")
     model = (

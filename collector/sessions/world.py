@@ -24,8 +24,9 @@ import numpy as np
 from lasercal.collector.hardware import fake_truth
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model, load_yaml, sheet_pose
+from lasercal.solver.kinematics.frames import moved, own_frame
 from lasercal.solver.kinematics.model import RobotModel
-from lasercal.solver.kinematics.sheet import SheetPose, moved, own_frame
+from lasercal.solver.kinematics.sheet import SheetPose
 
 SAME_AXIS_MM = 1e-3  # two models share a base frame when joint 1's screws agree this well (mm, and 1e-6 rad)
 

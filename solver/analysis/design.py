@@ -53,8 +53,8 @@ import numpy as np
 
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
+from lasercal.solver.formats.tolerances import Tolerances, robot_tolerances
 from lasercal.solver.identify.lsq import fit_subspace, identifiability
-from lasercal.solver.identify.prior import Tolerances, robot_tolerances
 from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit

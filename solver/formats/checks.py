@@ -169,3 +169,22 @@ def read_text(path) -> str:
         raise FormatError(
             path, f"byte 0x{data[e.start]:02x} is not UTF-8 text (expected a UTF-8 text file)", line=line
         ) from None
+
+
+def load_yaml(path):
+    """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line."""
+    from pathlib import Path
+
+    import yaml  # (here: the command line's options load this module for every command)
+
+    from lasercal.solver.errors import FormatError
+
+    path = Path(path)
+    text = read_text(path)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        raise FormatError(
+            path, f"invalid YAML: {getattr(e, 'problem', e)}", line=None if mark is None else mark.line + 1
+        ) from None

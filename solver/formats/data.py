@@ -81,7 +81,7 @@ def truth_references(truth: Path, folder, robot=None) -> tuple[str, str]:
     -------
     (truth, nominal) : str, str
     """
-    from lasercal.solver.formats.robots import load_yaml
+    from lasercal.solver.formats.checks import load_yaml
 
     truth = Path(truth)
     raw = load_yaml(truth) if truth.suffix.lower() != ".urdf" else {}

@@ -48,7 +48,6 @@ FRANKA_VELOCITY = {
 _FRANKA_MATCH = (0.1, 30.0)  # rad, mm: a model whose axes are this close to Franka's is a Panda or an FR3
 _PARALLEL = 1e-9  # |z_i x z_j| below this: parallel axes, the common normal is anywhere along them
 FORMATS = ("urdf", "dh", "yaml")
-EE_LINK = "lasercal_ee"  # the full-pose frame {E} (model.ee_pose) in every URDF lasercal writes
 
 
 def transform(xyz, rpy) -> np.ndarray:
@@ -238,6 +237,8 @@ def to_urdf(model: RobotModel) -> str:
     ``link0..n``, the model's joint names and ``laser``. A full-pose model's end-effector frame
     {E} (``ee``) is the fixed link ``lasercal_ee`` (joint ``lasercal_ee_joint``) on the same parent.
     """
+    from lasercal.solver.formats.urdf import EE_LINK  # (here: the URDF module loads scipy's rotations)
+
     F = kinematic_frames(model)
     pre = f"{F.prefix}_" if F.prefix else ""
     links = [f"{pre}link{i}" for i in range(model.n + 1)]

@@ -20,8 +20,7 @@ import numpy as np
 import yaml
 
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.checks import metres_hint
-from lasercal.solver.formats.session import (
+from lasercal.solver.formats.captures import (
     SESSION_FORMAT,
     UNITS,
     Session,
@@ -31,6 +30,7 @@ from lasercal.solver.formats.session import (
     check_repeats,
     format_row,
 )
+from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.table import read_csv
 from lasercal.solver.kinematics.model import RobotModel
 

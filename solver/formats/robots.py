@@ -8,15 +8,19 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import yaml
 
 from lasercal.solver.errors import FormatError, warn
-from lasercal.solver.formats.checks import Range, metres_hint, radians_hint, read_text, sheet_pose_problem
+from lasercal.solver.formats.checks import (
+    Range,
+    load_yaml,
+    metres_hint,
+    radians_hint,
+    sheet_pose_problem,
+)
 from lasercal.solver.formats.data import resolve
-from lasercal.solver.identify.prior import DEFAULTS
+from lasercal.solver.formats.tolerances import DEFAULTS
 from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
@@ -266,19 +270,6 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
 def resolve_robot_path(name_or_path, base: Path | None = None) -> Path:
     """A robot file from a built-in name ('panda') or a path (relative to ``base`` first)."""
     return resolve("robots", name_or_path, base)
-
-
-def load_yaml(path) -> Any:
-    """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line."""
-    path = Path(path)
-    text = read_text(path)
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        raise FormatError(
-            path, f"invalid YAML: {getattr(e, 'problem', e)}", line=None if mark is None else mark.line + 1
-        ) from None
 
 
 def load_model(

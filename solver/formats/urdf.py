@@ -31,13 +31,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.export import EE_LINK
 from lasercal.solver.kinematics.model import Link, RobotModel, _frozen
 from lasercal.solver.kinematics.poe import inv_T
 
 MOVABLE = ("revolute", "continuous", "prismatic")
 CONTINUOUS_LIMIT = 2 * math.pi  # rad: the range given to a continuous joint (it has no limits)
 M_TO_MM = 1000.0
+EE_LINK = "lasercal_ee"  # the full-pose frame {E} (model.ee_pose) in every URDF lasercal writes
 URDF_MAX_M = 50.0  # a joint origin further than this (m) from its parent is a length written in mm
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.errors import FormatError, IdentificationError
-from lasercal.solver.formats.session import MIN_PER_POINT, Session
+from lasercal.solver.formats.captures import MIN_PER_POINT, Session
 from lasercal.solver.identify.degenerate import (
     Deficiency,
     Determination,

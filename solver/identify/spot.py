@@ -29,8 +29,9 @@ from scipy import optimize
 
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
+from lasercal.solver.formats.tolerances import Tolerances
 from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_outliers, identifiability
-from lasercal.solver.identify.prior import Prior, Tolerances, make_prior
+from lasercal.solver.identify.prior import Prior, make_prior
 from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_jacobian
 from lasercal.solver.kinematics.minimal import anchor_heights, screw_from_eta

@@ -1,0 +1,148 @@
+"""``lasercal.plan``: the next captures that most lower the predicted error where the robot is used.
+
+The posterior of the session's captures so far under its prior (:func:`~lasercal.solver.analysis.design.
+posterior`), and the greedy design of the capture coach (:class:`~lasercal.solver.analysis.design.Coach`,
+eqs. D1-D6 of :mod:`solver.analysis.design`): what ``lasercal plan`` prints and writes.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # annotations only: numpy and the solver load when a plan is made
+    from lasercal.solver.analysis.design import Plan, Status
+
+MIN_SHEET_CAPTURES = 9  # captures from which a sheet session's own fit places the sheet (else its placement)
+
+
+@dataclass(frozen=True)
+class CapturePlan:
+    """The next captures of a session and the error predicted where the robot is used.
+
+    Attributes
+    ----------
+    captures : int, the session's captures so far
+    status : Status, the coach's verdict: rank of the identifiable combinations, predicted error (mm) and
+        its uncertainty at ``status.region``
+    plan : Plan, the next captures (point, q (K, n) rad, expected error after each, mm)
+    sigma : float, the posterior's noise estimate, mm
+    n : int, the robot's joints
+    """
+
+    captures: int
+    status: Status
+    plan: Plan
+    sigma: float
+    n: int
+
+    @property
+    def header(self) -> list[str]:
+        """The CSV's columns: point, q1..qN (rad), expected_mm."""
+        return ["point"] + [f"q{i}" for i in range(1, self.n + 1)] + ["expected_mm"]
+
+    @property
+    def rows(self) -> list[list[str]]:
+        """The next captures as CSV cells (q to 1e-6 rad, the expected error to 1e-4 mm)."""
+        p = self.plan
+        return [
+            [str(nm)] + [f"{a:.6f}" for a in q] + [f"{e:.4f}"] for nm, q, e in zip(p.point, p.q, p.expected)
+        ]
+
+    def csv(self) -> str:
+        """The CSV ``lasercal plan`` prints (rows end in LF)."""
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerows([self.header] + self.rows)
+        return buf.getvalue()
+
+    def save(self, path) -> Path:
+        """Write the CSV to ``path`` (replaced if it exists), as Python's csv module writes a file (rows end
+        in CR LF)."""
+        with open(path, "w", newline="") as f:
+            csv.writer(f).writerows([self.header] + self.rows)
+        return Path(path)
+
+    def as_dict(self) -> dict:
+        """The JSON object ``lasercal plan --json`` prints."""
+        st = self.status
+        return {
+            "captures": self.captures,
+            "identifiable": {"rank": st.rank, "of": st.n_identifiable, "parameters": st.n_params},
+            "region": st.region,
+            "predicted_mm": round(st.predicted, 4),
+            "uncertainty_mm": round(st.uncertainty, 4),
+            "sigma_mm": round(self.sigma, 4),
+            "next": [dict(zip(self.header, r)) for r in self.rows],
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.as_dict(), indent=2)
+
+    def summary(self) -> str:
+        """One line: captures, identifiable rank, the predicted error at the use region."""
+        st = self.status
+        return (
+            f"{self.captures} captures; identifiable {st.rank} of {st.n_identifiable} ({st.n_params} "
+            f"parameters); predicted error at {st.region}: {st.predicted:.2f} ± {st.uncertainty:.2f} mm"
+        )
+
+
+def plan(
+    session, *, next: int = 10, layout=None, workspace=None, aim_noise: float | None = None, seed: int = 0
+) -> CapturePlan:
+    """The next ``next`` captures that most lower the predicted error where the robot is used.
+
+    Parameters
+    ----------
+    session : Session (:func:`lasercal.load_session`; no captures yet is fine) or a session folder
+    next : int, captures to plan
+    layout : str or Path, a layout YAML (default: the points, calibration and validation lists of the
+        session); its aiming hints (tilt, length) constrain the captures
+    workspace : ((3,), (3,)) mm, a box (min corner, max corner) where the robot is used, in place of the
+        layout's validation points
+    aim_noise : float, the operator's expected aiming noise per axis, mm (default the prior's
+        ``noise_mm.laser``)
+    seed : int, seed of the candidate sampling
+
+    Returns
+    -------
+    CapturePlan
+
+    Raises
+    ------
+    DesignError
+        A session that is not a laser session, or one without a prior (``prior='none'``).
+    """
+    import numpy as np
+
+    from lasercal.solver.analysis.design import Coach, DesignError, posterior
+    from lasercal.solver.formats.session import load_layout, load_session, session_layout
+    from lasercal.solver.identify.spot import identify_lm, in_base_frame
+
+    if not hasattr(session, "measurement"):
+        session = load_session(session)
+    if session.measurement != "laser":
+        raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
+    # the session's own layout keeps its aiming hints (tilt, length), which the constraints obey
+    layout = load_layout(layout) if layout else session_layout(session.meta, session.path)
+    if session.frame == "sheet":  # the sheet where the captures so far put it (or its stated placement)
+        pose = identify_lm(session).model.sheet if session.m >= MIN_SHEET_CAPTURES else layout.sheet
+        layout = layout.in_base(pose)
+        session = in_base_frame(session, pose)  # (a pose is known: in_base refused the layout without one)
+    nominal = session.robot
+    if session.aperture_z is not None:
+        nominal = nominal.replace(aperture=np.r_[nominal.aperture[:2], session.aperture_z])
+    if session.tolerances is None:
+        raise DesignError("plan predicts from a prior: --prior none leaves no prediction to make")
+    tol = session.tolerances
+    if aim_noise is not None:
+        tol = tol.with_noise("laser", aim_noise)
+    post = posterior(nominal, session.q, session.target, tol)
+    coach = Coach(nominal, layout, seed, tol, workspace=workspace, model=post.model, lookahead=next)
+    coach.post = post
+    st = coach.status(session.q)
+    return CapturePlan(session.m, st, st.plan, post.sigma, nominal.n)
