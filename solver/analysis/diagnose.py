@@ -222,7 +222,7 @@ def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
     """d(residual)/dq (m, d, n) of the fitted model: spot in the plane, or tool point."""
     if session.measurement == "position":  # in the sensor frame
         P = np.array([model.targets[nm] for nm in session.point])
-        return model.sensor_pose[:3, :3] @ point_joint_jacobian(model, q, P)[1]
+        return model.sensor_pose[:3, :3] @ point_joint_jacobian(model, q, P, session.point)[1]
     if session.measurement == "point":
         return tip_joint_jacobian(model, q)[1]
     return spot_joint_jacobian(model, q, session.target[:, 2])[1]
@@ -575,7 +575,8 @@ def diagnose(
     # a misplaced reference point: laser sessions only (point and position sessions identify their points)
     pts = list(dict.fromkeys(session.point)) if session.measurement == "laser" else []
     clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
-    exts = candidates(session.robot.n, pts, tau is not None, clock_ok)
+    lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
+    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral)
     cannot = untested(
         session.measurement, tau is not None, session.clock, session.t is not None and np.ptp(session.t) > 0
     )
