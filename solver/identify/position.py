@@ -255,8 +255,13 @@ class PositionParams:
         E = chain[:, -1]
         P = np.array([tg[nm] for nm in names]).reshape(-1, 3)
         p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
-        tw = np.concatenate(
-            [adjoint(chain[:, i]) @ (dexp_A(screws[i], q[:, i]) @ dS[i]) for i in range(len(screws))], axis=2
+        tw = np.concatenate(  # joints without parameters (lateral axes) add no columns: skipped
+            [
+                adjoint(chain[:, i]) @ (dexp_A(screws[i], q[:, i]) @ dS[i])
+                for i in range(len(screws))
+                if dS[i].shape[1]
+            ],
+            axis=2,
         )
         R = X[:3, :3]
         y = p @ R.T + X[:3, 3]
