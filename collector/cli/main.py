@@ -128,6 +128,12 @@ COMMANDS = (
         "one point session from a MUKCa robot folder (real Panda socket data)",
     ),
     Command(
+        "import-justin",
+        "justin",
+        "cmd_import_justin",
+        "a position session from DLR's Agile Justin measurement records (both hands, robot justin)",
+    ),
+    Command(
         "study-mukca",
         "study",
         "cmd_study",

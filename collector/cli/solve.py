@@ -65,6 +65,8 @@ def args_predict(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--plane-z", type=number(-5000, 5000, "mm"), help="plane height, mm (default: the model's plane)"
     )
+    output_argument(p, "-o", "--output", help="CSV to write (default: standard output)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
 def args_simulate(p: argparse.ArgumentParser) -> None:
@@ -153,6 +155,18 @@ def cmd_solve(args) -> int:
 
 
 def cmd_predict(args) -> int:
+    if args.output is None:
+        return _predict(args)
+    from contextlib import redirect_stdout
+
+    from lasercal.collector.sessions.store import atomic_output
+
+    with atomic_output(args.output) as tmp, open(tmp, "w", newline="") as f, redirect_stdout(f):
+        return _predict(args)
+
+
+def _predict(args) -> int:
+    """``lasercal predict``, writing to standard output."""
     import numpy as np
 
     from lasercal.solver.errors import FormatError, warn

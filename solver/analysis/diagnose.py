@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import (
+    chdtrc,  # survival function of the chi^2 distribution (scipy.stats.chi2.sf)
     fdtrc,  # survival function of the F distribution (scipy.stats.f.sf)
     stdtrit,  # quantile of Student's t (scipy.stats.t.ppf)
 )
@@ -223,7 +224,7 @@ def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
     """d(residual)/dq (m, d, n) of the fitted model: spot in the plane, or tool point."""
     if session.measurement == "position":  # in the sensor frame
         P = np.array([model.targets[nm] for nm in session.point])
-        return model.sensor_pose[:3, :3] @ point_joint_jacobian(model, q, P)[1]
+        return model.sensor_pose[:3, :3] @ point_joint_jacobian(model, q, P, session.point)[1]
     if session.measurement == "point":
         return tip_joint_jacobian(model, q)[1]
     return spot_joint_jacobian(model, q, session.target[:, 2])[1]
@@ -289,7 +290,7 @@ class Tester:
         self.U = _orthonormal(np.vstack([ident.extra["span"][used].reshape(d * used.sum(), -1), Jc]))
         self.n_capture_rows = d * used.sum()
         self.res = np.r_[ident.residuals[used].ravel(), ident.extra.get("constraint_residuals", np.zeros(0))]
-        self.exts, self.Q, self.unseen = [], [], {}
+        self.exts, self.Q, self.C, self.unseen = [], [], [], {}
         tol = session.tolerances
         for e in exts:
             C = np.vstack(
@@ -308,6 +309,7 @@ class Tester:
                     continue
             self.exts.append(e)
             self.Q.append(_orthonormal(C_perp))
+            self.C.append(C)
 
     def tests(self, res: np.ndarray | None = None) -> list[CandidateTest]:
         """Every candidate's test on ``res`` (default: the data's residuals), best first."""
@@ -338,6 +340,100 @@ class Tester:
             F = (drop / k) / np.maximum((rss - drop) / (N - r - k), 1e-300)
             best = np.maximum(best, -np.log10(np.maximum(fdtrc(k, N - r - k, F), 1e-300)))
         return best
+
+
+LINEAR_SELECTION = 40  # more candidates than this: terms selected on the linearisation (one fit at the end)
+
+
+def linear_selection(tester: Tester, alpha: float) -> list[CandidateTest]:
+    """Forward selection of single-joint terms on the linearisation at the fitted model.
+
+    For a robot with many candidates (a humanoid's joint and lateral compliances: one refit per added
+    term would cost a nonlinear fit each) the nested F test of :class:`Tester` is repeated with the
+    chosen terms' columns added to what the fit absorbs: at each step the candidate with the smallest
+    p (columns and residual made orthogonal to the fit's span and the chosen terms' columns) is added
+    while its p, Bonferroni-corrected over the remaining candidates, is below ``alpha``. Exact for
+    effects small enough that the model is linear in them (a compliance bends a joint milliradians).
+
+    Returns
+    -------
+    list of CandidateTest, the chosen terms in the order chosen (joint effects only)
+    """
+    U, res = tester.U, tester.res.copy()
+    N = res.size
+    rest = [i for i, e in enumerate(tester.exts) if e.acts_on_joints]
+    chosen = []
+    while rest:
+        r, rss = U.shape[1], float(res @ res)
+        best = None
+        for i in rest:
+            Q = _orthonormal(tester.C[i] - U @ (U.T @ tester.C[i]))
+            k = Q.shape[1]
+            if k == 0 or N - r - k <= 0:
+                continue
+            drop = float(np.sum((Q.T @ res) ** 2))
+            F = (drop / k) / max((rss - drop) / (N - r - k), 1e-300)
+            p = float(fdtrc(k, N - r - k, F))
+            if best is None or (p, -F) < (best[0], -best[1]):
+                best = (p, F, k, i, Q, drop)
+        if best is None or best[0] * len(rest) >= alpha:
+            break
+        p, F, k, i, Q, drop = best
+        chosen.append(CandidateTest(tester.exts[i], F, k, p, min(1.0, p * len(rest)), drop))
+        U, res = np.hstack([U, Q]), res - Q @ (Q.T @ res)
+        rest.remove(i)
+    return chosen
+
+
+STEPWISE_ROUNDS = 4  # at most this many rounds of linearised forward selection, refit and pruning
+
+
+def stepwise_selection(session: Session, geo: Identification, exts: list, tau, alpha: float, sus):
+    """Terms chosen by :func:`linear_selection` at the current fit, refitted, pruned, repeated.
+
+    A round adds the terms the linearisation at the current fit selects, refits them all (one nonlinear
+    fit), and drops every term whose Wald test at that fit (chi^2 of its parameters over their standard
+    errors, Bonferroni over the terms) is no longer significant -- a term chosen where the geometric fit
+    had absorbed part of another's signal -- and refits; until a round changes nothing.
+
+    Returns
+    -------
+    (Extension or Combination, Identification of it) or (None, None) when no term is chosen
+    """
+    chosen, ext_fit = [], geo
+    for _ in range(STEPWISE_ROUNDS):
+        have = {(t.effect, t.joints) for t in chosen}
+        rest = [e for e in exts if (e.effect, e.joints) not in have]
+        new = [t.extension for t in linear_selection(Tester(session, ext_fit, rest, tau), alpha)]
+        if not new and chosen:
+            break
+        chosen += new
+        if not chosen:
+            return None, None
+        ext_fit = _fit(session, _merge(chosen), sus)
+        fitted = {(e.effect, j): pairs for e in ext_fit.extension.parts for j, pairs in _per_joint(e)}
+        p = [
+            float(chdtrc(t.size, sum((c / max(s, 1e-300)) ** 2 for c, s in fitted[(t.effect, t.joints[0])])))
+            for t in chosen
+        ]
+        keep = [t for t, pi in zip(chosen, p) if pi * len(chosen) < alpha]
+        if len(keep) == len(chosen):
+            if not new:
+                break
+            continue
+        chosen = keep
+        if not chosen:
+            return None, None
+        ext_fit = _fit(session, _merge(chosen), sus)
+    return _merge(chosen), ext_fit
+
+
+def _per_joint(e: Extension):
+    """(joint, [(value, std error) of its parameters]) of a fitted single-effect extension."""
+    per = e.size // len(e.joints)
+    se = e.std_errors if e.std_errors is not None else np.full(e.size, np.inf)
+    for k, j in enumerate(e.joints):
+        yield j, list(zip(e.params[k * per : (k + 1) * per], se[k * per : (k + 1) * per]))
 
 
 def score_tests(session: Session, ident: Identification, exts: list, tau) -> list[CandidateTest]:
@@ -580,7 +676,8 @@ def diagnose(
     # a misplaced reference point: laser sessions only (point and position sessions identify their points)
     pts = list(dict.fromkeys(session.point)) if session.measurement == "laser" else []
     clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
-    exts = candidates(session.robot.n, pts, tau is not None, clock_ok)
+    lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
+    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral)
     cannot = untested(
         session.measurement, tau is not None, session.clock, session.t is not None and np.ptp(session.t) > 0
     )
@@ -600,9 +697,12 @@ def diagnose(
     combo = None  # a combination proposed by the F tests, with its fit and the part tests
     if best.p_adjusted < alpha or effect is not None:
         sus = (robust, geo.weights == 0)
-        chosen, ext_fit = _grow(session, best.extension, [], exts, tau, alpha, sus)
-        if effect is None and chosen.effect in ROBOT_EFFECTS:
-            combo = _combination(session, chosen, ext_fit, exts, tau, alpha, sus)
+        if effect is None and len(tester.exts) > LINEAR_SELECTION:  # many candidates: a few fits in all
+            chosen, ext_fit = stepwise_selection(session, geo, exts, tau, alpha, sus)
+        if chosen is None:
+            chosen, ext_fit = _grow(session, best.extension, [], exts, tau, alpha, sus)
+            if effect is None and chosen.effect in ROBOT_EFFECTS:
+                combo = _combination(session, chosen, ext_fit, exts, tau, alpha, sus)
     ambiguous = tuple(
         t.label
         for t in tests[1:]

@@ -54,8 +54,9 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
     cpath = folder / "captures.csv"
     header, rows = read_csv(cpath)
     n = robot.n
-    qcols = _joint_columns("q", n)
-    q = _numeric_block(cpath, rows, header, qcols)
+    qcols = _joint_columns("q", robot.n_commanded)  # a coupled robot's commanded joints
+    q = robot.described(_numeric_block(cpath, rows, header, qcols))  # the joints they drive
+    robot = with_target_links(robot, meta, folder / "session.yaml")
     spath, sheader, srows = cpath, header, rows
     if meta.get("positions") is not None:
         spath = folder / str(meta["positions"])
@@ -108,6 +109,25 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
     return position_session(
         robot, q, y, names, None if sig is None else sig[:, 0], folder, meta, t, tau, extra, lines, clock
     )
+
+
+def with_target_links(robot: RobotModel, meta: dict, path) -> RobotModel:
+    """The robot with the links its targets sit on: session.yaml's ``targets`` as a mapping TARGET: LINK
+    (a list of names keeps the robot's own, by default the last joint's link)."""
+    tl = meta.get("targets")
+    if not isinstance(tl, dict):
+        return robot
+    links = set(robot.joint_links)
+    bad = [f"{k}: {v}" for k, v in tl.items() if str(v) not in links]
+    if bad:
+        raise FormatError(
+            path,
+            f"target {bad[0]!r} names no link of {robot.name} ({', '.join(dict.fromkeys(robot.joint_links))})"
+            if links
+            else f"{robot.name} is one chain: its targets name no link (give 'targets' as a list)",
+            field="targets",
+        )
+    return robot.replace(target_links={str(k): str(v) for k, v in tl.items()})
 
 
 def position_session(
@@ -176,7 +196,10 @@ def position_meta(robot_ref: str, targets, **extra) -> dict:
         "robot": str(robot_ref),
         "units": dict(UNITS),
         "measurement": "position",
-        "targets": [str(t) for t in targets],
+        # a mapping TARGET: LINK names the link each target sits on (a tree); else the names
+        "targets": dict(targets)
+        if isinstance(targets, dict) and all(isinstance(v, str) for v in targets.values())
+        else [str(t) for t in targets],
     }
     meta.update(extra)
     return meta

@@ -145,7 +145,11 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         limits.append(lim)
         names.append(str(j.get("name", f"joint{i + 1}")))
     n = len(screws)
+    tree = tree_structure(d, joints, names, path)
     laser = d.get("laser")
+    if laser is None and isinstance(d.get("targets"), dict) and d["targets"]:
+        # a position robot (targets measured by a 3-D sensor) has no laser: a stand-in, never used
+        laser = {"v": [0, 0, 1], "M": np.mean([np.ravel(v) for v in d["targets"].values()], axis=0).tolist()}
     if not isinstance(laser, dict):
         raise FormatError(path, "missing 'laser' mapping (omega, v, M)", field="laser")
     lw = _vec(laser, "omega", 3, path, "laser") if "omega" in laser else np.zeros(3)
@@ -264,7 +268,90 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
         nominal=nominal,
+        **tree,
     )
+
+
+def tree_structure(d: dict, joints: list, names: list, path) -> dict:
+    """The tree, lateral axes and coupling of a robot file (:mod:`solver.kinematics.model`), validated:
+    the RobotModel fields ``parents``, ``joint_links``, ``lateral_of``, ``commanded``, ``coupling``,
+    ``coupling_offset`` and ``target_links`` (empty for a plain serial chain)."""
+    n = len(names)
+    index = {nm: i for i, nm in enumerate(names)}
+    if len(index) != n:
+        raise FormatError(path, "joint names must be distinct", field="joints")
+    keys = ("parent", "link", "bends")
+    if not any(k in j for j in joints for k in keys) and not any(
+        k in d for k in ("commanded", "coupling", "target_links")
+    ):
+        return {}
+    parents, links, lateral = [], [], []
+    for i, j in enumerate(joints):
+        where = f"joints[{i}]"
+        p = j.get("parent", names[i - 1] if i else "base")
+        if p != "base" and (p not in index or index[p] >= i):
+            raise FormatError(
+                path,
+                f"parent {p!r} is not a joint listed before {names[i]!r} (or 'base')",
+                field=f"{where}.parent",
+            )
+        parents.append(-1 if p == "base" else index[p])
+        links.append(str(j.get("link", names[i])))
+        lateral_joint = j.get("type") == "lateral"
+        if lateral_joint != ("bends" in j) or (lateral_joint and j["bends"] not in index):
+            raise FormatError(
+                path,
+                "a lateral joint names the joint it bends ('type: lateral' with 'bends: JOINT')",
+                field=where,
+            )
+        lateral.append(index[j["bends"]] if lateral_joint else -1)
+    commanded = d.get("commanded")
+    if commanded is None:
+        commanded = [nm for nm, lat in zip(names, lateral) if lat < 0]
+    if not isinstance(commanded, list) or not all(isinstance(c, str) for c in commanded) or not commanded:
+        raise FormatError(path, "'commanded' must list joint names (the captures' q1..qN)", field="commanded")
+    cidx = {c: k for k, c in enumerate(commanded)}
+    C, b = np.zeros((n, len(commanded))), np.zeros(n)
+    for nm in names:
+        if nm in cidx:
+            C[index[nm], cidx[nm]] = 1.0
+    coupling = d.get("coupling") or {}
+    if not isinstance(coupling, dict):
+        raise FormatError(
+            path, "'coupling' must map JOINT: {COMMANDED: coefficient, offset: rad}", field="coupling"
+        )
+    for nm, terms in coupling.items():
+        if nm not in index or nm in cidx or not isinstance(terms, dict):
+            raise FormatError(
+                path,
+                f"coupling {nm!r}: a joint that is not commanded, mapped to its terms",
+                field=f"coupling.{nm}",
+            )
+        for k, v in terms.items():
+            if (k != "offset" and k not in cidx) or isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise FormatError(
+                    path, f"{k}: {v!r} (expected a commanded joint and a number)", field=f"coupling.{nm}.{k}"
+                )
+            if k == "offset":
+                b[index[nm]] = float(v)
+            else:
+                C[index[nm], cidx[k]] = float(v)
+    tl = d.get("target_links") or {}
+    if not isinstance(tl, dict) or not all(str(v) in links for v in tl.values()):
+        raise FormatError(
+            path,
+            f"'target_links' must map targets to links ({', '.join(dict.fromkeys(links))})",
+            field="target_links",
+        )
+    return {
+        "parents": tuple(parents),
+        "joint_links": tuple(links),
+        "lateral_of": tuple(lateral),
+        "commanded": tuple(commanded),
+        "coupling": _frozen(C),
+        "coupling_offset": _frozen(b),
+        "target_links": {str(k): str(v) for k, v in tl.items()},
+    }
 
 
 def resolve_robot_path(name_or_path, base: Path | None = None) -> Path:

@@ -592,7 +592,8 @@ def load_configs(path, robot: RobotModel) -> Configs:
     header, rows = read_csv(path)
     if not rows:
         raise FormatError(path, "no configurations (a header and no rows)", line=2)
-    q = _numeric_block(path, rows, header, _joint_columns("q", robot.n))
+    # a coupled robot's columns are its commanded joints; q holds the joints they drive (q = C q_cmd + b)
+    q = robot.described(_numeric_block(path, rows, header, _joint_columns("q", robot.n_commanded)))
     t = _numeric_block(path, rows, header, ["t"], required=False)
     tau = _numeric_block(path, rows, header, _joint_columns("tau", robot.n), required=False)
     check_limits(path, robot, q, [ln for ln, _ in rows])

@@ -35,6 +35,7 @@ KINDS = {
     "sheet_pos": "sheet_mm",  # a printed sheet's position on the table
     "sheet_yaw": "sheet_rad",  # a printed sheet's rotation on the table
     "joint_compliance": "compliance_rad_per_nm",
+    "lateral_compliance": "compliance_rad_per_nm",  # a link bending across its joint (same tolerance)
     "encoder_eccentricity": "eccentricity_rad",
     "drift": "drift_rad_per_s",
     "reference_point_offset": "point_offset_mm",

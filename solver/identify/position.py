@@ -38,6 +38,7 @@ from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.minimal import anchor_heights, link_frame, screw_from_eta
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, exp6, poe_chain, skew, space_jacobian
+from lasercal.solver.kinematics.tree import branch_mask
 
 _START_ITERS = 1000  # most alternations of the closed-form start (they stop once the scale settles)
 _START_TOL = 1e-7  # change of the similarity scale per alternation below which the start has settled
@@ -64,19 +65,31 @@ def sensor_points(
     """
     targets = model.targets if targets is None else targets
     X = model.sensor_pose if X is None else X
-    E = poe_chain(model.screws, q)[:, -1]
+    E = target_frames(model, q, names)
     P = np.array([targets[nm] for nm in names]).reshape(-1, 3)
     p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
     return p @ X[:3, :3].T + X[:3, 3]
 
 
-def point_joint_jacobian(model: RobotModel, q: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Base-frame points E(q) p (m, 3) of row targets P (m, 3), and d(point)/dq (m, 3, n): w_j x p + v_j."""
-    chain = poe_chain(model.screws, q)
+def target_frames(model: RobotModel, q: np.ndarray, names) -> np.ndarray:
+    """E(q) (m, 4, 4) of the link each row's target sits on: the POE product along its branch
+    (:mod:`solver.kinematics.tree`, eq. T1; the whole chain for a serial arm)."""
+    if model.parents:
+        q = q * branch_mask(model, names)
+    return poe_chain(model.screws, q)[:, -1]
+
+
+def point_joint_jacobian(
+    model: RobotModel, q: np.ndarray, P: np.ndarray, names=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Base-frame points E(q) p (m, 3) of row targets P (m, 3), and d(point)/dq (m, 3, n): w_j x p + v_j
+    (0 for a joint off the row's branch; ``names`` the rows' targets, needed for a tree)."""
+    mask = branch_mask(model, names) if model.parents else np.ones((len(q), model.n))
+    chain = poe_chain(model.screws, q * mask)
     E = chain[:, -1]
     p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
     J = space_jacobian(model.screws, chain)
-    return p, np.cross(J[:, :3], p[:, :, None], axis=1) + J[:, 3:]
+    return p, (np.cross(J[:, :3], p[:, :, None], axis=1) + J[:, 3:]) * mask[:, None, :]
 
 
 # ----------------------------------------------------------------------------- closed-form start
@@ -109,7 +122,7 @@ def start_frame(
     camera 100 mm off the flange, takes a few hundred). Scale s far from 1 is a unit error and raises
     FormatError (metres are named as such).
     """
-    E = poe_chain(model.screws, q)[:, -1]
+    E = target_frames(model, q, names)
     targets = {k: np.asarray(v, float) for k, v in targets0.items()}
     s_prev = np.inf
     for _ in range(_START_ITERS):
@@ -150,8 +163,9 @@ def target_start(model: RobotModel) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- parameters
 def eta_sizes(model: RobotModel) -> np.ndarray:
-    """Minimal-POE parameters per joint: 2 for prismatic, 4 for revolute (thesis Section 2.2.2)."""
-    return np.where(model.prismatic, 2, 4)
+    """Minimal-POE parameters per joint: 2 for prismatic, 4 for revolute (thesis Section 2.2.2), 0 for a
+    lateral axis (it stays where its joint's frame puts it: :mod:`solver.kinematics.tree`)."""
+    return np.where(model.prismatic, 2, 4) * model.real
 
 
 def gauge_holds(model: RobotModel) -> list[int]:
@@ -159,7 +173,7 @@ def gauge_holds(model: RobotModel) -> list[int]:
     kept if it raises the rank of the gauge's effect on the held parameters, until rank 6."""
     sizes = eta_sizes(model)
     rows = []
-    for S, k in zip(model.screws, sizes):
+    for S, k in zip(model.screws[sizes > 0], sizes[sizes > 0]):
         _, dS = screw_from_eta(link_frame(S), np.zeros(k))
         # d(eta)/d(xi) for the six base motions xi: dS = ad(xi) S
         rows.append(np.linalg.lstsq(dS, np.stack([ad(xi) @ S for xi in np.eye(6)], axis=1), rcond=None)[0])
@@ -188,7 +202,7 @@ class PositionParams:
         self.frames = [link_frame(S) for S in model.screws]
         self.sizes = eta_sizes(model)
         self.start = np.r_[0, np.cumsum(self.sizes)]
-        labels = {4: ("wx", "wy", "qx", "qy"), 2: ("vx", "vy")}
+        labels = {4: ("wx", "wy", "qx", "qy"), 2: ("vx", "vy"), 0: ()}
         all_names = [f"{jn}.{p}" for jn, k in zip(model.joint_names, self.sizes) for p in labels[k]]
         self.held = gauge_holds(model) if joints else list(range(len(all_names)))
         self.free = [i for i in range(len(all_names)) if i not in self.held]
@@ -203,7 +217,7 @@ class PositionParams:
             + [f"sensor.{c}" for c in ("wx", "wy", "wz", "vx", "vy", "vz")]
             + [f"{nm}.{c}" for nm in self.targets for c in "xyz"]
         )
-        kinds = {4: ("axis", "axis", "offset", "offset"), 2: ("slide", "slide")}
+        kinds = {4: ("axis", "axis", "offset", "offset"), 2: ("slide", "slide"), 0: ()}
         all_kinds = [kd for k in self.sizes for kd in kinds[k]]
         self.kinds = (
             [all_kinds[i] for i in self.free]
@@ -216,7 +230,10 @@ class PositionParams:
         """Screws (n, 6), dS/deta (list of (6, k)), X (4, 4), targets dict at x."""
         eta = np.zeros(self.start[-1])
         eta[self.free] = x[: self.n_free]
-        out = [screw_from_eta(T, eta[a:b]) for T, a, b in zip(self.frames, self.start[:-1], self.start[1:])]
+        out = [
+            screw_from_eta(T, eta[a:b]) if b > a else (S, np.zeros((6, 0)))
+            for T, S, a, b in zip(self.frames, self.model.screws, self.start[:-1], self.start[1:])
+        ]
         X = exp6(x[self.slice_xi]) @ X0
         return (
             np.array([o[0] for o in out]),
@@ -232,12 +249,19 @@ class PositionParams:
     def jacobian(self, x: np.ndarray, X0: np.ndarray, q: np.ndarray, names: np.ndarray):
         """Predicted y (m, 3) and d(y)/dx (m, 3, size) (module docstring)."""
         screws, dS, X, tg = self.geometry(x, X0)
+        if self.model.parents:  # a tree: each row's branch (eq. T1), the other joints at 0
+            q = q * branch_mask(self.model, names)
         chain = poe_chain(screws, q)
         E = chain[:, -1]
         P = np.array([tg[nm] for nm in names]).reshape(-1, 3)
         p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
-        tw = np.concatenate(
-            [adjoint(chain[:, i]) @ (dexp_A(screws[i], q[:, i]) @ dS[i]) for i in range(len(screws))], axis=2
+        tw = np.concatenate(  # joints without parameters (lateral axes) add no columns: skipped
+            [
+                adjoint(chain[:, i]) @ (dexp_A(screws[i], q[:, i]) @ dS[i])
+                for i in range(len(screws))
+                if dS[i].shape[1]
+            ],
+            axis=2,
         )
         R = X[:3, :3]
         y = p @ R.T + X[:3, 3]
@@ -319,7 +343,7 @@ def identify_position(
         if extension:
             screws, _, X, tg = P.geometry(v[:p], X0)
             Pt = np.array([tg[nm] for nm in session.point])
-            _, Jq = point_joint_jacobian(nominal.replace(screws=screws), qt, Pt)
+            _, Jq = point_joint_jacobian(nominal.replace(screws=screws), qt, Pt, session.point)
             J = np.concatenate([J, (X[:3, :3] @ Jq[:, :, idx]) * G[:, None, :]], axis=2)
         return w[:, :, None] * J
 

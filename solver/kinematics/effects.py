@@ -6,6 +6,8 @@ Each effect adds a few parameters and is linear in them:
 * ``encoder_eccentricity``  q_true_i = q_logged_i + a_i sin q_i + b_i cos q_i   (a, b: rad)
 * ``drift``                 q_true_i = q_logged_i + r_i t                 (r: rad/s)
 * ``reference_point_offset`` the true point is the session's point + (dx, dy)    (mm)
+* ``lateral_compliance``    q_true_i = 0 + c_i tau_i on a lateral axis i (an axis across a joint about
+  which its link bends, :mod:`solver.kinematics.tree`; tau_i the moment of gravity about it)  (c: rad/Nm)
 
 A :class:`Combination` applies several joint effects at once (e.g. compliance on joints 2-3 and
 eccentricity on joint 4): q_true = q_logged + sum over its parts of their corrections, each
@@ -29,22 +31,24 @@ import numpy as np
 
 from lasercal.solver.errors import FormatError, ModelError
 
-JOINT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "drift")
+JOINT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "drift", "lateral_compliance")
 EFFECTS = JOINT_EFFECTS + ("reference_point_offset", "none")
 # Robot effects a controller can apply at run time from q (tau from the gravity model when not logged):
 # they belong to the robot and go into MODEL.yaml. Session effects explain one session's data (the
 # clock of this session, where this table's point really is) but are not part of the robot: they are
 # fitted, so that they do not bend the geometry, and reported, never exported.
-ROBOT_EFFECTS = ("joint_compliance", "encoder_eccentricity")
+ROBOT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "lateral_compliance")
 SESSION_EFFECTS = ("drift", "reference_point_offset")
 UNITS = {
     "joint_compliance": "rad/Nm",
+    "lateral_compliance": "rad/Nm",
     "encoder_eccentricity": "rad",
     "drift": "rad/s",
     "reference_point_offset": "mm",
 }
 _PARAMS = {
     "joint_compliance": ("c",),
+    "lateral_compliance": ("c",),
     "encoder_eccentricity": ("a", "b"),
     "drift": ("r",),
     "reference_point_offset": ("dx", "dy"),
@@ -122,7 +126,9 @@ class Extension:
 
     def needs(self) -> set:
         """Which logged signals the effect needs: 'tau', 't' or nothing."""
-        return {"joint_compliance": {"tau"}, "drift": {"t"}}.get(self.effect, set())
+        return {"joint_compliance": {"tau"}, "lateral_compliance": {"tau"}, "drift": {"t"}}.get(
+            self.effect, set()
+        )
 
     # ------------------------------------------------------------ joint effects
     def regressors(
@@ -139,7 +145,7 @@ class Extension:
         cols, joints = [], []
         for j in self.joints:
             i = j - 1
-            if self.effect == "joint_compliance":
+            if self.effect in ("joint_compliance", "lateral_compliance"):
                 cols.append(tau[:, i])
             elif self.effect == "encoder_eccentricity":
                 cols += [np.sin(q[:, i]), np.cos(q[:, i])]
@@ -315,7 +321,7 @@ def extension_from_model(
     return combine(parts) if parts else None
 
 
-def candidates(n: int, points, has_tau: bool, has_t: bool) -> list[Extension]:
+def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=()) -> list[Extension]:
     """Every single-joint (or single-point) extension the data can test.
 
     Parameters
@@ -324,12 +330,16 @@ def candidates(n: int, points, has_tau: bool, has_t: bool) -> list[Extension]:
     points : reference points an offset may move (none for point sessions)
     has_tau : bool, torques logged or from a gravity model
     has_t : bool, a real clock that changes (``clock: seconds``): drift needs time, not row order
+    lateral : 1-based joints that are lateral axes (they only bend: ``lateral_compliance`` is their effect)
     """
     out = []
     for effect in JOINT_EFFECTS:
-        if (effect == "joint_compliance" and not has_tau) or (effect == "drift" and not has_t):
+        if (effect in ("joint_compliance", "lateral_compliance") and not has_tau) or (
+            effect == "drift" and not has_t
+        ):
             continue
-        out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect]))) for j in range(1, n + 1)]
+        on = [j for j in range(1, n + 1) if (j in lateral) == (effect == "lateral_compliance")]
+        out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect]))) for j in on]
     out += [Extension("reference_point_offset", (), p, np.zeros(2)) for p in points]
     return out
 

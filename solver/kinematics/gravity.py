@@ -14,6 +14,7 @@ import numpy as np
 from lasercal.solver.errors import ModelError
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import poe_chain, space_jacobian
+from lasercal.solver.kinematics.tree import ancestors, tree_frames
 
 G = 9.81  # m/s^2; positions are in mm, so torques are divided by 1000 to give Nm
 
@@ -40,6 +41,8 @@ def gravity_torques(
     q = np.atleast_2d(q)
     mass = np.array([lk.mass for lk in model.links])
     com = np.array([lk.com for lk in model.links])
+    if model.parents:
+        return tree_gravity_torques(model, q, mass, com)
     if payload is not None:
         mass = np.r_[mass, payload[0]]
         com = np.vstack([com, payload[1]])
@@ -55,6 +58,28 @@ def gravity_torques(
     )  # (m, b, n)
     below = owner[:, None] >= np.arange(model.n)[None, :]  # link i moves with joint j only if i >= j
     return G / 1000.0 * np.einsum("b,mbn->mn", mass, dz * below)
+
+
+def tree_gravity_torques(model: RobotModel, q: np.ndarray, mass: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """:func:`gravity_torques` on a tree (:mod:`solver.kinematics.tree`): body i rides on joint i's link,
+    c_i = T_i(q) c_i(0), and loads joint j when j is on its path; a lateral axis's torque is the moment of
+    gravity about that axis.
+
+    Parameters
+    ----------
+    model : RobotModel with ``parents``
+    q : (m, n) array, rad
+    mass : (n,) array, kg; com : (n, 3) array, mm at q = 0, base frame
+
+    Returns
+    -------
+    (m, n) array, Nm
+    """
+    T, J = tree_frames(model, q)
+    c = np.einsum("mbij,bj->mbi", T[..., :3, :3], com) + T[..., :3, 3]  # (m, b, 3) mm
+    w, v = J[:, :3], J[:, 3:]
+    dz = w[:, None, 0, :] * c[:, :, 1, None] - w[:, None, 1, :] * c[:, :, 0, None] + v[:, None, 2, :]
+    return G / 1000.0 * np.einsum("b,mbn->mn", mass, dz * ancestors(model)[None])
 
 
 def wrist_centre(model: RobotModel) -> np.ndarray:

@@ -24,6 +24,14 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
     sheet: {x_mm, y_mm, yaw_deg}      # written by `solve` for a sheet session: the sheet's pose (eq. S1)
     sheet_std: {x_mm, y_mm, yaw_deg}  # its standard deviations
     identification: {}     # written by `lasercal solve`: method, statistics, standard errors
+
+A tree (several tips, e.g. a torso with two arms) and coupled joints (solver.kinematics.tree):
+each joint may name its ``parent`` joint (default: the one before it; ``base`` for a root) and the
+``link`` it moves; ``type: lateral`` joints (``bends: JOINT``) are the two axes across a joint about
+which its link bends (value 0 unless bent); ``commanded: [names]`` lists the joints the captures'
+q1..qN command and ``coupling: {JOINT: {COMMANDED: c, ..., offset: b}}`` drives a joint that is not
+commanded (q_j = sum_k c_jk q_k + b_j); ``target_links: {TARGET: LINK}`` names the link each target
+sits on.
 """
 
 from __future__ import annotations
@@ -86,6 +94,14 @@ class RobotModel:
     notes : tuple of str, what was corrected on load (never silent)
     nominal : str or None, the nominal model this one calibrates: a built-in name, or a YAML or URDF path
         (relative to the model file's folder); what a controller that keeps the nominal model computes
+    parents : tuple of n int, each joint's parent joint (-1: the base); empty: a serial chain
+    joint_links : tuple of n str, the link each joint moves (empty: unnamed)
+    lateral_of : tuple of n int, for a lateral joint (an axis across a joint about which its link bends,
+        value 0 unless bent) the joint it bends, else -1; empty: none
+    commanded : tuple of str, the commanded joints (the captures' q1..qN) when they differ from the joints
+    coupling : (n, len(commanded)) array or None, q_joint = coupling q_commanded + coupling_offset
+    coupling_offset : (n,) array or None, rad
+    target_links : dict target -> link name it sits on (default: the last joint's link)
     """
 
     name: str
@@ -109,6 +125,13 @@ class RobotModel:
     identification: dict = field(default_factory=dict)
     notes: tuple = ()
     nominal: str | None = None
+    parents: tuple = ()
+    joint_links: tuple = ()
+    lateral_of: tuple = ()
+    commanded: tuple = ()
+    coupling: np.ndarray | None = None
+    coupling_offset: np.ndarray | None = None
+    target_links: dict = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -131,12 +154,36 @@ class RobotModel:
             "tool_point",
             "ee_pose",
             "sensor_pose",
+            "coupling",
+            "coupling_offset",
         ):
             if k in changes and changes[k] is not None:
                 changes[k] = _frozen(changes[k])
         if "targets" in changes:
             changes["targets"] = {str(k): _frozen(v) for k, v in changes["targets"].items()}
         return dataclasses.replace(self, **changes)
+
+    @property
+    def n_commanded(self) -> int:
+        """Number of commanded joints: the captures' q1..qN (n without a coupling)."""
+        return self.n if self.coupling is None else self.coupling.shape[1]
+
+    @property
+    def is_tree(self) -> bool:
+        """Whether the joints form a tree (or carry lateral or coupled joints) rather than one plain chain."""
+        return bool(self.parents) or self.coupling is not None
+
+    @property
+    def real(self) -> np.ndarray:
+        """(n,) bool: joints that turn (or slide), as opposed to lateral axes that only bend."""
+        return np.array(self.lateral_of, dtype=int) < 0 if self.lateral_of else np.ones(self.n, bool)
+
+    def described(self, q_commanded: np.ndarray) -> np.ndarray:
+        """The joints' values (m, n) from the commanded ones (m, n_commanded): q = C q_cmd + b (rad)."""
+        q = np.atleast_2d(np.asarray(q_commanded, dtype=float))
+        if self.coupling is None:
+            return q
+        return q @ self.coupling.T + self.coupling_offset
 
     def within_limits(self, q: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Boolean (m,) mask: every joint of each configuration inside its limits (minus margin, rad)."""
@@ -159,6 +206,21 @@ class RobotModel:
             | ({"type": "prismatic"} if pr else {})
             for nm, S, lim, pr in zip(self.joint_names, self.screws, self.limits, self.prismatic)
         ]
+        for i, j in enumerate(d["joints"]):  # a tree's structure, when it is one
+            if self.parents and self.parents[i] != i - 1:
+                j["parent"] = "base" if self.parents[i] < 0 else self.joint_names[self.parents[i]]
+            if self.joint_links:
+                j["link"] = self.joint_links[i]
+            if self.lateral_of and self.lateral_of[i] >= 0:
+                j["type"], j["bends"] = "lateral", self.joint_names[self.lateral_of[i]]
+        if self.coupling is not None:
+            d["commanded"] = list(self.commanded)
+            d["coupling"] = {
+                nm: {c: float(round(v, 12)) for c, v in zip(self.commanded, row) if v != 0}
+                | ({"offset": float(round(b, 12))} if b != 0 else {})
+                for nm, row, b in zip(self.joint_names, self.coupling, self.coupling_offset)
+                if nm not in self.commanded and (np.any(row != 0) or b != 0)
+            }
         d["laser"] = {"omega": [0.0, 0.0, 0.0], "v": r(self.laser_dir), "M": r(self.aperture)}
         if self.plane_z is not None:
             d["plane"] = {"z": float(self.plane_z)}
@@ -172,6 +234,8 @@ class RobotModel:
             d["targets"] = {k: r(v) for k, v in self.targets.items()}
         if self.sensor_pose is not None:
             d["sensor"] = {"T": [r(row) for row in self.sensor_pose]}
+        if self.target_links:
+            d["target_links"] = dict(self.target_links)
         if self.urdf:
             d["urdf"] = dict(self.urdf)
         if self.links:
