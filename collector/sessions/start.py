@@ -294,7 +294,7 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     nominal = load_model(cfg["robot"])
     robot = make_robot(cfg, nominal, layout, truth=world and world.truth)
     placed = world and world.sheet
-    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, layout_ref, sheet, placed)
+    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, layout.path, sheet, placed)
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
