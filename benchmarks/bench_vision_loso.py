@@ -50,6 +50,16 @@ def header(title: str) -> None:
     print(f"{'source':<34} {'photos':>6} {'found':>10} {'false':>6} {'lost':>6} {'median px':>9}")
 
 
+def pooled_rows(real, synth, rule) -> None:
+    """The rows of one rule scored on all real photos, the renderer and the lit papers."""
+    row("all real", fit.score(real, rule))
+    row("renderer", fit.score([p for p in synth if p.source == "renderer"], rule))
+    row(
+        "lit paper (laser, warm lamps, warm glare)",
+        fit.score([p for p in synth if p.source != "renderer"], rule),
+    )
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--photos", type=Path, default=PHOTOS, help="folder with labels.json")
@@ -71,21 +81,11 @@ def main():
     everything = fit.fit_rule(real + synth)
     for src in sorted({p.source for p in real}):
         row(src, fit.score([p for p in real if p.source == src], everything))
-    row("all real", fit.score(real, everything))
-    row("renderer", fit.score([p for p in synth if p.source == "renderer"], everything))
-    row(
-        "lit paper (laser, warm lamps, warm glare)",
-        fit.score([p for p in synth if p.source != "renderer"], everything),
-    )
+    pooled_rows(real, synth, everything)
     print(f"fitted: {everything}")
 
     header("The rule in vision/decide.py (RULE)")
-    row("all real", fit.score(real, RULE))
-    row("renderer", fit.score([p for p in synth if p.source == "renderer"], RULE))
-    row(
-        "lit paper (laser, warm lamps, warm glare)",
-        fit.score([p for p in synth if p.source != "renderer"], RULE),
-    )
+    pooled_rows(real, synth, RULE)
     print(f"RULE: {RULE}")
     print(f"\n(benchmark took {time.perf_counter() - t:.0f} s)")
 

@@ -41,6 +41,16 @@ WATCHDOG_S = 30
 
 
 GOALS = "x,y,z\n400,0,500\n450,20,480\n"  # goals of lasercal correct, mm
+JUSTIN_RECORDS = [  # DLR's Justin file: 19 joint values (rad), 2 x 3 marker positions (m) a record
+    (k, "[" + " ".join(["0.1"] * 19) + "]", f'"[[-1.8  2.2  1.{k}]\n [-3.0  1.6  1.8]]"') for k in range(3)
+]
+
+
+def justin_text(records) -> str:
+    return ",joints,markers\n" + "".join(f"{k},{q},{mk}\n" for k, q, mk in records)
+
+
+JUSTIN = justin_text(JUSTIN_RECORDS)
 PRIOR = "format: lasercal-prior/1\nunits: {length: mm, angle: rad}\nprior: {offset_mm: 4.0}\n"
 
 
@@ -78,6 +88,7 @@ def base(tmp_path_factory):
     (d / "poses.csv").write_text(",".join(Q + rcols + ["x", "y", "z"]) + "\n" + "\n".join(rows) + "\n")
     (d / "goals.csv").write_text(GOALS)
     (d / "prior.yaml").write_text(PRIOR)
+    (d / "justin.csv").write_text(JUSTIN)
     assert main(["sheet", "-o", str(d / "sheet"), "--place", "450", "0", "0"]) == 0
     for drawing in ("sheet.pdf", "sheet.svg"):  # read by no command: not copied for every case
         (d / "sheet" / drawing).unlink()
@@ -216,6 +227,7 @@ DIAGNOSE = ["diagnose", "{d}/sess", "--bootstrap", "0", "--refits", "0"]
 EXPORT = ["export", "{d}/model.yaml"]
 PREDICT = ["predict", "{d}/model.yaml", "{d}/configs.csv"]
 IMPORT = ["import-mukca", "{d}/mukca/panda_1"]
+JUSTIN_IMPORT = ["import-justin", "{d}/justin.csv"]
 PLAN = ["plan", "{d}/sess", "--next", "2"]
 STUDY = ["study-mukca", "{d}/mukca", "--robots", "panda_1", "--quick"]
 
@@ -434,6 +446,23 @@ CONFIGS_BAD = {
 for cid, setup in CONFIGS_BAD.items():
     case(f"predict: {cid}", PREDICT, setup, "configs.csv")
 
+JUSTIN_BAD = {  # one record spoiled: its joints' array, its markers' array, a value
+    "18 joint values": (1, "[" + " ".join(["0.1"] * 18) + "]", None),
+    "one marker row": (1, None, '"[[-1.8  2.2  1.5]]"'),
+    "a marker nan": (2, None, '"[[nan  2.2  1.5]\n [-3.0  1.6  1.8]]"'),
+    "a joint text": (0, "[" + " ".join(["0.1"] * 18 + ["x"]) + "]", None),
+}
+
+
+def _justin_record(k: int, joints: str | None, markers: str | None):
+    """The DLR file with record k's joints' or markers' array replaced."""
+    records = [(i, joints or q, markers or mk) if i == k else (i, q, mk) for i, q, mk in JUSTIN_RECORDS]
+    return lambda d: (d / "justin.csv").write_text(justin_text(records))
+
+
+for cid, spoil in JUSTIN_BAD.items():
+    case(f"import-justin: {cid}", JUSTIN_IMPORT + ["-o", "{o}"], _justin_record(*spoil), "justin.csv")
+
 FP_BAD = {
     "fullpose not utf-8": _latin1("fp.csv"),
     "fullpose in metres": _metres("fp.csv", ["x", "y", "z"]),
@@ -644,14 +673,15 @@ BASE = {  # an argv of every command that parses and runs on the valid inputs (o
     "fullpose": FULLPOSE,
     "simulate-fullpose": SIMFP,
     "import-mukca": IMPORT,
+    "import-justin": JUSTIN_IMPORT,
     "study-mukca": STUDY,
     "sheet": ["sheet"],
     "correct": ["correct", "{d}/model.yaml", "{d}/goals.csv"],
 }
 OUT = {"demo": "-o", "capture": "-o", "solve": "-o", "plan": "-o", "validate": "-o", "report": "-o",
        "export": "-o", "simulate": "-o", "diagnose": "--report", "camera-calibrate": "-o", "fullpose": "-o",
-       "simulate-fullpose": "-o", "import-mukca": "-o", "study-mukca": "-o", "spots": "--overlay",
-       "beam-check": "--overlay", "sheet": "-o", "correct": "-o"}  # fmt: skip
+       "simulate-fullpose": "-o", "import-mukca": "-o", "import-justin": "-o", "study-mukca": "-o",
+       "spots": "--overlay", "beam-check": "--overlay", "sheet": "-o", "correct": "-o"}  # fmt: skip
 
 
 def _argv(cmd: str) -> list:
@@ -706,6 +736,7 @@ INPUT_FILES = {
     "predict": ["model.yaml", "configs.csv"],
     "fullpose": ["fp.csv"],
     "import-mukca": ["mukca/panda_1/front/hole_0.csv"],
+    "import-justin": ["justin.csv"],
     "study-mukca": ["mukca/panda_1/front/hole_1.csv", PRIOR_FILE],
     "spots": [("cam.yaml", ["--camera", "{d}/cam.yaml"]), ("markers.yaml", ["--layout", "{d}/markers.yaml"])],
     "beam-check": [("cam.yaml", ["--camera", "{d}/cam.yaml"])],

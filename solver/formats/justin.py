@@ -153,7 +153,8 @@ def _array(text: str, n: int, path, line: int, field: str) -> np.ndarray:
             path, f"{field} must be {n} numbers in brackets, got {text[:60]!r}", line=line, field=field
         ) from None
     if a.size != n or not np.all(np.isfinite(a)):
-        raise FormatError(path, f"{field} must be {n} finite numbers, got {a.size}", line=line, field=field)
+        got = f"{a.size}" if a.size != n else f"{np.count_nonzero(~np.isfinite(a))} not finite"
+        raise FormatError(path, f"{field} must be {n} finite numbers, got {got}", line=line, field=field)
     return a
 
 
