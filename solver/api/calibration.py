@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasercal.solver.analysis import ALPHA  # a constant: loads neither numpy nor the solver
+
 if TYPE_CHECKING:  # annotations only: numpy and the solver load when a calibration runs
     from lasercal.solver.analysis.diagnose import Diagnosis
     from lasercal.solver.analysis.stats import CrossValidation
@@ -166,6 +168,8 @@ def calibrate(
     robust: bool = True,
     allow_partial: bool = False,
     seed: int = 0,
+    alpha: float = ALPHA,
+    payload=None,
 ) -> Calibration:
     """Calibrate the robot of a capture session: the decisions of ``lasercal solve`` (module docstring).
 
@@ -186,6 +190,9 @@ def calibrate(
         parameter combination it needs (marked ``partial: true``, the combinations listed)
     seed : int, which captures fall in which fold (the diagnosis's and the cross-validation's; point
         sessions leave one tool position out, whatever the seed)
+    alpha : float, the diagnosis's family-wise significance level (``extend`` not 'none')
+    payload : (kg, (3,) mm at q = 0), the mass the flange carries (hand, tool), for the gravity torques
+        of a session that logs none (``extend`` not 'none'; e.g. the MUKCa study's)
 
     Returns
     -------
@@ -232,6 +239,8 @@ def calibrate(
             effect=None if extend == "auto" else extend,
             robust=robust,
             seed=seed,
+            payload=payload,
+            alpha=alpha,
         )
         ident = diagnosis.extended or diagnosis.geometric
         session = diagnosis.session
