@@ -5,8 +5,10 @@ the file ``lasercal solve S -o P ...`` writes, byte for byte, and ``.summary()``
 
 from __future__ import annotations
 
+import csv
 import json
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -21,12 +23,18 @@ LAYOUT = str(builtin_dir("layouts") / "thesis.yaml")
 
 @pytest.fixture(scope="module")
 def sessions(tmp_path_factory):
-    """A laser session whose robot bends at joint 2 (a compliance for ``--extend``) and a position session."""
+    """A laser session whose robot bends at joint 2 (a compliance for ``--extend``), the same without its
+    logged torques ('bare': the gravity model's, with a payload) and a position session."""
     root = tmp_path_factory.mktemp("api")
     laser = ["simulate", "panda_thesis_identified", "--layout", LAYOUT, "--per-point", "12", "--seed", "4"]
     laser += ["--effect", "joint_compliance", "--effect-size", "1.2e-4", "-o", str(root / "laser")]
     position = ["simulate", "panda_thesis_identified", "--measurement", "position", "--configs", "25"]
     assert main(laser) == 0 and main(position + ["-o", str(root / "position")]) == 0
+    shutil.copytree(root / "laser", root / "bare")  # the same captures without their torques (as MUKCa's)
+    rows = list(csv.reader((root / "laser" / "captures.csv").open()))
+    keep = [i for i, c in enumerate(rows[0]) if not c.startswith("tau")]
+    with (root / "bare" / "captures.csv").open("w", newline="") as f:
+        csv.writer(f).writerows([r[i] for i in keep] for r in rows)
     return root
 
 
@@ -46,6 +54,11 @@ CASES = [
         "laser",
         ["--prior", "none", "--no-robust", "--folds", "0"],
         {"prior": "none", "robust": False, "folds": 0},
+    ),
+    (
+        "bare",
+        ["--extend", "auto", "--folds", "0", "--payload", "2,0,0,900"],
+        {"extend": "auto", "folds": 0, "payload": (2.0, np.array([0.0, 0.0, 900.0]))},
     ),
     ("position", ["--folds", "0"], {"folds": 0}),
     ("position", ["--extend", "auto", "--folds", "0"], {"extend": "auto", "folds": 0}),
