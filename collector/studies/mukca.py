@@ -185,10 +185,9 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     outlier test: MUKCa's own optimiser; ``lasercal.calibrate(robust=False)``), the geometric model and
     the effect ``lasercal.calibrate(extend="auto")`` selects and accepts on them by its diagnosis's own
     inner leave-one-position-out ('nested': no selection leak; the geometric model when nothing is kept),
-    that model fitted by plain least squares
-    ('nested_plain': what the outlier test costs it), the whole-session finding refitted
-    ('fixed'), and joint compliance on ``common`` ('compliance'). Train metrics use the
-    training captures the geometric fit kept; test metrics use every held-out capture.
+    that model fitted by plain least squares ('nested_plain': what the outlier test costs it), the
+    whole-session finding refitted ('fixed'), and joint compliance on ``common`` ('compliance'). Train
+    metrics use the training captures the geometric fit kept; test metrics use every held-out capture.
 
     Parameters
     ----------
@@ -424,7 +423,7 @@ def study_robot(
     }
     clean_geo = None
     if clean is not None:
-        dc = calibrate(  # the F test decides alone (no folds), as it did for the whole session's finding
+        dc = calibrate(  # the cleaned subset's finding: the F test decides alone (no folds)
             clean, extend="auto", folds=0, alpha=opts.alpha, payload=opts.payload, allow_partial=True
         ).diagnosis
         cc = fit(dc.session, compliance_ext(common))
