@@ -8,13 +8,13 @@ not model hidden in the robot:
    angle minus c_2 tau_2 (:class:`EffectRobot`).
 2. Capture: the simulated operator aims at P1-P3 through the collector's capture session
    (``collector.capture.run_capture``), which logs joint angles and torques.
-3. Calibration by both methods (``lm`` and ``thesis``), and the diagnosis, which should
-   name the hidden effect and fit it with the geometry.
+3. Calibration by both methods (``lm`` and ``thesis``), and with ``extend="auto"``, whose diagnosis should
+   name the hidden effect and fit it with the geometry: :func:`lasercal.calibrate`, as ``lasercal solve``.
 4. Validation at P4 (``collector.validate.run_validation``): each model computes the
    configurations, the fake robot goes there, a fake camera photographs the true spot and
    ``vision`` measures the photo. The extended model is validated behind a controller
    that applies its correction (:class:`Compensated`).
-5. The report (``collector.report``).
+5. The report: :meth:`lasercal.Calibration.report`, as ``lasercal report``.
 6. The payoff: a program planned with the nominal model, commanded as planned and as ``lasercal correct``
    corrects it with the best model (:func:`correction_payoff`), measured at the true robot's flange.
 """
@@ -30,11 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lasercal.calibration import calibrate
 from lasercal.collector.errors import SessionError
 from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
 from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 from lasercal.collector.hardware.triggers import AutoTrigger
-from lasercal.collector.report.html import load_validation, write_report
+from lasercal.collector.report.html import load_validation
 from lasercal.collector.sessions.capture import CaptureOptions, run_capture
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.collector.sessions.validate import (
@@ -45,14 +46,12 @@ from lasercal.collector.sessions.validate import (
     measure_known_view,
     run_validation,
 )
-from lasercal.solver.analysis.diagnose import diagnose
 from lasercal.solver.analysis.stats import spot_stats
 from lasercal.solver.control.robot import Robot
 from lasercal.solver.control.robot import load_model as load_robot
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout, load_layout, load_session, session_meta
-from lasercal.solver.identify.spot import identify
 from lasercal.solver.kinematics.aim import aim
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.gravity import gravity_torques
@@ -348,7 +347,8 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     -------
     dict with 'p4' -> {'nominal', 'lm', 'thesis', 'extended'} spot statistics (mm) measured from the
     photos, 'thesis' (the published P4 figures), 'methods' (iterations, time, fit RMS), 'truth'
-    (the hidden effect), 'diagnosis' (:meth:`Diagnosis.as_dict`), 'found' (the diagnosis named the
+    (the hidden effect), 'diagnosis' (:meth:`Diagnosis.as_dict` of the ``extend="auto"`` calibration's;
+    the report shows the full diagnosis with its bootstrap), 'found' (the diagnosis named the
     hidden effect and joints), 'seconds' per stage and in total, 'report' (path)
     """
     step = progress or (lambda stage: None)
@@ -371,21 +371,23 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     session = load_session(
         timed("capture", capture_session, out / "session", truth, layout, opts, partial(step, "capture"))
     )
-    idents = {}
+    # lasercal solve --method lm / thesis, and lasercal solve --extend auto: the API's calibrations
+    cals = {}
     for method in ("lm", "thesis"):
-        idents[method] = timed(method, identify, session, method)
-        idents[method].model.save(out / f"model_{method}.yaml")
+        cals[method] = timed(method, calibrate, session, method=method, folds=0)
+        cals[method].save(out / f"model_{method}.yaml")
         step(f"calibrate ({method})")
-    d = timed("diagnose", diagnose, session, n_boot=opts.n_boot, n_refit=opts.n_refit, seed=opts.seed)
+    extended = timed("diagnose", calibrate, session, extend="auto", folds=5, seed=opts.seed)
     step("diagnose")
+    d = extended.diagnosis
     candidates = {
         "nominal": (session.robot, NOMINAL, None),
-        "lm": (idents["lm"].model, "model_lm.yaml", None),
-        "thesis": (idents["thesis"].model, "model_thesis.yaml", None),
+        "lm": (cals["lm"].model, "model_lm.yaml", None),
+        "thesis": (cals["thesis"].model, "model_thesis.yaml", None),
     }
     if d.extended is not None:
-        d.extended.model.save(out / "model_extended.yaml")
-        candidates["extended"] = (d.extended.model, "model_extended.yaml", d.extension)
+        extended.save(out / "model_extended.yaml")
+        candidates["extended"] = (extended.model, "model_extended.yaml", d.extension)
     validations = []
     for name, (model, ref, ext) in candidates.items():
         folder = out / "validation" / name
@@ -402,16 +404,15 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
             partial(step, f"validate {name}"),
         )
         validations.append(load_validation(folder))
-    reference = {f"thesis paper, {k}": v for k, v in THESIS_P4.items()}
     report = timed(
         "report",
-        write_report,
+        cals["lm"].report,  # lasercal report: the geometric fit and the full diagnosis, with its simulations
         out / "report",
-        session,
-        idents["lm"],
-        d,
         validations,
-        reference,
+        n_boot=opts.n_boot,
+        n_refit=opts.n_refit,
+        seed=opts.seed,
+        reference={f"thesis paper, {k}": v for k, v in THESIS_P4.items()},
         title=f"lasercal demo: the simulated Panda with a hidden {opts.effect.effect.replace('_', ' ')}",
     )
     step("report")
@@ -428,12 +429,12 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
         "thesis": THESIS_P4,
         "methods": {
             m: {
-                "iterations": i.iterations,
-                "converged": i.converged,
-                "seconds": round(i.seconds, 3),
-                "fit_rms_mm": round(i.rms_mm, 4),
+                "iterations": c.identification.iterations,
+                "converged": c.identification.converged,
+                "seconds": round(c.identification.seconds, 3),
+                "fit_rms_mm": round(c.identification.rms_mm, 4),
             }
-            for m, i in idents.items()
+            for m, c in cals.items()
         },
         "truth": {"robot": truth.name, "effect": {"name": opts.effect.effect, **opts.effect.to_dict()}},
         "options": {k: v for k, v in asdict(opts).items() if k != "effect"},

@@ -5,8 +5,10 @@ the file ``lasercal solve S -o P ...`` writes, byte for byte, and ``.summary()``
 
 from __future__ import annotations
 
+import csv
 import json
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -21,12 +23,18 @@ LAYOUT = str(builtin_dir("layouts") / "thesis.yaml")
 
 @pytest.fixture(scope="module")
 def sessions(tmp_path_factory):
-    """A laser session whose robot bends at joint 2 (a compliance for ``--extend``) and a position session."""
+    """A laser session whose robot bends at joint 2 (a compliance for ``--extend``), the same without its
+    logged torques ('bare': the gravity model's, with a payload) and a position session."""
     root = tmp_path_factory.mktemp("api")
     laser = ["simulate", "panda_thesis_identified", "--layout", LAYOUT, "--per-point", "12", "--seed", "4"]
     laser += ["--effect", "joint_compliance", "--effect-size", "1.2e-4", "-o", str(root / "laser")]
     position = ["simulate", "panda_thesis_identified", "--measurement", "position", "--configs", "25"]
     assert main(laser) == 0 and main(position + ["-o", str(root / "position")]) == 0
+    shutil.copytree(root / "laser", root / "bare")  # the same captures without their torques (as MUKCa's)
+    rows = list(csv.reader((root / "laser" / "captures.csv").open()))
+    keep = [i for i, c in enumerate(rows[0]) if not c.startswith("tau")]
+    with (root / "bare" / "captures.csv").open("w", newline="") as f:
+        csv.writer(f).writerows([r[i] for i in keep] for r in rows)
     return root
 
 
@@ -46,6 +54,11 @@ CASES = [
         "laser",
         ["--prior", "none", "--no-robust", "--folds", "0"],
         {"prior": "none", "robust": False, "folds": 0},
+    ),
+    (
+        "bare",
+        ["--extend", "auto", "--folds", "0", "--payload", "2,0,0,900"],
+        {"extend": "auto", "folds": 0, "payload": (2.0, np.array([0.0, 0.0, 900.0]))},
     ),
     ("position", ["--folds", "0"], {"folds": 0}),
     ("position", ["--extend", "auto", "--folds", "0"], {"extend": "auto", "folds": 0}),
@@ -109,6 +122,33 @@ def test_calibrate_refuses_what_solve_refuses(sessions):
         lasercal.calibrate(s, method="thesis", extend="auto")
     with pytest.raises(IdentificationError, match="method 'ls'"):
         lasercal.calibrate(s, method="ls")
+
+
+def test_calibrate_takes_the_folds_seed_the_diagnosis_threshold_and_the_payload(sessions):
+    """What the demo and the MUKCa study ask of it: the folds of ``seed``; ``alpha`` decides (a level below
+    the best candidate's corrected p keeps nothing, one above keeps it); ``payload`` loads the flange of a
+    session without logged torques (the diagnosed session's torques are the gravity model's with it)."""
+    from dataclasses import replace
+
+    from lasercal.solver.analysis.stats import grouped_folds
+    from lasercal.solver.kinematics.gravity import gravity_torques
+
+    s = lasercal.load_session(sessions / "laser")
+    by_seed = {k: lasercal.calibrate(s, folds=3, seed=k).cross_validation.fold for k in (0, 1)}
+    for k, fold in by_seed.items():
+        np.testing.assert_array_equal(fold, grouped_folds(s, 3, k))
+    assert (by_seed[0] != by_seed[1]).any()
+    p = lasercal.calibrate(s, extend="auto", folds=0).diagnosis.p_value  # the best candidate's, corrected
+    assert 0 < p < 0.5  # a compliance is hidden in the robot
+    for alpha, kept in ((p / 2, False), (min(1.0, 2 * p), True)):  # without folds the F test decides alone
+        cal = lasercal.calibrate(s, extend="auto", folds=0, alpha=alpha)
+        assert (cal.diagnosis.effect != "none") == kept == (cal.identification.extension is not None)
+    payload = (2.0, np.array([0.0, 0.0, 900.0]))  # kg, mm at q = 0
+    bare = replace(s, tau=None)
+    loaded = lasercal.calibrate(bare, extend="auto", folds=0, payload=payload)
+    np.testing.assert_allclose(loaded.session.tau, gravity_torques(s.robot, s.q, payload))
+    unloaded = lasercal.calibrate(bare, extend="auto", folds=0).session.tau
+    assert np.abs(loaded.session.tau - unloaded).max() > 1.0  # Nm: 2 kg a few hundred mm out
 
 
 def test_report_is_the_report_command(sessions, tmp_path, capsys):

@@ -284,7 +284,7 @@ OPTION_VALUES = {
         "--aim-noise": ["-1", "nan", "inf"],
         "--seed": ["-2"],
     }),
-    "solve": (SOLVE + ["-o", "{o}"], {"--folds": ["-1", "1", "nan"]}),
+    "solve": (SOLVE + ["-o", "{o}"], {"--folds": ["-1", "1", "nan"], "--payload": ["1,2", "0,0,0,0"]}),
     "report": (REPORT + ["-o", "{o}"], {"--bootstrap": ["-1", "nan"], "--refits": ["-1"], "--seed": ["-1"]}),
     "diagnose": (DIAGNOSE + ["--report", "{o}"], {
         "--alpha": ["0", "1", "-0.1", "nan"],
@@ -1332,6 +1332,8 @@ WARNINGS = [
      "--imagej-box 32: ignored"),
     ("fullpose", FULLPOSE + ["--seed", "3", "-o", "{o}"], "--seed without --folds", None,
      "--seed 3: ignored"),
+    ("solve", SOLVE + ["--payload", "1,0,0,100", "-o", "{o}"], "--payload without --extend", None,
+     "--payload 1.0 0.0 0.0 100.0: ignored"),
     # beside issue 26 (section 9)
     ("sheet", SHEET + ["--place", "450", "0", "1.5708"], "a yaw in radians", None, "YAW 1.5708 deg: 90 deg"),
     ("sheet", SHEET + ["--tip-link", "tool0"], "--tip-link without --robot", None,

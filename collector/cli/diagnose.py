@@ -12,14 +12,12 @@ from lasercal.collector.cli.options import (
     bootstrap_arguments,
     chain_arguments,
     number,
-    numbers,
     output_argument,
+    parse_payload,
+    payload_argument,
     session_robot,
 )
 from lasercal.solver.analysis import ALPHA
-
-PAYLOAD_KG = number(0, 100, "kg", lo_open=True)
-PAYLOAD_MM = number(-5000, 5000, "mm")
 
 
 def args_diagnose(p: argparse.ArgumentParser) -> None:
@@ -35,20 +33,7 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
         help=f"family-wise significance level (default {ALPHA})",
     )
     bootstrap_arguments(p)
-    p.add_argument(
-        "--payload",
-        type=numbers(4, lambda i: PAYLOAD_KG if i == 0 else PAYLOAD_MM, "KG,X,Y,Z"),
-        metavar="KG,X,Y,Z",
-        help="mass (kg) and centre of mass at q = 0 (mm) carried by the flange, for the gravity model when "
-        "torques are not logged",
-    )
-
-
-def parse_payload(values: tuple | None):
-    """(kg, x, y, z) from ``--payload`` -> (kg, (3,) mm), or None."""
-    import numpy as np
-
-    return None if values is None else (values[0], np.array(values[1:]))
+    payload_argument(p)
 
 
 def cmd_diagnose(args) -> int:

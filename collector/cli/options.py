@@ -343,6 +343,29 @@ def bootstrap_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=SEED, default=0)
 
 
+PAYLOAD_KG = number(0, 100, "kg", lo_open=True)
+PAYLOAD_MM = number(-5000, 5000, "mm")
+
+
+def payload_argument(p: argparse.ArgumentParser) -> None:
+    """``--payload KG,X,Y,Z``: the flange's load for the gravity torques of a session that logs none
+    (``diagnose``, ``solve --extend``)."""
+    p.add_argument(
+        "--payload",
+        type=numbers(4, lambda i: PAYLOAD_KG if i == 0 else PAYLOAD_MM, "KG,X,Y,Z"),
+        metavar="KG,X,Y,Z",
+        help="mass (kg) and centre of mass at q = 0 (mm) carried by the flange, for the gravity model when "
+        "torques are not logged",
+    )
+
+
+def parse_payload(values: tuple | None):
+    """(kg, x, y, z) from ``--payload`` -> (kg, (3,) mm), or None."""
+    import numpy as np
+
+    return None if values is None else (values[0], np.array(values[1:]))
+
+
 def backend_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by capture and validate (None = not given, so a resume can tell)."""
     from lasercal.collector.hardware import BACKENDS  # here: the commands without a robot skip its import

@@ -18,6 +18,8 @@ from lasercal.collector.cli.options import (
     count,
     number,
     output_argument,
+    parse_payload,
+    payload_argument,
     session_robot,
     sheet_pose,
     unused,
@@ -47,6 +49,7 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "better; or name one (default none). Only robot effects (compliance, eccentricity) are written to "
         "the model",
     )
+    payload_argument(p)
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
     p.add_argument(
         "--allow-partial",
@@ -136,6 +139,8 @@ def cmd_solve(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.formats.session import load_session
 
+    if args.extend == "none":
+        unused(args, "the diagnosis of --extend takes it", "payload")
     cal = calibrate(
         load_session(args.session, **session_robot(args)),
         method=args.method,
@@ -143,6 +148,7 @@ def cmd_solve(args) -> int:
         folds=args.folds,
         robust=not args.no_robust,
         allow_partial=args.allow_partial,
+        payload=parse_payload(args.payload),
     )
     with atomic_output(args.output) as tmp:
         cal.save(tmp)

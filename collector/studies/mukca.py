@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import stdtrit  # quantile of Student's t (scipy.stats.t.ppf)
 
+from lasercal.calibration import calibrate
 from lasercal.collector.report.mukca import markdown, write_plots
 from lasercal.collector.studies.mukca_checks import agreement, jackknife_se, outlier_audit, simulation_check
 from lasercal.collector.studies.mukca_import import import_mukca, position_of, positions
@@ -181,12 +182,12 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     """Leave-one-tool-position-out cross-validation of every model.
 
     Per fold, fitted on the other positions (robust loss on): plain least squares ('plain', no
-    outlier test: MUKCa's own optimiser), the geometric model and the effect :func:`diagnose`
-    selects and accepts on them by its own inner leave-one-position-out ('nested': no selection
-    leak; the geometric model when nothing is kept), that model fitted by plain least squares
-    ('nested_plain': what the outlier test costs it), the whole-session finding refitted
-    ('fixed'), and joint compliance on ``common`` ('compliance'). Train metrics use the
-    training captures the geometric fit kept; test metrics use every held-out capture.
+    outlier test: MUKCa's own optimiser; ``lasercal.calibrate(robust=False)``), the geometric model and
+    the effect ``lasercal.calibrate(extend="auto")`` selects and accepts on them by its diagnosis's own
+    inner leave-one-position-out ('nested': no selection leak; the geometric model when nothing is kept),
+    that model fitted by plain least squares ('nested_plain': what the outlier test costs it), the
+    whole-session finding refitted ('fixed'), and joint compliance on ``common`` ('compliance'). Train
+    metrics use the training captures the geometric fit kept; test metrics use every held-out capture.
 
     Parameters
     ----------
@@ -206,14 +207,23 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
     folds, test_parts, c_folds = [], {m: [] for m in MODELS}, []
     for held in dict.fromkeys(pos):
         train, test = s.subset(pos != held), s.subset(pos == held)
-        d = diagnose(replace(train, tau=None), alpha=opts.alpha, n_boot=0, k=5, payload=opts.payload)
+        # lasercal solve --extend auto on the training positions: its diagnosis selects and accepts
+        nested = calibrate(
+            replace(train, tau=None),
+            extend="auto",
+            alpha=opts.alpha,
+            payload=opts.payload,
+            allow_partial=True,
+        )
+        d = nested.diagnosis
         geo, sus = d.geometric.model, d.geometric.weights == 0  # extensions are fitted on its rows
         comp = fit(train, compliance_ext(common), suspects=sus)
+        plain = calibrate(train, robust=False, folds=0, allow_partial=True).identification
         fits = {
             "nominal": (nominal, None),
-            "plain": (fit(train, robust=False).model, None),
+            "plain": (plain.model, None),
             "geometric": (geo, None),
-            "nested": (d.extended.model, d.extended.extension) if d.extended else (geo, None),
+            "nested": (nested.identification.model, nested.identification.extension),
             "compliance": (comp.model, comp.extension),
         }
         if d.extended is not None:  # the same extended model without the outlier test
@@ -268,7 +278,8 @@ def loto(session: Session, common: tuple, fixed: Extension | None, opts: StudyOp
 
 
 def single_position(session: Session) -> dict:
-    """MUKCa's protocol: calibrate (geometry) on one tool position, test on every other one.
+    """MUKCa's protocol: calibrate (geometry, :func:`lasercal.calibrate`) on one tool position, test on every
+    other one.
 
     Returns
     -------
@@ -280,7 +291,7 @@ def single_position(session: Session) -> dict:
     per = {}
     for P in dict.fromkeys(pos):
         train, test = session.subset(pos == P), session.subset(pos != P)
-        g = fit(train)
+        g = calibrate(train, folds=0, allow_partial=True).identification  # lasercal solve on one position
         per[P] = {
             part: [
                 summarise(consistency(ball_centres(m, None, s), s))["mukca_mae_m"] for m in (nominal, g.model)
@@ -412,7 +423,9 @@ def study_robot(
     }
     clean_geo = None
     if clean is not None:
-        dc = diagnose(clean, alpha=opts.alpha, n_boot=0, k=0, payload=opts.payload)
+        dc = calibrate(  # the cleaned subset's finding: the F test decides alone (no folds)
+            clean, extend="auto", folds=0, alpha=opts.alpha, payload=opts.payload, allow_partial=True
+        ).diagnosis
         cc = fit(dc.session, compliance_ext(common))
         clean_geo = dc.geometric
         rep["clean"] = {

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasercal.solver.analysis import ALPHA  # a constant: loads neither numpy nor the solver
+
 if TYPE_CHECKING:  # annotations only: numpy and the solver load when a calibration runs
     from lasercal.solver.analysis.diagnose import Diagnosis
     from lasercal.solver.analysis.stats import CrossValidation
@@ -106,7 +108,17 @@ class Calibration:
         """:attr:`statistics` as the JSON ``lasercal solve --json`` prints."""
         return json.dumps(self.statistics, indent=2)
 
-    def report(self, folder, validations=(), *, n_boot: int = 2000, n_refit: int = 10, seed: int = 0) -> Path:
+    def report(
+        self,
+        folder,
+        validations=(),
+        *,
+        n_boot: int = 2000,
+        n_refit: int = 10,
+        seed: int = 0,
+        reference: dict | None = None,
+        title: str | None = None,
+    ) -> Path:
         """Write the HTML report (``index.html`` and its PNG plots) of a laser session's geometric
         calibration into ``folder``: the one ``lasercal report`` writes.
 
@@ -121,6 +133,9 @@ class Calibration:
         n_boot : int, the diagnosis's first-order parametric-bootstrap replicates (0 skips)
         n_refit : int, its full simulations with refits
         seed : int, the simulations' seed
+        reference : dict label -> {scatter_mean, scatter_std, error_mean, error_max} (mm), optional:
+            published figures shown beside the first validation point's runs (``lasercal demo``: the thesis's)
+        title : str, optional, the page's heading
 
         Returns
         -------
@@ -140,7 +155,7 @@ class Calibration:
         if self.diagnosis is not None:  # the report shows the geometric fit of the session as given
             geometric = fit(self.source, method=self.method, robust=self.robust)
         d = diagnose(self.source, n_boot=n_boot, n_refit=n_refit, seed=seed, robust=self.robust)
-        return write_report(folder, self.source, geometric, d, vals)
+        return write_report(folder, self.source, geometric, d, vals, reference, title)
 
 
 def calibrate(
@@ -152,6 +167,9 @@ def calibrate(
     folds: int = 5,
     robust: bool = True,
     allow_partial: bool = False,
+    seed: int = 0,
+    alpha: float = ALPHA,
+    payload=None,
 ) -> Calibration:
     """Calibrate the robot of a capture session: the decisions of ``lasercal solve`` (module docstring).
 
@@ -170,6 +188,11 @@ def calibrate(
     robust : bool, flag and drop outlier captures (method 'lm')
     allow_partial : bool, return a model even when neither the data nor the prior identifies every
         parameter combination it needs (marked ``partial: true``, the combinations listed)
+    seed : int, which captures fall in which fold (the diagnosis's and the cross-validation's; point
+        sessions leave one tool position out, whatever the seed)
+    alpha : float, the diagnosis's family-wise significance level (``extend`` not 'none')
+    payload : (kg, (3,) mm at q = 0), the mass the flange carries (hand, tool), for the gravity torques
+        of a session that logs none (``extend`` not 'none'; e.g. the MUKCa study's)
 
     Returns
     -------
@@ -215,6 +238,9 @@ def calibrate(
             k=folds,
             effect=None if extend == "auto" else extend,
             robust=robust,
+            seed=seed,
+            payload=payload,
+            alpha=alpha,
         )
         ident = diagnosis.extended or diagnosis.geometric
         session = diagnosis.session
@@ -228,7 +254,9 @@ def calibrate(
     cv = None
     if folds > 1:
         ext = diagnosis.extension if diagnosis else None
-        cv = cross_validate(session, method, folds, inlier=ident.weights > 0, robust=robust, extension=ext)
+        cv = cross_validate(
+            session, method, folds, seed, inlier=ident.weights > 0, robust=robust, extension=ext
+        )
     rep = solve_report(session, ident, cv)
     if diagnosis is not None:
         rep["diagnosis"] = diagnosis.as_dict()
