@@ -481,7 +481,7 @@ def validation_section(runs, reference: dict, out: Path, suffix: str = "") -> li
     rows += [[lab, "published", ""] + [f"{r[k]:.3f}" for k in _STAT_KEYS] for lab, r in reference.items()]
     classes = [""] * len(runs) + ["ref"] * len(reference)
     return [
-        f"<h2>Validation at {esc(v0.point)} {esc(str(tuple(float(c) for c in v0.xyz)))}</h2>",
+        f"<h2>Validation at {esc(v0.point)} ({', '.join(f'{c:.1f}' for c in v0.xyz)}) mm</h2>",
         (
             '<p class="note">Each model computes configurations that put its beam on the point; the arm '
             "goes there and a camera photographs the spot. Scatter radius: distance of each spot from the "
