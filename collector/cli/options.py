@@ -276,6 +276,11 @@ def _folds(text: str) -> int:
 FOLDS = _folds
 
 
+def sheet_pose_argument(p: argparse.ArgumentParser, help: str) -> None:
+    """``--sheet-pose X Y YAW`` (mm, mm, deg): where a simulated sheet truly lies (:func:`sheet_pose`)."""
+    p.add_argument("--sheet-pose", type=number(-1e4, 1e4), nargs=3, metavar=("X", "Y", "YAW"), help=help)
+
+
 def chain_arguments(p: argparse.ArgumentParser, robot_help: str | None = None) -> None:
     """``--base-link`` and ``--tip-link`` (a URDF chain's ends), and ``--robot`` when ``robot_help``; a
     session's robot (``SESSION_ROBOT``) comes with ``--prior``, the prior of its fits."""

@@ -22,6 +22,7 @@ from lasercal.collector.cli.options import (
     payload_argument,
     session_robot,
     sheet_pose,
+    sheet_pose_argument,
     unused,
     whole_numbers,
 )
@@ -103,12 +104,9 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         type=ROBOT,
         help="nominal robot the session names (default: the truth file's 'nominal' key)",
     )
-    p.add_argument(
-        "--sheet-pose",
-        type=number(-1e4, 1e4),
-        nargs=3,
-        metavar=("X", "Y", "YAW"),
-        help="laser: the points lie on a sheet at this true pose (mm, mm, deg: p_base = Rz(YAW) p_sheet + "
+    sheet_pose_argument(
+        p,
+        "laser: the points lie on a sheet at this true pose (mm, mm, deg: p_base = Rz(YAW) p_sheet + "
         "[X, Y, plane z]) in the true robot's own frame (joint 1 as the nominal's); the session says "
         "frame: sheet and gives the layout's placement (where the layout says the points are)",
     )

@@ -12,9 +12,9 @@ from lasercal.collector.cli.options import (
     backend_arguments,
     count,
     motion_arguments,
-    number,
     output_argument,
     sheet_pose,
+    sheet_pose_argument,
 )
 
 
@@ -50,12 +50,9 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         help="sheet layout: place the points where this model's calibration found the sheet, for the model "
         "under test (e.g. the nominal: the 'before'; default: the model's own sheet pose)",
     )
-    p.add_argument(
-        "--sheet-pose",
-        type=number(-1e4, 1e4),
-        nargs=3,
-        metavar=("X", "Y", "YAW"),
-        help="--backend fake, sheet layout: the simulated sheet truly lies here (mm, mm, deg, in the true "
+    sheet_pose_argument(
+        p,
+        "--backend fake, sheet layout: the simulated sheet truly lies here (mm, mm, deg, in the true "
         "robot's own frame, as simulate --sheet-pose; default: where the sheet model's simulated session "
         "put it, else the layout's placement)",
     )
