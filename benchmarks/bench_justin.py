@@ -78,13 +78,19 @@ def main() -> None:
     s = replace(s, tau=tau)
     t0 = time.perf_counter()
     full = fit(s, elastic(s.robot, True))
-    print(f"solve time, {s.m} captures, {full.identifiability.rank} of {len(full.param_names)} parameters "
-          f"identifiable (geometry + joint + lateral elasticity): {time.perf_counter() - t0:.1f} s "
-          f"({full.iterations} Jacobians)", flush=True)
+    print(
+        f"solve time, {s.m} captures, {full.identifiability.rank} of {len(full.param_names)} parameters "
+        f"identifiable (geometry + joint + lateral elasticity): {time.perf_counter() - t0:.1f} s "
+        f"({full.iterations} Jacobians)",
+        flush=True,
+    )
     t0 = time.perf_counter()
     diagnose(s, n_boot=0, k=0)
-    print(f"solve --extend auto --folds 0 (the selection and its fits), {s.m} captures: "
-          f"{time.perf_counter() - t0:.1f} s", flush=True)
+    print(
+        f"solve --extend auto --folds 0 (the selection and its fits), {s.m} captures: "
+        f"{time.perf_counter() - t0:.1f} s",
+        flush=True,
+    )
     if a.folds < 2:
         return
     f = folds(s, a.folds, a.seed)

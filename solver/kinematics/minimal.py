@@ -201,4 +201,3 @@ def anchor_heights(
         feet += [float(w @ (e - o)) for e in ends]  # a branch's end: its targets, projected
         h[j] = np.mean(feet) if feet else 0.0
     return h
-
