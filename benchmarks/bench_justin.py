@@ -1,6 +1,10 @@
 """DLR's Agile Justin, 350 shared rows: 5-fold cross-validation by record of four models, and the solve time.
 
-    python benchmarks/bench_justin.py [../shared/data/justin/measurements.csv] [--seed 0] [--folds 5]
+    python benchmarks/bench_justin.py [../shared/data/justin/measurements.csv] [--seed 0] [--folds 5] [--auto]
+    python benchmarks/bench_justin.py --folds 0     # the solve times only
+
+Solve times: the 700-capture fit of geometry + joint + lateral compliance everywhere (132 parameters), and
+``solve --extend auto`` (the selection and its fits) on the 350 records.
 
 Models (each fitted on the training records, held-out records predicted; 3-D distance, mm):
 frames only (the nominal robot with its best camera frame and markers), geometric, + joint elasticity
@@ -74,8 +78,21 @@ def main() -> None:
     s = replace(s, tau=tau)
     t0 = time.perf_counter()
     full = fit(s, elastic(s.robot, True))
-    print(f"solve time, {s.m} captures, {full.identifiability.rank} of {len(full.param_names)} parameters "
-          f"identifiable (geometry + joint + lateral elasticity): {time.perf_counter() - t0:.1f} s")
+    print(
+        f"solve time, {s.m} captures, {full.identifiability.rank} of {len(full.param_names)} parameters "
+        f"identifiable (geometry + joint + lateral elasticity): {time.perf_counter() - t0:.1f} s "
+        f"({full.iterations} Jacobians)",
+        flush=True,
+    )
+    t0 = time.perf_counter()
+    diagnose(s, n_boot=0, k=0)
+    print(
+        f"solve --extend auto --folds 0 (the selection and its fits), {s.m} captures: "
+        f"{time.perf_counter() - t0:.1f} s",
+        flush=True,
+    )
+    if a.folds < 2:
+        return
     f = folds(s, a.folds, a.seed)
     dist = {}
     for i in range(a.folds):

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from lasercal.solver.analysis import diagnose as diag
-from lasercal.solver.analysis.diagnose import diagnose
+from lasercal.solver.analysis.diagnose import diagnose, session_torques
+from lasercal.solver.analysis.stats import solve_report
 from lasercal.solver.formats.justin import craig_row
 from lasercal.solver.formats.positions import position_session
+from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.position import sensor_points
 from lasercal.solver.kinematics.effects import Extension, combine
 from lasercal.solver.kinematics.elastic import bending, deflected
@@ -112,3 +116,24 @@ def test_geometry_only_data_select_no_elasticity():
     s = simulate(model, combine([Extension("joint_compliance", (2,), None, np.zeros(1))]), 80, 0.02, seed=6)
     d = diagnose(s, alpha=ALPHA, n_boot=0, k=0)
     assert d.effect == "none"
+
+
+def test_solve_report_per_target_rms_is_the_extended_models():
+    """The solve table's per-target RMS after an elastic fit: the extended model's, the extension applied once
+    to the logged joints (an independent evaluation of its predictions), at the noise, not the bend."""
+    model = tree_robot()
+    truth = _truth(model)
+    s = simulate(model, truth, 40, 0.02, seed=7)
+    s = replace(s, tau=session_torques(s)[0])
+    ident = fit(s, truth)
+    rep = solve_report(s, ident)
+    used = ident.weights > 0
+    q = ident.extension.true_q(s.q, s.t, s.tau)
+    geo = fit(s)
+    for nm in ("right", "left"):
+        sel = (s.point == nm) & used
+        r = np.linalg.norm(sensor_points(ident.model, q[sel], s.point[sel]) - s.target[sel], axis=1)
+        after = rep["targets"][nm]["after_rms_mm"]
+        assert after == pytest.approx(np.sqrt(np.mean(r**2)), abs=1e-5)
+        assert after < 2 * 0.02 * np.sqrt(3)  # the noise (0.035 mm), not the bend
+        assert after < 0.2 * solve_report(s, geo)["targets"][nm]["after_rms_mm"]

@@ -13,9 +13,10 @@ from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.justin import read_dlr_measurements
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_session
-from lasercal.solver.identify.position import target_frames
+from lasercal.solver.identify.position import target_anchor_heights, target_frames
 from lasercal.solver.kinematics.gravity import gravity_torques
-from lasercal.solver.kinematics.tree import tree_frames
+from lasercal.solver.kinematics.minimal import anchor_heights
+from lasercal.solver.kinematics.tree import branch_groups, tree_frames
 
 JUSTIN = Path(__file__).resolve().parents[2] / "shared" / "data" / "justin"
 needs_data = pytest.mark.skipif(
@@ -132,3 +133,26 @@ def test_a_malformed_record_is_named_by_its_line(tmp_path):
     p.write_text(good)
     index, q, mk, lines = read_dlr_measurements(p)
     assert lines.tolist() == [2] and np.allclose(mk[0, 0], [-1800, 2200, 1500])
+
+
+def test_tree_anchor_heights_are_each_branchs_serial_heights():
+    """The prior's anchor heights on a tree: along each branch, as for the serial arm that branch is (its
+    target the tool); the torso's last joint, parent of both arms, between the two arms' feet."""
+    model = load_model("justin")
+    tree = target_anchor_heights(model, model.targets)
+    real = model.real
+    for arm in ("right", "left"):
+        ((_, path),) = branch_groups(model, [arm])
+        chain = path[real[path]]  # the branch's joints that turn, base to hand: a serial arm
+        serial = anchor_heights(model.screws[chain], model.targets[arm])
+        names = [model.joint_names[j] for j in chain]
+        own = [k for k, nm in enumerate(names) if nm.startswith(arm)] + [0, 1, 2]
+        assert np.allclose(tree[chain[own]], serial[own], atol=1e-9)
+        heights = {nm: h for nm, h in zip(names, serial)}
+        if arm == "right":
+            right_torso_4 = heights["torso_4"]
+    assert tree[model.joint_names.index("torso_4")] == pytest.approx((right_torso_4 + heights["torso_4"]) / 2)
+    # the arms mirror each other: a joint's anchor is as far along its axis on either side
+    for k in range(1, 8):
+        r, lf = model.joint_names.index(f"right_{k}"), model.joint_names.index(f"left_{k}")
+        assert abs(abs(tree[r]) - abs(tree[lf])) < 1e-6

@@ -65,6 +65,10 @@ from lasercal.solver.kinematics.laser import spot_joint_jacobian
 from lasercal.solver.streams import Seed, root, stream
 
 _RTOL = 1e-6
+# 0.1 um: a candidate that explains less than this (root of its drop in squared residual, mm) explains
+# round-off, not an effect -- exact data leave residuals of 1e-13 mm whose pattern an F test may find
+# "significant" (as the outlier test's floor, solver/identify/lsq.py)
+ROUNDOFF_MM = 1e-4
 _AMBIGUOUS = (
     0.97  # a runner-up explaining this share of the winner's residual drop is reported as indistinguishable
 )
@@ -323,7 +327,7 @@ class Tester:
                 continue
             drop = float(np.sum((Q.T @ res) ** 2))
             F = (drop / k) / max((rss - drop) / (N - r - k), 1e-300)
-            p = float(fdtrc(k, N - r - k, F))
+            p = float(fdtrc(k, N - r - k, F)) if drop > ROUNDOFF_MM**2 else 1.0
             out.append(CandidateTest(e, F, k, p, min(1.0, p * len(self.exts)), drop))
         return sorted(out, key=lambda c: (c.p, -c.F))
 
@@ -338,7 +342,8 @@ class Tester:
                 continue
             drop = np.sum((Q.T @ R) ** 2, axis=0)
             F = (drop / k) / np.maximum((rss - drop) / (N - r - k), 1e-300)
-            best = np.maximum(best, -np.log10(np.maximum(fdtrc(k, N - r - k, F), 1e-300)))
+            p = np.where(drop > ROUNDOFF_MM**2, fdtrc(k, N - r - k, F), 1.0)
+            best = np.maximum(best, -np.log10(np.maximum(p, 1e-300)))
         return best
 
 
@@ -373,7 +378,7 @@ def linear_selection(tester: Tester, alpha: float) -> list[CandidateTest]:
                 continue
             drop = float(np.sum((Q.T @ res) ** 2))
             F = (drop / k) / max((rss - drop) / (N - r - k), 1e-300)
-            p = float(fdtrc(k, N - r - k, F))
+            p = float(fdtrc(k, N - r - k, F)) if drop > ROUNDOFF_MM**2 else 1.0
             if best is None or (p, -F) < (best[0], -best[1]):
                 best = (p, F, k, i, Q, drop)
         if best is None or best[0] * len(rest) >= alpha:

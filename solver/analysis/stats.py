@@ -410,7 +410,7 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
     elif session.measurement == "position":
         rep["measurement"] = "position"
         rep["gauge"] = ident.extra.get("gauge", "")
-        rep["targets"] = position_target_stats(ident, session, used)
+        rep["targets"] = position_target_stats(ident, before, used)  # logged q: the extension applies once
     else:
         before, after = per_point(ident.nominal, before), per_point(ident.model, session, used)
         rep["points"] = {

@@ -193,6 +193,7 @@ def load_urdf(path, base_link: str | None = None, tip_link: str | None = None) -
         raise FormatError(path, f"no movable joint between {base!r} and {tip!r}", field="tip_link")
     links = _gravity_links(robot, joints, owner, len(names))
     return RobotModel(
+        **_mimic_coupling(path, [j for j in joints if j.type in MOVABLE]),
         name=robot.name or path.stem,
         joint_names=tuple(names),
         screws=_frozen(screws),
@@ -204,6 +205,50 @@ def load_urdf(path, base_link: str | None = None, tip_link: str | None = None) -
         urdf={"file": str(path), "base_link": base, "tip_link": tip, "joints": [j.name for j in joints]},
         notes=tuple(notes),
     )
+
+
+def _mimic_coupling(path: Path, movable: list) -> dict:
+    """The chain's ``<mimic joint=K multiplier=c offset=b>`` joints as the one-source case of a coupling
+    (:mod:`solver.kinematics.model`): q_j = c q_K + b, q_K commanded (a mimic of a mimic composed), in the
+    model's units (mm for a prismatic joint: c scaled by the units' ratio, b by its joint's). The RobotModel
+    fields ``commanded``, ``coupling``, ``coupling_offset``; none without a mimic.
+
+    Raises FormatError when a mimic's joint is not a movable joint of the chain, or the mimics form a cycle.
+    """
+    if not any(j.mimic is not None for j in movable):
+        return {}
+    index = {j.name: i for i, j in enumerate(movable)}
+    scale = [M_TO_MM if j.type == "prismatic" else 1.0 for j in movable]
+
+    def source(i, seen=()):
+        """(commanded joint index, coefficient, offset) driving joint i, in model units."""
+        mm = movable[i].mimic
+        if mm is None:
+            return i, 1.0, 0.0
+        where = f"joint {movable[i].name}.mimic"
+        if mm.joint not in index:
+            raise FormatError(path, f"mimics {mm.joint!r}, not a movable joint of the chain", field=where)
+        if i in seen:
+            raise FormatError(path, "mimic joints form a cycle", field=where)
+        k = index[mm.joint]
+        c = 1.0 if mm.multiplier is None else float(mm.multiplier)
+        b = 0.0 if mm.offset is None else float(mm.offset)
+        r, c2, b2 = source(k, seen + (i,))
+        # q_i / scale_i = c q_k / scale_k + b, q_k = c2 q_r + b2 (model units)
+        f = c * scale[i] / scale[k]
+        return r, f * c2, f * b2 + b * scale[i]
+
+    commanded = [i for i, j in enumerate(movable) if j.mimic is None]
+    col = {i: k for k, i in enumerate(commanded)}
+    C, b = np.zeros((len(movable), len(commanded))), np.zeros(len(movable))
+    for i in range(len(movable)):
+        r, c, off = source(i)
+        C[i, col[r]], b[i] = c, off
+    return {
+        "commanded": tuple(movable[i].name for i in commanded),
+        "coupling": _frozen(C),
+        "coupling_offset": _frozen(b),
+    }
 
 
 def _gravity_links(robot, joints, owner: dict, n: int) -> tuple:

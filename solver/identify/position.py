@@ -37,8 +37,8 @@ from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.minimal import anchor_heights, link_frame, screw_from_eta
 from lasercal.solver.kinematics.model import RobotModel
-from lasercal.solver.kinematics.poe import ad, adjoint, dexp_A, exp6, poe_chain, skew, space_jacobian
-from lasercal.solver.kinematics.tree import branch_mask
+from lasercal.solver.kinematics.poe import ad, dexp_A, dexp_apply, exp6, poe_chain, skew
+from lasercal.solver.kinematics.tree import branch_groups, parents_of, target_joint
 
 _START_ITERS = 1000  # most alternations of the closed-form start (they stop once the scale settles)
 _START_TOL = 1e-7  # change of the similarity scale per alternation below which the start has settled
@@ -52,6 +52,7 @@ def sensor_points(
     names: np.ndarray,
     targets: dict | None = None,
     X: np.ndarray | None = None,
+    groups: list | None = None,
 ) -> np.ndarray:
     """Predicted sensor-frame positions y = X E(q) p_k (m, 3) mm.
 
@@ -62,34 +63,88 @@ def sensor_points(
     names : (m,) array of str, the target of each row
     targets : dict name -> (3,) mm at q = 0, base frame (default: the model's)
     X : (4, 4) array, ^S T_base (default: the model's)
+    groups : the rows' branches (:func:`~lasercal.solver.kinematics.tree.branch_groups`; default: from names)
     """
     targets = model.targets if targets is None else targets
     X = model.sensor_pose if X is None else X
-    E = target_frames(model, q, names)
+    E = target_frames(model, q, names, groups)
     P = np.array([targets[nm] for nm in names]).reshape(-1, 3)
     p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
     return p @ X[:3, :3].T + X[:3, 3]
 
 
-def target_frames(model: RobotModel, q: np.ndarray, names) -> np.ndarray:
+def branch_chains(screws: np.ndarray, q: np.ndarray, groups: list) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's prefix frames along its branch and its target's link frame (eq. T1, Modern Robotics 4.14).
+
+    Parameters
+    ----------
+    screws : (n, 6) array
+    q : (m, n) array, rad (mm for prismatic joints)
+    groups : list of (rows, path) (:func:`~lasercal.solver.kinematics.tree.branch_groups`)
+
+    Returns
+    -------
+    before : (m, n, 4, 4) array, e^[S_a]q_a ... up to (not including) joint j along the row's path; 0 for a
+        joint off the path (it moves nothing of that row)
+    E : (m, 4, 4) array, the product along the whole path
+    """
+    m, n = q.shape
+    before = np.zeros((m, n, 4, 4))
+    E = np.empty((m, 4, 4))
+    for rows, path in groups:  # one serial chain per branch (a serial arm: one)
+        chain = poe_chain(screws[path], q[np.ix_(rows, path)])
+        before[np.ix_(rows, path)] = chain[:, :-1]
+        E[rows] = chain[:, -1]
+    return before, E
+
+
+def twist_point_rates(before: np.ndarray, p: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """d(point)/d(t) for twists U applied at each joint: Ad(before_j) U_j acting on the point p.
+
+    With (w, v) = Ad(T) u, T = (R, o): w = R u_w, v = o x w + R u_v (eq. 2.1.11), so the point moves by
+    w x p + v = w x (p - o) + R u_v -- no 6x6 adjoints formed.
+
+    Parameters
+    ----------
+    before : (m, n, 4, 4) array, :func:`branch_chains` (0 off a row's path: zero rates)
+    p : (m, 3) array, the points, base frame, mm
+    U : (m, n, 6, k) or (n, 6, k) array, twists at q = 0 in the base frame, per joint
+
+    Returns
+    -------
+    (m, 3, n, k) array
+    """
+    R, o = before[:, :, :3, :3], before[:, :, :3, 3]
+    w, v = R @ U[..., :3, :], R @ U[..., 3:, :]  # (m, n, 3, k)
+    r = p[:, None, :] - o  # (m, n, 3)
+    rx, ry, rz = (r[:, :, i, None] for i in range(3))
+    wx, wy, wz = w[:, :, 0], w[:, :, 1], w[:, :, 2]
+    # w x r + v, the cross product written out (np.cross on these shapes cost more than the rest)
+    return np.stack([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx], axis=1) + np.moveaxis(v, 2, 1)
+
+
+def target_frames(model: RobotModel, q: np.ndarray, names, groups: list | None = None) -> np.ndarray:
     """E(q) (m, 4, 4) of the link each row's target sits on: the POE product along its branch
     (:mod:`solver.kinematics.tree`, eq. T1; the whole chain for a serial arm)."""
-    if model.parents:
-        q = q * branch_mask(model, names)
-    return poe_chain(model.screws, q)[:, -1]
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    groups = branch_groups(model, names) if groups is None else groups
+    E = np.empty((len(q), 4, 4))
+    for rows, path in groups:
+        E[rows] = poe_chain(model.screws[path], q[np.ix_(rows, path)])[:, -1]
+    return E
 
 
 def point_joint_jacobian(
-    model: RobotModel, q: np.ndarray, P: np.ndarray, names=None
+    model: RobotModel, q: np.ndarray, P: np.ndarray, names=None, groups: list | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Base-frame points E(q) p (m, 3) of row targets P (m, 3), and d(point)/dq (m, 3, n): w_j x p + v_j
     (0 for a joint off the row's branch; ``names`` the rows' targets, needed for a tree)."""
-    mask = branch_mask(model, names) if model.parents else np.ones((len(q), model.n))
-    chain = poe_chain(model.screws, q * mask)
-    E = chain[:, -1]
+    q = np.atleast_2d(q)
+    if groups is None:
+        groups = [(np.arange(len(q)), np.arange(model.n))] if names is None else branch_groups(model, names)
+    before, E = branch_chains(model.screws, q, groups)
     p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
-    J = space_jacobian(model.screws, chain)
-    return p, (np.cross(J[:, :3], p[:, :, None], axis=1) + J[:, 3:]) * mask[:, None, :]
+    return p, twist_point_rates(before, p, model.screws[:, :, None])[..., 0]
 
 
 # ----------------------------------------------------------------------------- closed-form start
@@ -202,10 +257,16 @@ class PositionParams:
         self.frames = [link_frame(S) for S in model.screws]
         self.sizes = eta_sizes(model)
         self.start = np.r_[0, np.cumsum(self.sizes)]
+        self.eta_joints = np.flatnonzero(self.sizes)
+        # each free parameter's column among the rates of :meth:`jacobian` (4 per joint with parameters)
+        eta_cols = np.array(
+            [4 * k + c for k, i in enumerate(self.eta_joints) for c in range(self.sizes[i])], int
+        )
         labels = {4: ("wx", "wy", "qx", "qy"), 2: ("vx", "vy"), 0: ()}
         all_names = [f"{jn}.{p}" for jn, k in zip(model.joint_names, self.sizes) for p in labels[k]]
         self.held = gauge_holds(model) if joints else list(range(len(all_names)))
         self.free = [i for i in range(len(all_names)) if i not in self.held]
+        self.free_cols = eta_cols[self.free]
         self.held_names = [all_names[i] for i in self.held]
         self.targets = list(names)
         self.n_free = len(self.free)
@@ -246,38 +307,57 @@ class PositionParams:
         screws, _, X, tg = self.geometry(x, X0)
         return self.model.replace(screws=screws, sensor_pose=X, targets=tg, **changes)
 
-    def jacobian(self, x: np.ndarray, X0: np.ndarray, q: np.ndarray, names: np.ndarray):
-        """Predicted y (m, 3) and d(y)/dx (m, 3, size) (module docstring)."""
+    def jacobian(
+        self, x: np.ndarray, X0: np.ndarray, q: np.ndarray, names: np.ndarray, groups=None, joints=()
+    ):
+        """Predicted y (m, 3), d(y)/dx (m, 3, size) (module docstring) and d(y)/dq (m, 3, len(joints)) of the
+        given 0-based joints; ``groups`` the rows' branches (default: from ``names``)."""
         screws, dS, X, tg = self.geometry(x, X0)
-        if self.model.parents:  # a tree: each row's branch (eq. T1), the other joints at 0
-            q = q * branch_mask(self.model, names)
-        chain = poe_chain(screws, q)
-        E = chain[:, -1]
+        groups = branch_groups(self.model, names) if groups is None else groups
+        before, E = branch_chains(screws, q, groups)
         P = np.array([tg[nm] for nm in names]).reshape(-1, 3)
         p = np.einsum("mij,mj->mi", E[:, :3, :3], P) + E[:, :3, 3]
-        tw = np.concatenate(  # joints without parameters (lateral axes) add no columns: skipped
-            [
-                adjoint(chain[:, i]) @ (dexp_A(screws[i], q[:, i]) @ dS[i])
-                for i in range(len(screws))
-                if dS[i].shape[1]
-            ],
-            axis=2,
-        )
+        has = self.eta_joints  # joints without parameters (lateral axes) add no columns: skipped
+        dSp = np.zeros((len(has), 6, 4))
+        for k, i in enumerate(has):
+            dSp[k, :, : dS[i].shape[1]] = dS[i]
+        rates = twist_point_rates(before[:, has], p, dexp_apply(screws[has], q[:, has], dSp))
         R = X[:3, :3]
         y = p @ R.T + X[:3, 3]
         J = np.zeros((len(q), 3, self.size))
-        J[:, :, : self.n_free] = R @ (np.cross(tw[:, :3], p[:, :, None], axis=1) + tw[:, 3:])[:, :, self.free]
-        J[:, :, self.slice_xi] = np.concatenate(
-            [-skew(y), np.broadcast_to(np.eye(3), (len(q), 3, 3))], axis=2
+        J[:, :, : self.n_free] = R @ rates.reshape(len(q), 3, -1)[:, :, self.free_cols]
+        # y = e^[xi] X0 p: d(y) = [A(xi) d(xi)] y, A the exponential's differential (eq. 2.3.26 at theta = 1),
+        # exact away from xi = 0 too
+        A = dexp_A(x[self.slice_xi], np.ones(1))[0]
+        J[:, :, self.slice_xi] = (
+            np.concatenate([-skew(y), np.broadcast_to(np.eye(3), (len(q), 3, 3))], axis=2) @ A
         )
         RE = R @ E[:, :3, :3]
         for nm, c in self.col.items():
             sel = names == nm
             J[sel, :, c : c + 3] = RE[sel]
-        return y, J
+        joints = np.asarray(joints, dtype=int)
+        Jq = R @ twist_point_rates(before[:, joints], p, screws[joints, :, None])[..., 0]
+        return y, J, Jq
 
 
 # ----------------------------------------------------------------------------- identification
+def target_anchor_heights(model: RobotModel, targets: dict) -> np.ndarray:
+    """The joints' anchor heights (mm, :func:`~lasercal.solver.kinematics.minimal.anchor_heights`) of the
+    prior: a serial arm's next to its target start; a tree's along each branch, a branch's last joint
+    next to the targets on it (``targets``: name -> (3,) mm at q = 0, base frame)."""
+    if not model.parents:
+        return anchor_heights(model.screws, target_start(model))
+    par, real = parents_of(model), model.real
+    ends: dict = {}
+    for nm, p in targets.items():
+        j = target_joint(model, nm)
+        while j >= 0 and not real[j]:  # a target on a bent link: the joint that turns before the bend
+            j = par[j]
+        ends.setdefault(j, []).append(np.asarray(p, float))
+    return anchor_heights(model.screws, target_start(model), par, real, ends)
+
+
 def row_weights(session: Session) -> np.ndarray:
     """(m,) weights sigma_ref / sigma_i of the rows (1 without a sigma column)."""
     if session.sigma is None:
@@ -333,25 +413,25 @@ def identify_position(
     def true_q(v):
         return extension.with_params(v[p:]).true_q(q, t, tau) if extension else q
 
+    groups = branch_groups(nominal, session.point)  # the rows' branches, fixed through the fit
+
     def residual(v):
         screws, _, X, tg = P.geometry(v[:p], X0)
-        return w * (sensor_points(nominal.replace(screws=screws), true_q(v), session.point, tg, X) - y)
+        return w * (
+            sensor_points(nominal.replace(screws=screws), true_q(v), session.point, tg, X, groups) - y
+        )
 
     def jacobian(v):
-        qt = true_q(v)
-        _, J = P.jacobian(v[:p], X0, qt, session.point)
+        _, J, Jq = P.jacobian(v[:p], X0, true_q(v), session.point, groups, idx if extension else ())
         if extension:
-            screws, _, X, tg = P.geometry(v[:p], X0)
-            Pt = np.array([tg[nm] for nm in session.point])
-            _, Jq = point_joint_jacobian(nominal.replace(screws=screws), qt, Pt, session.point)
-            J = np.concatenate([J, (X[:3, :3] @ Jq[:, :, idx]) * G[:, None, :]], axis=2)
+            J = np.concatenate([J, Jq * G[:, None, :]], axis=2)
         return w[:, :, None] * J
 
     x0 = np.zeros(p + k)
     for nm, c in P.col.items():
         x0[c : c + 3] = tg0[nm]
     kinds = P.kinds + (extension.kinds if extension else [])
-    heights = anchor_heights(nominal.screws, target_start(nominal))
+    heights = target_anchor_heights(nominal, tg0)
     prior = make_prior(session.tolerances, kinds, x0, "position", names_all, nominal.joint_names, heights)
     fit = fit_subspace(residual, jacobian, x0, names_all, robust, suspects=suspects, prior=prior)
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))

@@ -139,7 +139,9 @@ def _nearest_on_axis(p: np.ndarray, w: np.ndarray, a: np.ndarray, u: np.ndarray)
     return float((a - p) @ (w - c * u) / (1 - c * c))
 
 
-def anchor_heights(screws: np.ndarray, tip: np.ndarray) -> np.ndarray:
+def anchor_heights(
+    screws: np.ndarray, tip: np.ndarray, parents=None, real=None, tips: dict | None = None
+) -> np.ndarray:
     """Where each revolute joint physically sits along its axis, as a height h in its link frame (mm).
 
     A joint's axis is tilted, by manufacture, about the joint itself -- its bearings -- not about its
@@ -150,34 +152,52 @@ def anchor_heights(screws: np.ndarray, tip: np.ndarray) -> np.ndarray:
     axis direction by (wx, wy) moves the axis at height h by h (wx, wy): the offset at the joint is
     (qx + h wx, qy + h wy), to first order (:func:`screw_from_eta`).
 
+    On a tree (:mod:`solver.kinematics.tree`) the neighbours are those along the branches: the previous
+    one is the nearest joint that turns on the path to the base (lateral axes skipped), the next ones are
+    the joints that turn whose previous one this is (a torso's last joint has one per arm), and a joint
+    with none is a branch's end: its targets (``tips``) stand in.
+
     Parameters
     ----------
     screws : (n, 6) array, the reference model's joint screws (mm)
     tip : (3,) array, the tool point or laser aperture at q = 0, mm
+    parents : (n,) int array, each joint's parent (-1: the base); default a serial chain, j - 1
+    real : (n,) bool array, joints that turn or slide (False: a lateral axis, no anchor and no neighbour)
+    tips : dict joint -> list of (3,) arrays, the targets at q = 0 (mm) carried by a branch's last joint
+        (default: ``tip`` for every last joint)
 
     Returns
     -------
-    (n,) array, mm (0 for prismatic joints and joints with no anchor)
+    (n,) array, mm (0 for prismatic joints, lateral axes and joints with no anchor)
     """
     n = len(screws)
+    par = np.arange(n) - 1 if parents is None else np.asarray(parents, dtype=int)
+    real = np.ones(n, bool) if real is None else np.asarray(real, bool)
+    prev = np.empty(n, dtype=int)
+    for k in range(n):  # the nearest turning ancestor (parents precede children)
+        a = par[k]
+        prev[k] = a if a < 0 or real[a] else prev[a]
+    tips = tips or {}
     h = np.zeros(n)
     for j, S in enumerate(screws):
         w = S[:3]
-        if np.linalg.norm(w) < 0.5:
+        if not real[j] or np.linalg.norm(w) < 0.5:
             continue
         T = link_frame(S)
         o = T[:3, 3]
+        nxt = [k for k in range(n) if real[k] and prev[k] == j]
+        ends = [np.asarray(t, dtype=float) for t in tips.get(j, [tip])] if not nxt else []
         feet = []
-        for k in (j - 1, j + 1):
+        for k in [prev[j]] + nxt:
             if k < 0:
                 feet.append(float(w @ (np.zeros(3) - o)))  # the base origin, projected on the axis
-            elif k >= n or np.linalg.norm(screws[k, :3]) < 0.5:
+            elif np.linalg.norm(screws[k, :3]) < 0.5:
                 feet.append(float(w @ (np.asarray(tip, dtype=float) - o)))  # the tool, projected
             else:
                 wk = screws[k, :3]
                 t = _nearest_on_axis(o, w, np.cross(wk, screws[k, 3:]), wk)
                 if t is not None:
                     feet.append(t)
+        feet += [float(w @ (e - o)) for e in ends]  # a branch's end: its targets, projected
         h[j] = np.mean(feet) if feet else 0.0
     return h
-

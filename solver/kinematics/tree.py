@@ -71,6 +71,31 @@ def branch_mask(model: RobotModel, names) -> np.ndarray:
     return A[[rows[nm] for nm in names]].astype(float)
 
 
+def branch_groups(model: RobotModel, names) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The rows grouped by their target's path, each group a serial chain (eq. T1).
+
+    A tree's rows are evaluated branch by branch on the joints of their path only (a hand's rows on the
+    torso and that arm, not on the other arm's joints at 0); a serial arm is one group: every row, every
+    joint.
+
+    Parameters
+    ----------
+    model : RobotModel
+    names : (m,) array of str, the target of each row
+
+    Returns
+    -------
+    list of (rows (k,) int, path (l,) int): row indices and the joints on their path, base to tip
+    """
+    names = np.asarray(names, dtype=object)
+    if not model.parents:
+        return [(np.arange(len(names)), np.arange(model.n))]
+    A = np.vstack([ancestors(model), np.zeros((1, model.n), bool)])  # row -1: the base, moved by nothing
+    joint = {nm: target_joint(model, nm) for nm in dict.fromkeys(names)}
+    last = np.array([joint[nm] for nm in names], dtype=int)
+    return [(np.flatnonzero(last == j), np.flatnonzero(A[j])) for j in dict.fromkeys(last.tolist())]
+
+
 def tree_frames(model: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's link frame T_j(q) and the joints' space twists (eq. T1).
 
