@@ -28,28 +28,26 @@ FRANKA_DH = (
 FRANKA_FLANGE_MM = 107.0
 
 
+def craig_row(alpha: float, a: float, theta: float, d: float) -> np.ndarray:
+    """One Craig (modified DH) row (4, 4): Rx(alpha) Tx(a) Rz(theta) Tz(d), from elementary transforms (mm,
+    rad), an evaluation independent of lasercal's."""
+    ca, sa, ct, st = np.cos(alpha), np.sin(alpha), np.cos(theta), np.sin(theta)
+    Rx = np.array([[1, 0, 0, 0], [0, ca, -sa, 0], [0, sa, ca, 0], [0, 0, 0, 1.0]])
+    Rz = np.array([[ct, -st, 0, 0], [st, ct, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    Tx, Tz = np.eye(4), np.eye(4)
+    Tx[0, 3], Tz[2, 3] = a, d
+    return Rx @ Tx @ Rz @ Tz
+
+
 def franka_flange(q: np.ndarray) -> np.ndarray:
     """Franka's flange (m, 4, 4) mm at q (m, 7) rad: prod Rx(alpha) Tx(a) Rz(q) Tz(d) of the rows, Tz(107)."""
-
-    def rx(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
-
-    def rz(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-    def tr(x, z):
-        T = np.eye(4)
-        T[0, 3], T[2, 3] = x, z
-        return T
-
+    flange = craig_row(0.0, 0.0, 0.0, FRANKA_FLANGE_MM)
     out = []
     for qi in np.atleast_2d(q):
         T = np.eye(4)
         for (a, d, alpha), qj in zip(FRANKA_DH, qi):
-            T = T @ rx(alpha) @ tr(a, 0) @ rz(qj) @ tr(0, d)
-        out.append(T @ tr(0, FRANKA_FLANGE_MM))
+            T = T @ craig_row(alpha, a, qj, d)
+        out.append(T @ flange)
     return np.array(out)
 
 

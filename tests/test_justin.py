@@ -17,6 +17,7 @@ from lasercal.solver.identify.position import target_anchor_heights, target_fram
 from lasercal.solver.kinematics.gravity import gravity_torques
 from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.tree import branch_groups, tree_frames
+from tests.conftest import craig_row
 
 JUSTIN = Path(__file__).resolve().parents[2] / "shared" / "data" / "justin"
 needs_data = pytest.mark.skipif(
@@ -26,27 +27,8 @@ needs_data = pytest.mark.skipif(
 
 
 def _craig(d, theta_deg, r, alpha_deg, q):
-    """Rx(alpha) Tx(r) Rz(theta + q) Tz(d), composed from elementary transforms (metres -> mm)."""
-
-    def rx(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
-
-    def rz(a):
-        c, s = np.cos(a), np.sin(a)
-        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-    def tx(x):
-        T = np.eye(4)
-        T[0, 3] = x
-        return T
-
-    def tz(z):
-        T = np.eye(4)
-        T[2, 3] = z
-        return T
-
-    return rx(np.radians(alpha_deg)) @ tx(1000 * r) @ rz(np.radians(theta_deg) + q) @ tz(1000 * d)
+    """A facts file's DH row (metres, degrees) at q (rad): Rx(alpha) Tx(r) Rz(theta + q) Tz(d) in mm."""
+    return craig_row(np.radians(alpha_deg), 1000 * r, np.radians(theta_deg) + q, 1000 * d)
 
 
 def _static(a):

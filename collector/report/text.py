@@ -90,8 +90,9 @@ def format_solve(rep: dict) -> str:
         f"method {rep['method']}: {'converged' if rep['converged'] else 'NOT converged'} after "
         f"{rep['iterations']} iterations, {rep['seconds']:.3f} s\n"
     )
+    noise = "measurement" if rep.get("measurement") == "position" else "aiming"  # a tracker aims nothing
     w(
-        f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, aiming noise estimate "
+        f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, {noise} noise estimate "
         f"{rep['sigma_mm']:.3f} mm per axis\n"
     )
     w(

@@ -202,7 +202,8 @@ def read_dlr_measurements(path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
                 path, f"row index {rec[0]!r} is not a whole number", line=start, field="index"
             ) from None
         q.append(_array(rec[1], N_COMMANDED, path, start, "joints"))
-        mk.append(_array(rec[2], 6, path, start, "markers").reshape(2, 3) * M_TO_MM)
+        # to the nanometre: the file's metres carry 9 digits, the product's last bits none
+        mk.append(np.round(_array(rec[2], 6, path, start, "markers").reshape(2, 3) * M_TO_MM, 6))
         lines.append(start)
         start = reader.line_num + 1
     if not q:
