@@ -129,3 +129,12 @@ def test_captures_at_one_point_warn_and_name_what_the_prior_holds(session_dir, t
     # and a session at three points has no such warning
     assert main(["solve", str(session_dir), "-o", str(tmp_path / "m3.yaml"), "--folds", "0"]) == 0
     assert "one point" not in capsys.readouterr().out
+
+
+def test_joints_are_named_by_number_or_by_name_on_trees():
+    """A chain's joints by their number; a tree's (lateral axes among its joints) by their names."""
+    from lasercal.solver.identify.degenerate import joint_label
+
+    assert [joint_label(j, f"panda_joint{j + 1}") for j in (0, 6)] == ["joint 1", "joint 7"]
+    assert joint_label(3, "joint4") == "joint 4"
+    assert joint_label(51, "left_7") == "joint left_7" and joint_label(1, "torso_1.x") == "joint torso_1.x"

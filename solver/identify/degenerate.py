@@ -60,6 +60,13 @@ class Deficiency:
         return f"{self.combination} ({self.fix})"
 
 
+def joint_label(j: int, name: str) -> str:
+    """'joint 4' for the 0-based index j, or 'joint left_7' by its name when the name is not its number (a
+    tree, whose lateral axes count among the joints: left_7 is its joint 52)."""
+    digits = "".join(ch for ch in name if ch.isdigit())
+    return f"joint {j + 1}" if digits == str(j + 1) else f"joint {name}"
+
+
 def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, str, list[int], bool, str]]:
     """Physical parameter groups: (combination, fix, parameter indices, joint never moves, what it affects),
     in chain order."""
@@ -75,18 +82,19 @@ def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, s
     for (head, kind), idx in out.items():
         if head in joint_names:
             j = joint_names.index(head)
+            jn = joint_label(j, head)
             still = bool(ranges[j] < STILL_RAD)
-            what = f"joint {j + 1}'s axis {kind}" if kind else f"joint {j + 1}'s {head}"
+            what = f"{jn}'s axis {kind}" if kind else f"{jn}'s {head}"
             fix = (
-                f"vary joint {j + 1}: it never moves in this session"
+                f"vary {jn}: it never moves in this session"
                 if still
-                else f"vary joint {j + 1} in more combinations with the other joints "
+                else f"vary {jn} in more combinations with the other joints "
                 f"(it moves {np.degrees(ranges[j]):.3g} deg here)"
             )
             affects = (
-                f"tool orientation about axes across joint {j + 1}'s"
+                f"tool orientation about axes across {jn}'s"
                 if kind == "direction"
-                else f"positions swept by joint {j + 1} (its axis's offset)"
+                else f"positions swept by {jn} (its axis's offset)"
             )
             groups.append((what, fix, idx, still, affects + " uncalibrated"))
         elif head == "laser":
