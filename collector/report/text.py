@@ -23,7 +23,8 @@ def format_diagnosis(d) -> str:
             lines.append(
                 "  (explains the data almost as well: "
                 + ", ".join(d.ambiguous_with)
-                + " -- more reference points would tell them apart)"
+                + " -- only data that move them differently tell them apart: more varied configurations, "
+                "more reference points; none, when they share their axis and load)"
             )
     b = d.bootstrap
     if b:
