@@ -190,7 +190,7 @@ def frame_crb(truth: RobotModel, q: np.ndarray, sigma_mm: float, q_eval: np.ndar
     X0 = np.asarray(truth.sensor_pose)
     x0 = np.zeros(P.size)
     x0[P.col[TARGET] : P.col[TARGET] + 3] = truth.targets[TARGET]
-    _, J = P.jacobian(x0, X0, q, np.full(len(q), TARGET, dtype=object))
+    _, J, _ = P.jacobian(x0, X0, q, np.full(len(q), TARGET, dtype=object))
     _, s, Vt = np.linalg.svd(J.reshape(-1, P.size), full_matrices=False)
     keep = s > s[0] * 1e-10  # the identifiable subspace: never invert a rank-deficient normal matrix
     C = sigma_mm**2 * (Vt[keep].T / s[keep] ** 2) @ Vt[keep]
