@@ -220,7 +220,7 @@ def simulate(
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.data import truth_references
-    from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
+    from lasercal.solver.formats.robots import load_model, resolve_robot_path
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
     path = Path(truth) if str(truth).lower().endswith(".urdf") else resolve_robot_path(truth)
@@ -234,8 +234,6 @@ def simulate(
     if layout is None:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
     model = load_model(path, base_link=base_link, tip_link=tip_link)
-    raw = load_yaml(path)
-    nominal = robot or raw.get("nominal") or str(path.resolve())
     # the session names its truth and nominal relative to itself (a temporary sibling resolves alike)
     truth_ref, nominal_ref = truth_references(path, folder, robot)
     name = layout.path if hasattr(layout, "points") else layout
@@ -244,9 +242,9 @@ def simulate(
     hidden = hidden_effect(effect, effect_size, effect_joints, effect_point, layout, model.n, rng, name)
     sim = {"truth": truth_ref, "aim_noise_mm": aim_noise, "seed": seed}
     aimed = layout
-    if sheet_pose is not None:
+    if sheet_pose is not None:  # the own frame of the nominal the session records
         model, layout, aimed, sim["sheet"] = sheet_world(
-            model, load_model(nominal, base=path.parent), layout, sheet_pose
+            model, load_model(nominal_ref, base=Path(folder)), layout, sheet_pose
         )
     elif layout.frame == "sheet":
         aimed = layout.in_base()  # the sheet lies where its placement says
