@@ -1,15 +1,17 @@
 """The house rules, read from the source: who may import whom, one command table, no stray packages.
 
-- ``lasercal.solver`` is the core: it imports neither ``vision`` nor ``collector``, and never prints.
+- ``lasercal.solver`` is the core: it imports neither ``vision`` nor ``collector`` (nor the front door),
+  and never prints.
 - ``lasercal.vision`` stands alone (no ``solver``, no ``collector``).
-- ``lasercal.collector`` is the application; argparse lives only in its ``cli`` package.
-- ``lasercal`` itself (the folder ``solver/api``) is the top floor, the workflow as Python: it may use
-  ``collector.report`` (the report, the printed summary) and ``vision`` (spots), only inside its functions
-  (``import lasercal`` loads nothing), and never ``collector.cli``; nothing in ``solver`` or ``vision``
-  imports it.
-- the solver's floors: ``kinematics`` < ``formats`` < ``identify``, ``control`` < ``analysis`` < the top
-  floor; a module imports its own floor and those below (``formats`` never takes a name from ``identify``:
-  the one exception is listed in :data:`UPWARD`).
+- ``lasercal.collector`` is the application, the only room that imports the others; argparse lives only
+  in its ``cli`` package.
+- ``lasercal`` itself (the folder ``collector/api``) is the application's front door, the workflow as
+  Python: it may use ``collector.report`` (the report, the printed summary) and ``vision`` (spots), only
+  inside its functions (``import lasercal`` loads nothing), and never ``collector.cli``; nothing in
+  ``solver`` or ``vision`` imports it. :func:`picture` draws which room imports which.
+- the solver's floors: ``kinematics`` < ``formats`` < ``identify``, ``control`` < ``analysis``; a module
+  imports its own floor and those below (``formats`` never takes a name from ``identify``: the one
+  exception is listed in :data:`UPWARD`).
 - no file-level import circles anywhere, lazy (function-level) and annotation-only imports included: two
   files that need each other share a name that belongs in a third, or in one of them.
 - every command in the table imports and declares its arguments and handler.
@@ -24,13 +26,20 @@ import sys
 import tomllib
 from pathlib import Path
 
-import pytest
-
 from lasercal.collector.cli.main import COMMANDS, build_parser, load
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"solver": ROOT / "solver", "vision": ROOT / "vision", "collector": ROOT / "collector"}
-API = ROOT / "solver" / "api"  # the package ``lasercal`` itself (pyproject's package-dir)
+API = ROOT / "collector" / "api"  # the package ``lasercal`` itself, the front door (pyproject's package-dir)
+# the rooms: the three packages and the front door ('api', the package ``lasercal`` itself)
+ROOMS = (*PACKAGES, "api")
+# who may import whom: only the application (with its front door) imports the other rooms
+MAY_IMPORT = {
+    "solver": set(),
+    "vision": set(),
+    "collector": {"solver", "vision", "api"},
+    "api": {"solver", "vision", "collector"},
+}
 # the solver's floors (lasercal.solver.<floor>); a module imports its own floor and the ones below
 FLOORS = {"errors": 0, "kinematics": 1, "formats": 2, "identify": 3, "control": 3, "analysis": 4}
 # the known upward import: a full-pose file's reader computes each pose from its circle points (Section 2.3)
@@ -40,7 +49,7 @@ API_REACHES = ("lasercal.collector.report", "lasercal.vision")
 
 
 def module_name(f: Path) -> str:
-    """The dotted name of a source file (``solver/api/x.py`` is ``lasercal.x``)."""
+    """The dotted name of a source file (``collector/api/x.py`` is ``lasercal.x``)."""
     if f.is_relative_to(API):
         parts = ("lasercal",) + f.relative_to(API).with_suffix("").parts
     else:
@@ -50,7 +59,7 @@ def module_name(f: Path) -> str:
 
 def modules(pkg: str) -> dict[str, Path]:
     """Dotted module name -> file, for every module of ``lasercal.<pkg>`` ('api': of ``lasercal`` itself;
-    'solver' leaves the api out)."""
+    'collector' leaves the api out)."""
     if pkg == "api":
         return {module_name(f): f for f in sorted(API.rglob("*.py"))}
     files = [f for f in sorted(PACKAGES[pkg].rglob("*.py")) if not f.is_relative_to(API)]
@@ -58,7 +67,39 @@ def modules(pkg: str) -> dict[str, Path]:
 
 
 def every_module() -> dict[str, Path]:
-    return {k: v for pkg in (*PACKAGES, "api") for k, v in modules(pkg).items()}
+    return {k: v for pkg in ROOMS for k, v in modules(pkg).items()}
+
+
+def room(module: str) -> str:
+    """The room of a dotted module name: 'solver', 'vision', 'collector' or 'api' (the front door)."""
+    part = module.split(".")[1] if "." in module else None
+    return part if part in PACKAGES else "api"
+
+
+def room_imports(files: dict[str, list[Path]] | None = None) -> dict[str, set[str]]:
+    """Room -> the other rooms its files import (lazy and annotation-only imports included); ``files``:
+    room -> its source files (default: the repository's)."""
+    files = files or {r: list(modules(r).values()) for r in ROOMS}
+    found = {r: set() for r in files}
+    for r, paths in files.items():
+        for f in paths:
+            found[r].update(room(m) for m in imports(f) if m != "lasercal" and room(m) != r)
+    return found
+
+
+def picture() -> str:
+    """Which room imports which, one line a room, drawn from the source."""
+    names = {
+        "api": "lasercal (collector/api, the front door)",
+        "collector": "lasercal.collector",
+        "solver": "lasercal.solver",
+        "vision": "lasercal.vision",
+    }
+    graph = room_imports()
+    return "\n".join(
+        f"{names[r]:41s} -> {', '.join(names[t].split(' ')[0] for t in sorted(graph[r])) or '(nothing)'}"
+        for r in ("api", "collector", "solver", "vision")
+    )
 
 
 def imports(path: Path, top_level_only: bool = False) -> set[str]:
@@ -116,16 +157,32 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
-@pytest.mark.parametrize(
-    "pkg, forbidden", [("solver", ("vision", "collector")), ("vision", ("solver", "collector"))]
-)
-def test_libraries_do_not_import_the_application(pkg, forbidden):
-    bad = {(name, m) for name, f in modules(pkg).items() for m in imports(f) if m.split(".")[1] in forbidden}
-    assert not bad
+def test_only_the_application_imports_the_other_rooms():
+    """solver and vision import no other room; the application and its front door import the rest. The
+    picture is asserted whole, so that a new arrow between rooms is a decision, not an accident."""
+    graph = room_imports()
+    assert all(graph[r] <= MAY_IMPORT[r] for r in ROOMS), graph
+    print(picture())
+    assert picture().splitlines() == [
+        "lasercal (collector/api, the front door)  -> lasercal.collector, lasercal.solver, lasercal.vision",
+        "lasercal.collector                        -> lasercal, lasercal.solver, lasercal.vision",
+        "lasercal.solver                           -> (nothing)",
+        "lasercal.vision                           -> (nothing)",
+    ]
+    assert picture() in (ROOT / "docs" / "api.md").read_text()  # the picture docs/api.md shows
+
+
+def test_an_arrow_from_the_bottom_floor_up_is_seen(tmp_path):
+    """A solver file importing the report (lazily) or the front door is an arrow the picture shows."""
+    up = tmp_path / "up.py"
+    up.write_text("def f():\n    from lasercal.collector.report.text import format_solve\n")
+    door = tmp_path / "door.py"
+    door.write_text("from lasercal.calibration import calibrate\n")
+    assert room_imports({"solver": [up, door]})["solver"] == {"collector", "api"}
 
 
 def test_only_the_command_line_imports_the_command_line():
-    for pkg in PACKAGES:
+    for pkg in ROOMS:
         for name, f in modules(pkg).items():
             if not name.startswith("lasercal.collector.cli"):
                 assert not [m for m in imports(f) if m.startswith("lasercal.collector.cli")], name
@@ -142,7 +199,7 @@ def test_solver_never_prints_nor_parses_arguments():
 
 
 def test_argparse_only_in_the_cli_package():
-    for pkg in PACKAGES:
+    for pkg in ROOMS:
         for name, f in modules(pkg).items():
             if not name.startswith("lasercal.collector.cli"):
                 assert "import argparse" not in f.read_text(), name
@@ -171,7 +228,7 @@ def test_the_solver_imports_no_floor_above_its_own():
 
 
 def test_the_top_floor_reaches_the_application_lazily():
-    """``lasercal`` (solver/api) takes collector.report and vision inside its functions only, never the
+    """``lasercal`` (collector/api) takes collector.report and vision inside its functions only, never the
     command line; neither solver nor vision imports it."""
     api = modules("api")
     for name, f in api.items():
@@ -207,7 +264,7 @@ def test_help_imports_no_command_module():
 
 def test_pyproject_lists_every_package_and_only_lasercal():
     """Every folder with an __init__.py is listed, named through the package-dir mappings (``lasercal``
-    itself is the folder solver/api: the repository keeps its top-level folders)."""
+    itself is the folder collector/api: the repository keeps its top-level folders)."""
     conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     listed = set(conf["packages"])
     folders = sorted(conf["package-dir"].items(), key=lambda kv: -len(kv[1]))  # the deepest mapping first
@@ -222,7 +279,7 @@ def test_pyproject_lists_every_package_and_only_lasercal():
     }
     assert listed == on_disk
     assert all(p.split(".")[0] == "lasercal" for p in listed)
-    assert conf["package-dir"]["lasercal"] == "solver/api"
+    assert conf["package-dir"]["lasercal"] == "collector/api"
 
 
 def test_import_lasercal_is_lazy():

@@ -16,9 +16,10 @@
     cmd = robot.correct(q=program)              # commands for a controller that keeps the nominal model
     found = lasercal.spots(["p1.jpg"], layout="sheet.yaml")  # = lasercal spots
 
-See docs/api.md and docs/use.md. This package is the folder ``solver/api`` (a setuptools package-dir
-mapping): the repository keeps its three folders. Its names load on first use, so that ``import
-lasercal`` (which ``lasercal --help`` does first) imports nothing else.
+See docs/api.md and docs/use.md. This package is the folder ``collector/api`` (a setuptools package-dir
+mapping): the front door belongs to the application, which alone may import solver, vision and the
+report; the repository keeps its three folders. Its names load on first use, so that ``import lasercal``
+(which ``lasercal --help`` does first) imports nothing else.
 """
 
 from __future__ import annotations
