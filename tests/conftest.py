@@ -1,7 +1,11 @@
-"""Shared fixtures: simulated sessions with known truth (fixed seeds)."""
+"""Shared fixtures: simulated sessions with known truth (fixed seeds), and what is made once per test run."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +15,39 @@ from lasercal.solver.analysis.simulate import simulate_captures
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
+from lasercal.solver.identify.spot import predict_spots
+from lasercal.solver.kinematics.aim import aim
 
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
+
+# The files that take longest, longest first (``--durations`` with two workers), run before the rest: with
+# whole files handed to idle workers (``-n auto --dist loadfile``, the README's command), a long file
+# started last would leave the other worker idle until it ends.
+RUN_FIRST = (
+    "test_study_mukca.py",
+    "test_vision_real.py",
+    "test_identify.py",
+    "test_readme.py",
+    "test_collector_cli.py",
+    "test_prior.py",
+    "test_diagnose.py",
+    "test_extend.py",
+    "test_demo.py",
+    "test_bad_inputs.py",
+    "test_sheet_validate.py",
+    "test_sheet.py",
+    "test_collector_franky_sim.py",
+    "test_report.py",
+    "test_sheet_pose.py",
+    "test_capture_coach.py",
+    "test_docs_api.py",
+)
+
+
+def pytest_collection_modifyitems(items):
+    """The long files first (:data:`RUN_FIRST`), the others after them in their own order."""
+    rank = {name: i for i, name in enumerate(RUN_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(RUN_FIRST)))
 
 
 # Franka's DH table (Craig): rows (a_{i-1}, d_i, alpha_{i-1}) in mm; the flange 107 mm along z7 (field notes)
@@ -77,12 +112,68 @@ def make_session(
     return load_session(tmp), truth, layout
 
 
+def heldout_configs(truth, layout, n, seed):
+    """n configurations of the true robot aimed exactly at the layout's points (not in the fit)."""
+    rng = np.random.default_rng(seed)
+    names = list(layout.points)
+    qs = [aim(truth, layout.points[nm], -(-n // len(names)), rng, **layout.aim_kwargs()) for nm in names]
+    targets = np.concatenate([np.repeat(layout.points[nm][None], len(q), 0) for nm, q in zip(names, qs)])
+    return np.concatenate(qs)[:n], targets[:n]
+
+
+def heldout_error(model, q, targets):
+    spots, _ = predict_spots(model, q, targets[:, 2])
+    return np.linalg.norm(spots[:, :2] - targets[:, :2], axis=1)
+
+
+def made_once(tmp_path_factory, name: str, make) -> Path:
+    """The folder ``name`` that ``make(folder)`` fills, made once per test run however many pytest-xdist
+    workers ask for it: the workers share the parent of their own temporary folders, and a lock makes
+    the others wait for the first. A failed ``make`` leaves no mark, and the next one tries again."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    root = tmp_path_factory.getbasetemp()
+    root = root.parent if worker else root  # the parent of a plain run's folder is shared by every run
+    folder, done = root / name, root / f"{name}.done"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.is_file():
+            folder.mkdir(exist_ok=True)
+            make(folder)
+            done.touch()
+    return folder
+
+
+@pytest.fixture(scope="session")
+def full_demo(tmp_path_factory):
+    """``lasercal demo -o DIR`` as a user runs it (seed 0, the full demo, about a minute), once per test
+    run: its exit code, what it printed and its folder."""
+    from lasercal.collector.cli.main import main
+
+    def make(folder: Path) -> None:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = main(["demo", "-o", str(folder / "demo")])
+        (folder / "stdout.txt").write_text(out.getvalue())
+        (folder / "code.txt").write_text(str(code))
+
+    folder = made_once(tmp_path_factory, "full_demo", make)
+    return int((folder / "code.txt").read_text()), (folder / "stdout.txt").read_text(), folder / "demo"
+
+
 @pytest.fixture(scope="session")
 def puma_exact(tmp_path_factory):
     """Thesis Simulation 1: Puma 560, Table 4.1 actual values, 30 configurations per point, no noise."""
     return make_session(
         tmp_path_factory.mktemp("puma"), "puma560_thesis_actual", "puma", 30, 0.0, 1, "puma560"
     )
+
+
+@pytest.fixture(scope="session")
+def puma_heldout(puma_exact):
+    """100 configurations of Simulation 1's true Puma aimed at its points, none in the fit (seed 11), made
+    once for every test that scores a fit on them (aiming them costs as much as the fit's session)."""
+    _, truth, layout = puma_exact
+    return heldout_configs(truth, layout, 100, 11)
 
 
 @pytest.fixture(scope="session")

@@ -291,3 +291,13 @@ def test_import_lasercal_is_lazy():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.splitlines() == ["['lasercal'] False", "lasercal.solver.control.robot True"]
+
+
+def test_ci_runs_the_readme_test_command():
+    """.ci/run ends with the README's test command, word for word (the README says it is what CI runs)."""
+    line = next(
+        ln for ln in (ROOT / "README.md").read_text().splitlines() if "exactly what .ci/run runs" in ln
+    )
+    command = line.split("#")[0].strip()
+    assert command.startswith("pip install") and " -n auto" in command  # the tests on every core
+    assert (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1] == command

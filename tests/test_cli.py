@@ -162,9 +162,9 @@ def test_unparseable_yaml_and_missing_folder(tmp_path, capsys, session_dir):
     assert "nope: no such folder" in capsys.readouterr().err
 
 
-def test_demo_prints_p4_beside_the_thesis(tmp_path, capsys):
-    assert main(["demo", "-o", str(tmp_path / "demo")]) == 0
-    out = capsys.readouterr().out
+def test_demo_prints_p4_beside_the_thesis(full_demo):
+    code, out, folder = full_demo  # the README's demo (tests/test_readme.py), run once
+    assert code == 0
     assert "thesis paper, after" in out and "lm (ours)" in out
-    s = json.loads((tmp_path / "demo" / "summary.json").read_text())
+    s = json.loads((folder / "summary.json").read_text())
     assert s["p4"]["nominal"]["error_mean"] > 5 and s["p4"]["lm"]["error_mean"] < 1.5

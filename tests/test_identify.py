@@ -8,31 +8,16 @@ import pytest
 from lasercal.solver.analysis.simulate import validation_spots
 from lasercal.solver.analysis.stats import cross_validate, spot_stats
 from lasercal.solver.formats.robots import load_model
-from lasercal.solver.identify.spot import identify, predict_spots
-from lasercal.solver.kinematics.aim import aim
+from lasercal.solver.identify.spot import identify
 from lasercal.solver.kinematics.laser import LaserParams
-from tests.conftest import make_session
+from tests.conftest import heldout_configs, heldout_error, make_session
 
 
-def heldout_configs(truth, layout, n, seed):
-    """n configurations of the true robot aimed exactly at the layout's points (not in the fit)."""
-    rng = np.random.default_rng(seed)
-    names = list(layout.points)
-    qs = [aim(truth, layout.points[nm], -(-n // len(names)), rng, **layout.aim_kwargs()) for nm in names]
-    targets = np.concatenate([np.repeat(layout.points[nm][None], len(q), 0) for nm, q in zip(names, qs)])
-    return np.concatenate(qs)[:n], targets[:n]
-
-
-def heldout_error(model, q, targets):
-    spots, _ = predict_spots(model, q, targets[:, 2])
-    return np.linalg.norm(spots[:, :2] - targets[:, :2], axis=1)
-
-
-def test_simulation1_lm_recovers_the_puma_exactly(puma_exact):
+def test_simulation1_lm_recovers_the_puma_exactly(puma_exact, puma_heldout):
     session, truth, layout = puma_exact
     res = identify(dataclasses.replace(session, tolerances=None), "lm")  # the thesis's comparison: no prior
     assert res.converged and res.iterations < 60
-    q, tgt = heldout_configs(truth, layout, 100, 11)
+    q, tgt = puma_heldout
     assert heldout_error(session.robot, q, tgt).mean() > 10  # the nominal model is far off
     assert heldout_error(res.model, q, tgt).max() < 1e-6
     # every identifiable parameter is the truth: screws and laser exactly; the aperture along the beam is the
@@ -45,10 +30,10 @@ def test_simulation1_lm_recovers_the_puma_exactly(puma_exact):
     )
 
 
-def test_simulation1_thesis_method_converges_toward_the_truth(puma_exact):
+def test_simulation1_thesis_method_converges_toward_the_truth(puma_exact, puma_heldout):
     session, truth, layout = puma_exact
     res = identify(session, "thesis")
-    q, tgt = heldout_configs(truth, layout, 100, 11)
+    q, tgt = puma_heldout
     err = heldout_error(res.model, q, tgt)
     # after the thesis's 500 iterations the laser-length fixed point is within 1e-4 mm (Figure 4.1: "small
     # differences")
@@ -60,17 +45,27 @@ def test_simulation1_thesis_method_converges_toward_the_truth(puma_exact):
     assert 0.05 < t42.mean() < 1.0 and err.max() < t42.mean() / 100
 
 
-@pytest.mark.parametrize("method", ["lm", "thesis"])
-def test_simulation2_error_grows_with_noise(tmp_path, method):
-    truth = load_model("puma560_thesis_actual")
-    errs = []
-    for k, noise in enumerate([0.1, 1.0, 2.0, 3.0]):
-        session, truth, layout = make_session(
-            tmp_path / f"n{k}", "puma560_thesis_actual", "puma", 30, noise, 20 + k, "puma560"
+@pytest.fixture(scope="module")
+def noisy_pumas(tmp_path_factory):
+    """Thesis Simulation 2's data, made once for both methods: Puma sessions (30 per point) with aiming
+    noise 0.1, 1, 2 and 3 mm, and 100 held-out configurations of the true robot (seed 12)."""
+    made = [
+        make_session(
+            tmp_path_factory.mktemp(f"n{k}"), "puma560_thesis_actual", "puma", 30, noise, 20 + k, "puma560"
         )
+        for k, noise in enumerate([0.1, 1.0, 2.0, 3.0])
+    ]
+    _, truth, layout = made[0]
+    return [session for session, _, _ in made], heldout_configs(truth, layout, 100, 12)
+
+
+@pytest.mark.parametrize("method", ["lm", "thesis"])
+def test_simulation2_error_grows_with_noise(noisy_pumas, method):
+    sessions, (q, tgt) = noisy_pumas
+    errs = []
+    for session in sessions:
         res = identify(session, method, **({"max_iter": 150} if method == "thesis" else {}))
         assert method == "thesis" or res.converged
-        q, tgt = heldout_configs(truth, layout, 100, 12)
         errs.append(heldout_error(res.model, q, tgt).mean())
     assert np.all(np.diff(errs) > 0), errs
     assert errs[0] < 0.3 and errs[-1] < 6.0

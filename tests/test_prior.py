@@ -25,7 +25,7 @@ from lasercal.solver.formats.tolerances import DEFAULTS, load_tolerances, robot_
 from lasercal.solver.identify.measurement import determined_by, fit, unidentifiable
 from lasercal.solver.identify.spot import identify, laser_prior
 from lasercal.solver.kinematics.laser import LaserParams
-from tests.test_identify import heldout_configs, heldout_error
+from tests.conftest import heldout_error
 
 NOMINAL = load_model("panda")
 LAYOUT = load_layout("thesis")
@@ -41,13 +41,13 @@ def _session(truth, per_point: int, noise: float, seed: int, tolerances="robot")
     )  # fmt: skip
 
 
-def test_map_recovers_exact_data_as_the_noise_prior_vanishes(puma_exact):
+def test_map_recovers_exact_data_as_the_noise_prior_vanishes(puma_exact, puma_heldout):
     """Thesis Simulation 1 (exact Puma data): with sigma_0 -> 0 the prior's weight sigma^2 / s^2 vanishes
     (eq. P2-P3) and the MAP fit is the exact least-squares one."""
     session, truth, layout = puma_exact
     tol = robot_tolerances(session.robot).with_noise("laser", 1e-9)
     res = identify(dataclasses.replace(session, tolerances=tol), "lm")
-    q, tgt = heldout_configs(truth, layout, 100, 11)
+    q, tgt = puma_heldout
     assert heldout_error(res.model, q, tgt).max() < 1e-6
     assert res.sigma_mm < 1e-7
 
