@@ -32,7 +32,6 @@ RUN_FIRST = (
     "test_prior.py",
     "test_diagnose.py",
     "test_extend.py",
-    "test_demo.py",
     "test_bad_inputs.py",
     "test_sheet_validate.py",
     "test_sheet.py",
@@ -143,42 +142,67 @@ def made_once(tmp_path_factory, name: str, make) -> Path:
     return folder
 
 
+class Terminal(io.StringIO):
+    """A captured stream that says it is a terminal (where the progress bar shows)."""
+
+    def isatty(self) -> bool:
+        return True
+
+
 @pytest.fixture(scope="session")
 def full_demo(tmp_path_factory):
     """``lasercal demo -o DIR`` as a user runs it (seed 0, the full demo, about a minute), once per test
-    run: its exit code, what it printed and its folder."""
+    run: its exit code, what it printed on stdout and on stderr (a terminal), and its folder."""
     from lasercal.collector.cli.main import main
 
     def make(folder: Path) -> None:
-        out = io.StringIO()
-        with contextlib.redirect_stdout(out):
+        out, err = io.StringIO(), Terminal()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             code = main(["demo", "-o", str(folder / "demo")])
         (folder / "stdout.txt").write_text(out.getvalue())
+        (folder / "stderr.txt").write_text(err.getvalue())
         (folder / "code.txt").write_text(str(code))
 
     folder = made_once(tmp_path_factory, "full_demo", make)
-    return int((folder / "code.txt").read_text()), (folder / "stdout.txt").read_text(), folder / "demo"
+    read = [(folder / f"{name}.txt").read_text() for name in ("code", "stdout", "stderr")]
+    return int(read[0]), read[1], read[2], folder / "demo"
+
+
+def made_session(tmp_path_factory, name: str, truth_name: str, layout_name: str, *args):
+    """:func:`make_session` (per_point, noise, seed, nominal) written once per test run (see
+    :func:`made_once`) and read back by every worker: the session, the truth and the layout."""
+    folder = made_once(tmp_path_factory, name, lambda d: make_session(d, truth_name, layout_name, *args))
+    return (
+        load_session(folder),
+        load_model(truth_name),
+        load_layout(builtin_dir("layouts") / f"{layout_name}.yaml"),
+    )
 
 
 @pytest.fixture(scope="session")
 def puma_exact(tmp_path_factory):
     """Thesis Simulation 1: Puma 560, Table 4.1 actual values, 30 configurations per point, no noise."""
-    return make_session(
-        tmp_path_factory.mktemp("puma"), "puma560_thesis_actual", "puma", 30, 0.0, 1, "puma560"
+    return made_session(
+        tmp_path_factory, "puma_exact", "puma560_thesis_actual", "puma", 30, 0.0, 1, "puma560"
     )
 
 
 @pytest.fixture(scope="session")
-def puma_heldout(puma_exact):
+def puma_heldout(tmp_path_factory, puma_exact):
     """100 configurations of Simulation 1's true Puma aimed at its points, none in the fit (seed 11), made
     once for every test that scores a fit on them (aiming them costs as much as the fit's session)."""
     _, truth, layout = puma_exact
-    return heldout_configs(truth, layout, 100, 11)
+
+    def make(folder: Path) -> None:
+        np.savez(folder / "heldout.npz", *heldout_configs(truth, layout, 100, 11))
+
+    with np.load(made_once(tmp_path_factory, "puma_heldout", make) / "heldout.npz") as f:
+        return f["arr_0"], f["arr_1"]
 
 
 @pytest.fixture(scope="session")
 def panda_noisy(tmp_path_factory):
     """The thesis's Panda experiment: Table 4.3 identified as truth, 15 per point, 1 mm aiming noise."""
-    return make_session(
-        tmp_path_factory.mktemp("panda"), "panda_thesis_identified", "thesis", 15, 1.0, 2, "panda"
+    return made_session(
+        tmp_path_factory, "panda_noisy", "panda_thesis_identified", "thesis", 15, 1.0, 2, "panda"
     )

@@ -163,7 +163,7 @@ def test_unparseable_yaml_and_missing_folder(tmp_path, capsys, session_dir):
 
 
 def test_demo_prints_p4_beside_the_thesis(full_demo):
-    code, out, folder = full_demo  # the README's demo (tests/test_readme.py), run once
+    code, out, _, folder = full_demo  # the README's demo (tests/test_readme.py), run once
     assert code == 0
     assert "thesis paper, after" in out and "lm (ours)" in out
     s = json.loads((folder / "summary.json").read_text())

@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 
 import numpy as np
 import pytest
 
-from lasercal.collector import demo as demo_module
 from lasercal.collector.cli.main import main
 from lasercal.collector.demo import (
     COMPLIANCE,
@@ -28,30 +25,12 @@ from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.gravity import gravity_torques
 
-# Fewer photos and bootstrap replicates than the real demo: the story is the same, the test is fast.
-LIGHT = {"n_validation": 12, "n_boot": 200, "n_refit": 2}
-
-
-class _Terminal(io.StringIO):
-    """A captured stream that says it is a terminal."""
-
-    def isatty(self) -> bool:
-        return True
-
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    """``lasercal demo -o DIR`` once, with light options; its stdout, stderr and folder."""
-    out = tmp_path_factory.mktemp("demo") / "demo"
-    stdout, stderr = io.StringIO(), _Terminal()  # the bar shows on a terminal only (tests/test_newcomer.py)
-    with (
-        pytest.MonkeyPatch.context() as mp,
-        contextlib.redirect_stdout(stdout),
-        contextlib.redirect_stderr(stderr),
-    ):
-        mp.setattr(demo_module, "DemoOptions", lambda seed: DemoOptions(seed=seed, **LIGHT))
-        code = main(["demo", "-o", str(out)])
-    return code, stdout.getvalue(), stderr.getvalue(), out
+def demo(full_demo):
+    """``lasercal demo -o DIR`` as the README runs it, once per test run (tests/conftest.py): its exit
+    code, stdout, stderr (a terminal) and folder."""
+    return full_demo
 
 
 def test_encoder_reading_inverts_each_joint_effect():
@@ -124,8 +103,8 @@ def test_demo_p4_statistics_are_the_photos(demo):
     for name in ("nominal", "lm", "thesis", "extended"):
         v = load_validation(out / "validation" / name)
         assert (
-            len(v.spots) == LIGHT["n_validation"]
-            and len(list((v.folder / "photos").glob("*.png"))) == LIGHT["n_validation"]
+            len(v.spots) == DemoOptions().n_validation
+            and len(list((v.folder / "photos").glob("*.png"))) == DemoOptions().n_validation
         )
         assert s["p4"][name] == spot_stats(v.spots, v.xyz).as_dict()
     for f in (

@@ -21,7 +21,7 @@ def numbers(line: str) -> tuple[str, list[float]]:
 
 
 def test_readme_shows_what_the_demo_prints(full_demo):
-    code, out, _ = full_demo
+    code, out, _, _ = full_demo
     assert code == 0
     printed = out.split("\n")
     block = readme_block()
