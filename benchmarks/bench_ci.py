@@ -21,7 +21,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-COMMAND = ["-n", "auto", "--dist", "loadfile"]  # the README's `python -m pytest -n auto --dist loadfile`
+COMMAND = ["-n", "auto"]  # the README's `python -m pytest -n auto` (pyproject adds --dist loadfile)
 
 
 def main(args: list[str]) -> None:

@@ -21,8 +21,9 @@ from lasercal.solver.kinematics.aim import aim
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 
 # The files that take longest, longest first (``--durations`` with two workers), run before the rest: with
-# whole files handed to idle workers (``-n auto --dist loadfile``, the README's command), a long file
-# started last would leave the other worker idle until it ends.
+# whole files handed to idle workers in this order (``pytest -n auto``, the README's command, with
+# pyproject's ``--dist loadfile --no-loadscope-reorder``), a long file started last would leave the other
+# worker idle until it ends.
 RUN_FIRST = (
     "test_study_mukca.py",
     "test_vision_real.py",
