@@ -985,6 +985,58 @@ case("demo -o an existing file named demo (the command's name is no input)", ["d
      _touch("demo"), "is a file", "output")  # fmt: skip
 
 
+# every command's every output on one of its inputs, with --force: the input itself, a symbolic link to it, a
+# file inside an input folder, a folder holding an input, a file written into a folder that is an input
+HOLE = "mukca/panda_1/front/hole_0.csv"
+IN_FOLDER = {"sess": "sess/captures.csv", "val": "val/validation.csv", "mukca": HOLE, "mukca/panda_1": HOLE}
+
+
+def _link(rel: str, to: str, hard: bool = False):
+    return lambda d: os.link(d / to, d / rel) if hard else (d / rel).symlink_to(d / to)
+
+
+def _overlay_inputs(d: Path):
+    (d / "ph").mkdir()
+    for name in ("a.png", "a.overlay.png"):
+        shutil.copy(d / "val/photos/0000.png", d / "ph" / name)
+
+
+def _onto_inputs(cmd: str, flag: str, kind: str):
+    """(how, argv, setup) of each way the output ``flag`` of ``cmd`` can land on one of its inputs."""
+    argv = [a for a in _argv(cmd) if a != "{o}" and a != OUT.get(cmd)]
+    if "--force" in _subparser(cmd)._option_string_actions:
+        argv = argv + ["--force"]
+    given = next((a[len("{d}/") :] for a in argv if a.startswith("{d}/")), None)
+    if kind == "into":
+        if cmd == "diagnose":
+            yield "a plot named like its --prior", argv + ["--prior", "{d}/before_after.png", flag, "{d}"], \
+                _touch("before_after.png", PRIOR)  # fmt: skip
+        else:
+            photos = ["{d}/ph/a.png", "{d}/ph/a.overlay.png"]
+            argv = [cmd] + photos + argv[2:] + [flag, "{d}/ph"]
+            yield "an overlay named like a photo", argv, _overlay_inputs
+        return
+    if given is None:
+        return
+    if kind == "file":
+        inside = IN_FOLDER.get(given)
+        yield "the input", argv + [flag, "{d}/" + (inside or given)], None
+        yield "a link to the input", argv + [flag, "{d}/link"], _link("link", inside or given)
+        yield "a hard link to the input", argv + [flag, "{d}/hard"], _link("hard", inside or given, hard=True)
+    else:
+        yield "the folder holding the input", argv + [flag, "{d}"], None
+        if given in IN_FOLDER:
+            yield "the input folder", argv + [flag, "{d}/" + given], None
+            sub = given + "/sub"
+            yield "a folder inside the input folder", argv + [flag, "{d}/" + sub], _mkdir(sub)
+
+
+for cmd in BASE:
+    for _dest, flag, kind, _instead in declared_outputs(cmd):
+        for how, argv, setup in _onto_inputs(cmd, flag, kind):
+            case(f"{cmd} {flag} onto an input, --force: {how}", argv, setup, "would replace", "output")
+
+
 def _data_lines(path: Path):
     lines = path.read_text().splitlines()
     return lines, [i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]

@@ -68,7 +68,14 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
         help="camera YAML from camera-calibrate: undo lens distortion",
     )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    output_argument(p, "--overlay", kind="into", metavar="DIR", help="write annotated PNGs to DIR")
+    output_argument(
+        p,
+        "--overlay",
+        kind="into",
+        metavar="DIR",
+        help="write annotated PNGs to DIR",
+        writes=lambda args: [overlay_name(path) for path in args.images],
+    )
     p.add_argument(
         "--method",
         choices=("precise", "imagej"),
@@ -239,7 +246,7 @@ def _measure_all(args):
         for w in res.warnings:
             _warn(w if res.error else f"{path}: {w}")
         if args.overlay and res.error is None:
-            name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
+            name = Path(args.overlay) / overlay_name(path)
             title = f"{path}  [{how}]"
             up = exif_orientation(path)
             write(name, draw(read_image(path), res.spots, res.plane, title, args.convention, up))
@@ -248,6 +255,11 @@ def _measure_all(args):
             entry["frame"] = layout.frame
         results.append((entry, None if res.error else res))
     return results, layout
+
+
+def overlay_name(photo: str) -> str:
+    """The name of a photo's annotated copy in ``--overlay DIR``."""
+    return Path(photo).stem + ".overlay.png"
 
 
 def _fmt(x, spec):
