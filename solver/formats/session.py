@@ -9,7 +9,8 @@
 * Session: a folder with ``session.yaml`` (``format: lasercal-session/1``; ``clock: seconds``, the
   default, or ``order`` when ``t`` is only the recording order) and ``captures.csv``
   (``point,t,q1..qN[,dq1..dqN][,tau1..tauN][,extra...]``; mm, rad, Nm, s).
-* Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through.
+* Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through
+  (renamed ``measured_NAME`` where an output column takes their name: :func:`header_beside`).
 
 Every malformed input raises :class:`~solver.errors.FormatError` naming file, line and column.
 """
@@ -585,6 +586,20 @@ class Configs:
     q: np.ndarray
     t: np.ndarray | None
     tau: np.ndarray | None
+
+
+def header_beside(header: list, added: list, prefix: str = "measured_") -> list:
+    """The columns of an output: the input's passed through, then ``added``; a passed-through name an
+    added column takes (a position session's measured ``x,y,z`` beside the predicted ones) gets
+    ``prefix``, so that no name is written twice and the added columns keep their documented names."""
+    taken = set(added)
+    out = []
+    for h in header:
+        while h in taken:
+            h = prefix + h
+        taken.add(h)
+        out.append(h)
+    return out + list(added)
 
 
 def load_configs(path, robot: RobotModel) -> Configs:
