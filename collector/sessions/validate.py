@@ -20,17 +20,17 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.sessions.capture import wait_still
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
-from lasercal.collector.sessions.store import CsvLog, write_atomic, write_atomic_bytes
+from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.table import csv_rows
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.whole import dump_yaml
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
 from lasercal.vision.exposure import exposure_advice
@@ -394,6 +394,8 @@ def run_validation(
         raise DeviceError(
             f"the {robot.name} backend cannot move the arm: the operator guides it, so a trigger is needed"
         )
+    if resume:  # a row a kill tore is cut off (then the log goes on after the last whole row)
+        cut_torn_line(folder / "validation.csv")
     done = done_indices(folder / "validation.csv") if resume else set()
     todo = [i for i in range(len(planned)) if i not in done]
     meta = {
@@ -430,7 +432,7 @@ def run_validation(
         raise
     if not resume:
         (folder / "photos").mkdir(parents=True, exist_ok=True)
-        write_atomic(folder / "validation.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
+        write_atomic(folder / "validation.yaml", dump_yaml(meta, sort_keys=False, width=120))
     header = ["index"] + [f"q{j + 1}" for j in range(model.n)] + ["photo", "x_mm", "y_mm", "q_dev"]
     log = CsvLog(
         folder / "validation.csv",
