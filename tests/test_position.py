@@ -204,7 +204,7 @@ def test_sensor_file_row_count(tmp_path, capsys):
     s, _ = session(tmp_path / "s", "ur5", 10, 0.0, 7)
     lines = (tmp_path / "s" / "captures.csv").read_text().splitlines()
     (tmp_path / "s" / "tracker.csv").write_text(
-        "\n".join(["target,x,y,z"] + [",".join(r.split(",")[-4:]) for r in lines[1:-1]])
+        "\n".join(["target,x,y,z"] + [",".join(r.split(",")[-4:]) for r in lines[1:-1]]) + "\n"
     )
     meta = yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())
     meta["positions"] = "tracker.csv"

@@ -284,7 +284,8 @@ class ValidationResult:
     """Where a validation run wrote its table, and the spots it measured ((k, 2) mm, base frame).
 
     ``photos`` counts the rows written by this run, ``done`` those in the table (a resumed run
-    adds to earlier ones) out of ``n`` planned configurations.
+    adds to earlier ones) out of ``n`` planned configurations; ``failed`` the configurations of this
+    run that gave no spot: a photo not measured, or an arm that did not come to rest (skipped).
     """
 
     path: Path
@@ -292,6 +293,7 @@ class ValidationResult:
     spots: np.ndarray
     done: int = 0
     n: int = 0
+    failed: int = 0
 
     @property
     def complete(self) -> bool:
@@ -444,7 +446,7 @@ def run_validation(
         resume=resume,
     )
     w = out.write
-    photos, spots = 0, []
+    photos, spots, failed = 0, [], 0
     if resume:
         w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
     try:
@@ -469,6 +471,7 @@ def run_validation(
                     robot.move_to(step)
             state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
             if state is None:
+                failed += 1
                 w(
                     f"configuration {i + 1}: the arm did not come to rest (max |dq| {peak:.4f} rad/s): "
                     "skipped\n"
@@ -492,6 +495,7 @@ def run_validation(
                     xy, advice = measure(img, name)
                 except VisionError as e:  # one unreadable photo must not end the run: it stays on disk
                     msg += f", not measured ({e})"
+                    failed += 1
                 else:
                     row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
                     spots.append(xy)
@@ -516,4 +520,6 @@ def run_validation(
         log.close()
         robot.close()
         camera.close()
-    return ValidationResult(log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n)
+    return ValidationResult(
+        log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n, failed
+    )
