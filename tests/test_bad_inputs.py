@@ -34,6 +34,7 @@ import pytest
 import yaml
 
 from lasercal.collector.cli.main import COMMANDS, build_parser, main
+from lasercal.solver.whole import WHOLE, dump_yaml
 
 MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
 URDF = Path(__file__).resolve().parent / "data" / "ur5.urdf"
@@ -62,7 +63,7 @@ def base(tmp_path_factory):
     that sheet, displaced from its placement)."""
     d = tmp_path_factory.mktemp("valid")
     layout = yaml.safe_load((Path(__file__).resolve().parents[1] / "data/layouts/thesis.yaml").read_text())
-    (d / "layout.yaml").write_text(yaml.safe_dump(layout))
+    (d / "layout.yaml").write_text(dump_yaml(layout))  # as lasercal writes it: a whole file
     assert main(["simulate", "panda_thesis_identified", "--layout", str(d / "layout.yaml"), "--per-point",
                  "12", "-o", str(d / "sess")]) == 0  # fmt: skip
     assert main(["solve", str(d / "sess"), "-o", str(d / "model.yaml"), "--folds", "0"]) == 0
@@ -234,7 +235,7 @@ STUDY = ["study-mukca", "{d}/mukca", "--robots", "panda_1", "--quick"]
 # (category, id, argv, setup, needle in the message); "{o}" is the output path (must not appear), "{d}" the
 # folder
 CASES: list[tuple] = []
-CATEGORIES = ("traceback", "silent", "culprit", "output", "degenerate", "warning")
+CATEGORIES = ("traceback", "torn", "silent", "culprit", "output", "degenerate", "warning")
 
 
 def category(cid: str) -> str:
@@ -753,6 +754,47 @@ for cmd, files in INPUT_FILES.items():
             case(f"{cmd}: {rel} {how}", _argv(cmd) + given, _vision_file(rel, _saved_as(rel, how)),
                  rel.split("/")[-1], "traceback")  # fmt: skip
 
+
+# files cut short, as a kill in the middle of a write or a partial copy leaves them: in the middle of a line
+# (every file), and at a line end (YAML, which still parses: whole files say where they end, solver/whole.py)
+def _torn(rel: str, at_line_end: bool = False):
+    """``rel`` cut after the first comma (or line end) past its middle (else at it): cut short."""
+
+    def fn(d: Path):
+        p = d / rel
+        data = p.read_bytes()
+        mid = len(data) // 2
+        p.write_bytes(data[: data.find(b"\n" if at_line_end else b",", mid) + 1 or mid])
+
+    return fn
+
+
+for cmd, files in INPUT_FILES.items():
+    for rel, given in (f if isinstance(f, tuple) else (f, []) for f in files):
+        if rel in VISION_FILES:
+            continue  # written here by hand: a camera-calibrate's camera YAML is cut below
+        ends = [False] + ([True] if rel.endswith(".yaml") and rel != "prior.yaml" else [])  # prior: by hand
+        for at_end in ends:
+            how = "truncated at a line end" if at_end else "torn mid-line"
+            case(f"{cmd}: {rel} {how}", _argv(cmd) + given, _torn(rel, at_end), rel.split("/")[-1], "torn")
+for at_end in (False, True):
+    how = "truncated at a line end" if at_end else "torn mid-line"
+    case(f"solve: a sheet session.yaml {how}", ["solve", "{d}/shs", "--folds", "0", "-o", "{o}"],
+         _torn("shs/session.yaml", at_end), "shs/session.yaml", "torn")  # fmt: skip
+
+
+def _cut_inside_requested(d: Path):
+    """The issue's session.yaml, as written before files said where they end, cut inside 'requested:': its
+    'frame: sheet' and 'sheet:' lines lost."""
+    p = d / "shs/session.yaml"
+    text = "".join(ln for ln in p.read_text().splitlines(keepends=True) if ln.rstrip() not in (WHOLE, "..."))
+    p.write_text(text[: text.index("requested:") + len("requested:\n- P1\n- P")])
+
+
+case("solve: a sheet session.yaml of old cut inside requested", ["solve", "{d}/shs", "--folds", "0", "-o",
+     "{o}"], _cut_inside_requested, "shs/session.yaml", "torn")  # fmt: skip
+
+
 # a folder where a file is expected and the other way round, for every path argument
 KINDS = [
     ("solve", ["solve", "{d}/model.yaml", "-o", "{o}"], "is a file"),
@@ -983,6 +1025,58 @@ for cmd, argv, needle in (
     case(f"{cmd}: an output that is an input: {' '.join(argv[-3:])}", argv, None, needle, "output")
 case("demo -o an existing file named demo (the command's name is no input)", ["demo", "-o", "{d}/demo"],
      _touch("demo"), "is a file", "output")  # fmt: skip
+
+
+# every command's every output on one of its inputs, with --force: the input itself, a symbolic link to it, a
+# file inside an input folder, a folder holding an input, a file written into a folder that is an input
+HOLE = "mukca/panda_1/front/hole_0.csv"
+IN_FOLDER = {"sess": "sess/captures.csv", "val": "val/validation.csv", "mukca": HOLE, "mukca/panda_1": HOLE}
+
+
+def _link(rel: str, to: str, hard: bool = False):
+    return lambda d: os.link(d / to, d / rel) if hard else (d / rel).symlink_to(d / to)
+
+
+def _overlay_inputs(d: Path):
+    (d / "ph").mkdir()
+    for name in ("a.png", "a.overlay.png"):
+        shutil.copy(d / "val/photos/0000.png", d / "ph" / name)
+
+
+def _onto_inputs(cmd: str, flag: str, kind: str):
+    """(how, argv, setup) of each way the output ``flag`` of ``cmd`` can land on one of its inputs."""
+    argv = [a for a in _argv(cmd) if a != "{o}" and a != OUT.get(cmd)]
+    if "--force" in _subparser(cmd)._option_string_actions:
+        argv = argv + ["--force"]
+    given = next((a[len("{d}/") :] for a in argv if a.startswith("{d}/")), None)
+    if kind == "into":
+        if cmd == "diagnose":
+            yield "a plot named like its --prior", argv + ["--prior", "{d}/before_after.png", flag, "{d}"], \
+                _touch("before_after.png", PRIOR)  # fmt: skip
+        else:
+            photos = ["{d}/ph/a.png", "{d}/ph/a.overlay.png"]
+            argv = [cmd] + photos + argv[2:] + [flag, "{d}/ph"]
+            yield "an overlay named like a photo", argv, _overlay_inputs
+        return
+    if given is None:
+        return
+    if kind == "file":
+        inside = IN_FOLDER.get(given)
+        yield "the input", argv + [flag, "{d}/" + (inside or given)], None
+        yield "a link to the input", argv + [flag, "{d}/link"], _link("link", inside or given)
+        yield "a hard link to the input", argv + [flag, "{d}/hard"], _link("hard", inside or given, hard=True)
+    else:
+        yield "the folder holding the input", argv + [flag, "{d}"], None
+        if given in IN_FOLDER:
+            yield "the input folder", argv + [flag, "{d}/" + given], None
+            sub = given + "/sub"
+            yield "a folder inside the input folder", argv + [flag, "{d}/" + sub], _mkdir(sub)
+
+
+for cmd in BASE:
+    for _dest, flag, kind, _instead in declared_outputs(cmd):
+        for how, argv, setup in _onto_inputs(cmd, flag, kind):
+            case(f"{cmd} {flag} onto an input, --force: {how}", argv, setup, "would replace", "output")
 
 
 def _data_lines(path: Path):
@@ -1321,6 +1415,8 @@ WARNINGS = [
     ("solve", SOLVE + ["--robot", "{d}/model.yaml", "-o", "{o}"], "measured angles a hair beyond a limit",
      _limits_rounded("sess/captures.csv", 5, 0.002), "q6"),
     ("plan", PLAN, "a capture saved twice", _dup_row("sess/captures.csv", 7), "captures.csv"),
+    ("correct", _argv("correct"), "a last line with no line end (an editor's, or cut inside a number)",
+     lambda d: (d / "goals.csv").write_text(GOALS.rstrip("\n")), "goals.csv, line 3"),
     ("report", REPORT + ["-o", "{o}"], "a capture saved twice", _dup_row("sess/captures.csv", 30),
      "captures.csv"),
     ("solve", ["solve", "{d}/pos", "--folds", "0", "-o", "{o}"], "a position capture saved twice",

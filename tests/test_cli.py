@@ -168,3 +168,21 @@ def test_demo_prints_p4_beside_the_thesis(full_demo):
     assert "thesis paper, after" in out and "lm (ours)" in out
     s = json.loads((folder / "summary.json").read_text())
     assert s["p4"]["nominal"]["error_mean"] > 5 and s["p4"]["lm"]["error_mean"] < 1.5
+
+
+def test_third_party_warnings_never_reach_the_terminal(capsys):
+    """Inside a command, a library's warning (numpy's, scipy's, matplotlib's) shows nothing; lasercal's own
+    warning is one line ``lasercal: warning: ...``; a library's logging goes nowhere."""
+    import logging
+    import warnings
+
+    from lasercal.collector.cli.main import quiet_libraries, warnings_as_lines
+    from lasercal.solver.errors import warn
+
+    quiet_libraries()
+    with warnings_as_lines():
+        warnings.warn("Covariance of the parameters could not be estimated", UserWarning, stacklevel=1)
+        warnings.warn("np.float is deprecated", DeprecationWarning, stacklevel=1)
+        logging.getLogger("matplotlib.font_manager").warning("Matplotlib is building the font cache")
+        warn("a capture saved twice")
+    assert capsys.readouterr().err.splitlines() == ["lasercal: warning: a capture saved twice"]

@@ -129,3 +129,46 @@ def test_csv_log_writes_comment_header_and_durable_rows(tmp_path):
     assert (tmp_path / "v.csv").read_text() == "# units: rad\nindex,q1,photo\n0,0.1,photos/0000.png\n"
     with pytest.raises(SessionError, match="exists"):
         CsvLog(tmp_path / "v.csv", ["index"])
+
+
+def test_a_torn_captures_csv_is_refused_saying_that_resume_repairs_it(tmp_path):
+    """Read as it is (solve, plan, ...), a captures.csv whose last row a kill tore is refused naming the file
+    and the line, and the message says what mends it: ``capture --resume`` (which does, above)."""
+    meta = session_meta("panda", LAYOUT, 825.0, collector={"per_point": 2})  # as capture writes it
+    store = CaptureStore.create(tmp_path / "capture", meta, 7, ["robot_mode"])
+    for r in _rows(4):
+        store.append(r)
+    store.close()
+    path = tmp_path / "capture" / "captures.csv"
+    with open(path, "ab") as f:
+        f.write(b"P2,51.3,0.12,-0.4")
+    with pytest.raises(FormatError) as e:
+        load_session(tmp_path / "capture")
+    assert e.value.line == 6 and e.value.path == str(path)
+    assert f"`lasercal capture --resume {tmp_path / 'capture'}` cuts the torn row off" in str(e.value)
+
+
+def test_a_torn_session_yaml_is_refused_whatever_it_lost(tmp_path):
+    """session.yaml written by lasercal says where it ends (solver/whole.py): cut at any line end it is
+    refused, though what is left parses; a session.yaml without that claim (written by hand, or before)
+    that lost ``frame: sheet`` is refused by its own points, off the plane, or by captures at points its
+    ``requested`` no longer lists."""
+    store = _new(tmp_path)
+    for r in _rows(3):
+        store.append(r)
+    store.close()
+    ypath = tmp_path / "s" / "session.yaml"
+    whole = ypath.read_text()
+    lines = whole.splitlines(keepends=True)
+    assert lines[0].startswith("# whole file") and lines[-1] == "...\n"
+    for k in range(2, len(lines)):
+        ypath.write_text("".join(lines[:k]))
+        with pytest.raises(FormatError, match="cut short") as e:
+            load_session(tmp_path / "s")
+        assert e.value.path == str(ypath)
+    ypath.write_text(whole)
+    assert load_session(tmp_path / "s").m == 3
+    old = "".join(lines[1:-1])  # the same file as written before it said where it ends
+    ypath.write_text(old[: old.index("- P2")])  # cut inside requested: P2 and P3 are captured
+    with pytest.raises(FormatError, match="'requested' \\(P1\\) does not list"):
+        load_session(tmp_path / "s")

@@ -88,7 +88,8 @@ def test_layout_describes_the_sheet_in_its_own_frame(sheets):
     inside = [cv2.pointPolygonTest(hull, (float(x), float(y)), True) for x, y in design.points.values()]
     assert min(inside) > 20
     text = (folder / "layout.yaml").read_text()
-    assert "frame: sheet" in text and "mm" in text.splitlines()[0]
+    assert "frame: sheet" in text and "mm" in text.splitlines()[1]  # after the whole-file line
+    assert text.startswith("# whole file") and text.endswith("\n...\n")  # solver/whole.py
 
 
 def test_placement_and_reach_check(tmp_path, capsys):

@@ -236,3 +236,28 @@ def test_the_world_of_each_kind_of_session(walkthrough, tmp_path):
     del meta["simulated"]
     (s / "session.yaml").write_text(yaml.safe_dump(meta))
     assert session_world(s) is None
+
+
+def test_a_run_with_a_photo_not_measured_exits_1_naming_the_count(walkthrough, tmp_path, capsys, monkeypatch):
+    """A batch reports its failures in its exit code: a validation photo the vision cannot measure stays on
+    disk, its row without x_mm, y_mm, the run goes on, and the command exits 1 with one warning line."""
+    from lasercal.collector.sessions import validate as run
+    from lasercal.vision.errors import VisionError
+
+    measured = run.measure_known_view  # the fake camera's: its view is known
+    seen = []
+
+    def first_lost(img, name, *a, **k):
+        seen.append(name)
+        if len(seen) == 1:
+            raise VisionError(f"{name}: no red or green laser spot found")
+        return measured(img, name, *a, **k)
+
+    monkeypatch.setattr(run, "measure_known_view", first_lost)
+    model, layout = str(walkthrough / "model.yaml"), str(walkthrough / "sheet" / "layout.yaml")
+    argv = ["validate", model, "--layout", layout, "--point", "P6", "-n", "3", "--backend", "fake"]
+    assert main(argv + ["-o", str(tmp_path / "v")]) == 1
+    err = capsys.readouterr().err
+    assert "1 configuration(s) of this run gave no spot" in err
+    rows = csv_rows(tmp_path / "v" / "validation.csv")[1:]
+    assert len(seen) == 3 and len(rows) == 3 and rows[0][1][-3:-1] == ["", ""]  # the lost row kept, blank

@@ -106,6 +106,26 @@ def test_camera_yaml_round_trip(tmp_path):
     assert np.allclose(cam.K, K) and np.allclose(cam.dist, DIST) and cam.size == SIZE
 
 
+def test_a_camera_yaml_cut_short_is_refused_at_any_line_end(tmp_path):
+    """The camera YAML says where it ends, with the line solver/whole.py writes (vision stands alone, so it
+    keeps its own copy): cut at any line end -- where the rest still parses -- it is refused naming it."""
+    from lasercal.solver.whole import WHOLE
+    from lasercal.vision.camera import WHOLE as VISION_WHOLE
+
+    assert VISION_WHOLE == WHOLE
+    path = tmp_path / "camera.yaml"
+    save_camera(
+        path, Camera(SIZE, K, DIST, 0.1), {"type": "chessboard", "cols": 9, "rows": 6, "square": 25.0}, 8
+    )
+    lines = path.read_text().splitlines(keepends=True)
+    assert lines[0] == WHOLE + "\n" and lines[-1] == "...\n"
+    for k in range(1, len(lines)):
+        path.write_text("".join(lines[:k]))
+        with pytest.raises(LayoutError, match="cut short") as e:
+            load_camera(path)
+        assert str(path) in str(e.value)
+
+
 @pytest.mark.parametrize(
     "text, field",
     [

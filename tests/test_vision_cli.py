@@ -145,7 +145,31 @@ def test_imagej_method_from_the_command_line(files, capsys):
 )
 def test_bad_photo_alone_exits_2_with_a_clear_message(files, capsys, key, message):
     code, out, err = run(capsys, "spots", files[key])
-    assert code == 2 and message in err and err.startswith("lasercal: warning: ")
+    assert code == 2 and message in err and err.startswith("lasercal: error: 1 of 1 photos not measured (")
+    assert len(err.splitlines()) == 1 and message in out
+
+
+def test_a_batch_with_lost_photos_exits_2_naming_them_and_opencv_says_nothing(files, tmp_path):
+    """'spots empty.jpg trunc.png good.png': the good photo's spot is printed, the exit code is 2, one
+    line names the two lost photos, OpenCV's own '[ WARN:0@...] grfmt_png.cpp' line never shows (a
+    process of its own: OpenCV writes to the file descriptor, not to Python's sys.stderr), and no
+    overlay is written."""
+    good = tmp_path / "good.png"
+    cv2.imwrite(str(good), cv2.imread(files["one"]))
+    (tmp_path / "empty.jpg").write_bytes(b"")
+    (tmp_path / "trunc.png").write_bytes(good.read_bytes()[:3000])
+    overlays = tmp_path / "over"
+    argv = ["empty.jpg", "trunc.png", "good.png", "--overlay", str(overlays)]
+    code = (
+        "from lasercal.collector.cli.main import main; import sys; sys.exit(main(['spots', *sys.argv[1:]]))"
+    )
+    r = subprocess.run([sys.executable, "-c", code, *argv], cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.splitlines() == [
+        "lasercal: error: 2 of 3 photos not measured (empty.jpg: not an image OpenCV can decode (JPEG, PNG, "
+        "TIFF, ...); trunc.png: not an image OpenCV can decode (JPEG, PNG, TIFF, ...))"
+    ]
+    assert "good.png                      1" in r.stdout and not overlays.exists()
 
 
 def test_missing_markers_exit_2_and_the_batch_goes_on(files, capsys):
@@ -155,8 +179,9 @@ def test_missing_markers_exit_2_and_the_batch_goes_on(files, capsys):
         capsys, "spots", files["few"], files["one"], files["missing"], "--layout", files["layout"], "--json"
     )
     doc = json.loads(out)
-    assert code == 0 and [bool(e["spots"]) for e in doc] == [False, True, False]
+    assert code == 2 and [bool(e["spots"]) for e in doc] == [False, True, False]  # the batch went on
     assert "markers" in doc[0]["error"] and doc[0]["warnings"] == [doc[0]["error"]]
+    assert err.startswith("lasercal: error: 2 of 3 photos not measured (") and "missing.jpg: no such" in err
 
 
 def test_command_wide_errors_are_reported_as_errors(files, capsys, tmp_path):
@@ -212,12 +237,17 @@ def test_camera_calibrate_command(files, capsys, tmp_path):
         t = np.array([*rng.uniform(-50, 50, 2), 450.0]) - R @ np.r_[100.0, 70.0, 0]
         paths.append(str(tmp_path / f"c{i}.png"))
         cv2.imwrite(paths[-1], render(Photo(pose_view((640, 480), K, dist, R, t), (board,), paper=0.7), i))
-    paths.append(files["text"])
     out_yaml = tmp_path / "camera.yaml"
+    code, out, err = run(
+        capsys, "camera-calibrate", *paths, files["text"], "-o", str(out_yaml), "--chessboard", "9x6",
+        "--square", "20",
+    )  # fmt: skip
+    assert code == 2 and "1 of 6 photos unreadable (" in err and "text.jpg: not an image" in err
+    assert not out_yaml.exists()  # a photo named and not read fails the batch before anything is written
     code, out, err = run(
         capsys, "camera-calibrate", *paths, "-o", str(out_yaml), "--chessboard", "9x6", "--square", "20"
     )
-    assert code == 0 and "from 5 photos" in out and "text.jpg: not an image" in err
+    assert code == 0 and "from 5 photos" in out
     doc = yaml.safe_load(out_yaml.read_text())
     assert doc["format"] == "lasercal-camera/1" and doc["pattern"]["type"] == "chessboard"
     assert doc["K"][0][0] == pytest.approx(600, rel=0.03) and doc["rms_px"] < 0.2

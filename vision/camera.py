@@ -104,6 +104,16 @@ class Camera:
             )
 
 
+WHOLE = "# whole file: it ends with the line '...' (a copy cut short lacks it)"
+"""The first line of a YAML file lasercal writes, whose last line is ``...``: one that opens with it
+and lacks the end was cut short (solver/whole.py keeps the same line; vision stands alone)."""
+
+
+def whole_yaml(doc, head: str = "", **kw) -> str:
+    """``doc`` as the text of a whole YAML file: :data:`WHOLE`, ``head``, the YAML and ``...``."""
+    return f"{WHOLE}\n{head}" + yaml.safe_dump(doc, explicit_end=True, **kw)
+
+
 def read_yaml(path: Path, what: str):
     """Parse a YAML file; unreadable, binary, non-UTF text or invalid files raise LayoutError naming the
     file.
@@ -117,6 +127,14 @@ def read_yaml(path: Path, what: str):
         raise LayoutError(path, f"is a folder (expected a {what})") from None
     except OSError as exc:
         raise LayoutError(path, f"cannot read {what} ({exc.strerror})") from None
+    text = data.decode("utf-8", "replace").replace("\r\n", "\n").lstrip("\ufeff")
+    lines = [ln.rstrip() for ln in text.split("\n")]
+    if WHOLE in lines and [ln for ln in lines if ln][-1] != "...":
+        raise LayoutError(
+            path,
+            f"line {len(text.splitlines())}: cut short: the file ends before its last line '...' "
+            f"(a write killed, or a partial copy; expected the whole {what})",
+        )
     try:
         return yaml.safe_load(data)
     except yaml.YAMLError as exc:
@@ -171,7 +189,7 @@ def save_camera(path, camera: Camera, pattern: dict, photos: int) -> None:
         "pattern": pattern,
         "photos": int(photos),
     }
-    Path(path).write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+    Path(path).write_text(whole_yaml(doc, sort_keys=False, default_flow_style=None))
 
 
 def aruco_dictionary(name: str, path="layout", field="markers.dictionary"):

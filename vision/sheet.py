@@ -29,9 +29,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
-from lasercal.vision.camera import aruco_dictionary
+from lasercal.vision.camera import aruco_dictionary, whole_yaml
 from lasercal.vision.errors import SheetError
 from lasercal.vision.plane import LAYOUT_FORMAT, layout_markers
 
@@ -274,8 +273,8 @@ def write_layout(path, design: SheetDesign, plane_z: float, placement: dict | No
         else "Where the sheet lies on the table is identified by solve."
     )
     head = LAYOUT_HEADER.format(paper=design.paper, w=design.width, h=design.height, placement=where)
-    body = yaml.safe_dump(layout_doc(design, plane_z, placement), sort_keys=False, default_flow_style=None)
-    Path(path).write_text(head + body)
+    doc = layout_doc(design, plane_z, placement)
+    Path(path).write_text(whole_yaml(doc, head, sort_keys=False, default_flow_style=None))
 
 
 def _rects_path(rects):

@@ -17,6 +17,7 @@ from lasercal.collector.cli.options import (
     payload_argument,
     session_robot,
 )
+from lasercal.collector.report.plots import DIAGNOSIS_PLOTS
 from lasercal.solver.analysis import ALPHA
 
 
@@ -25,7 +26,14 @@ def args_diagnose(p: argparse.ArgumentParser) -> None:
     p.add_argument("session", type=INFOLDER, help="session folder")
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    output_argument(p, "--report", kind="into", metavar="DIR", help="write the plots that make the case")
+    output_argument(
+        p,
+        "--report",
+        kind="into",
+        metavar="DIR",
+        help="write the plots that make the case",
+        writes=lambda args: DIAGNOSIS_PLOTS,  # checked: none may be an input
+    )
     p.add_argument(
         "--alpha",
         type=number(0, 1, lo_open=True, hi_open=True),

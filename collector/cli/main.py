@@ -240,11 +240,28 @@ def _user_errors() -> tuple:
     return LasercalError, VisionError
 
 
+def quiet_libraries() -> None:
+    """Keep third-party chatter off the terminal: OpenCV's own log lines (``[ WARN:0@0.03] global
+    grfmt_png.cpp ...``: each photo's problem is reported by lasercal, naming it) and what libraries
+    send to Python's logging (matplotlib's font cache). Nothing is imported for it: OpenCV reads its
+    level when first imported; when already imported (a second command in one process), it is set."""
+    import logging
+    import os
+
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")
+    cv2 = sys.modules.get("cv2")
+    if cv2 is not None and os.environ["OPENCV_LOG_LEVEL"] == "SILENT":
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    root = logging.getLogger()
+    if not root.handlers:  # else Python's last-resort handler prints libraries' warnings
+        root.addHandler(logging.NullHandler())
+
+
 @contextmanager
 def warnings_as_lines():
     """Show each :class:`LasercalWarning` as one line ``lasercal: warning: ...`` on stderr (each message
-    once); numpy's RuntimeWarnings (overflow, invalid value) not at all -- what they concern is checked
-    and named -- and other warnings as Python shows them."""
+    once); other warnings (numpy's overflow notes, scipy's and matplotlib's) not at all -- what they
+    concern is checked and named by lasercal -- unless Python's ``-W`` options ask for them."""
     from lasercal.solver.errors import LasercalWarning
 
     def show(message, category, filename, lineno, file=None, line=None):
@@ -255,8 +272,9 @@ def warnings_as_lines():
 
     with warnings.catch_warnings():
         shown = warnings.showwarning
+        if not sys.warnoptions:  # third-party chatter: results are checked, and named, by lasercal
+            warnings.simplefilter("ignore")
         warnings.simplefilter("default", LasercalWarning)
-        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's overflow notes: results are checked
         warnings.showwarning = show
         yield
 
@@ -267,6 +285,7 @@ def main(argv=None) -> int:
     selected = next((a for a in argv if not a.startswith("-")), None)
     try:
         args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
+        quiet_libraries()
         with warnings_as_lines():
             return int(args.func(args) or 0)
     except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported

@@ -153,7 +153,12 @@ OUTPUT_KINDS = ("file", "folder", "into")
 
 
 def output_argument(
-    p: argparse.ArgumentParser, *flags: str, kind: str = "file", instead: str | None = None, **kw
+    p: argparse.ArgumentParser,
+    *flags: str,
+    kind: str = "file",
+    instead: str | None = None,
+    writes=None,
+    **kw,
 ) -> argparse.Action:
     """Declare an output path option; :func:`check_outputs` checks it before the handler runs.
 
@@ -164,23 +169,69 @@ def output_argument(
     kind : "file" (a new file), "folder" (a new or empty folder) or "into" (a folder written into,
         created if missing; files of the same names are replaced)
     instead : what to do when the output exists ('{path}' is replaced); default: pass --force
+    writes : for ``kind="into"``: a function of the parsed arguments giving the names of the files
+        written into the folder (each is checked not to be an input)
     kw : the other ``add_argument`` arguments (help, required, metavar, default)
     """
     action = p.add_argument(*flags, **kw)
     declared = list(p.get_default("_outputs") or [])
     declared.append((action.dest, flags[-1] if len(flags) == 1 else flags[0], kind, instead))
     p.set_defaults(_outputs=declared)
+    if writes is not None:
+        p.set_defaults(_writes={**(p.get_default("_writes") or {}), action.dest: writes})
     return action
 
 
+def input_paths(args) -> list[tuple[str, Path]]:
+    """(argument, resolved path) of every path the command was given that exists, outputs excluded.
+
+    A folder stands for every file below it: the command may read any of them (a session's robot
+    URDF, a validation's photos).
+    """
+    outputs = {dest for dest, *_ in getattr(args, "_outputs", None) or ()}
+    return [
+        (k, Path(v).resolve())
+        for k, vals in vars(args).items()
+        if k not in outputs and k != "command" and not k.startswith("_")  # 'report -o report' is fine
+        for v in (vals if isinstance(vals, list | tuple) else [vals])
+        if isinstance(v, str) and v.strip() and Path(v).exists()
+    ]
+
+
+def replaced_input(out: Path, kind: str, inputs) -> str | None:
+    """What writing the output ``out`` (resolved) would replace of the command's inputs, or None.
+
+    An output replaces an input when it is the input (by path, through a symbolic link, or the same
+    file under another name: a hard link); when it is an existing path inside an input folder, which
+    the command may read (``kind`` "file" or "folder"; a file written into an "into" folder has a
+    name of its own); or, for a folder replaced whole (``kind="folder"``), when it holds an input.
+    """
+    exists = out.exists()
+    linked = exists and out.is_file() and out.stat().st_nlink > 1  # other names: one may be read
+    for k, p in inputs:
+        if p == out or (exists and out.samefile(p)):
+            return f"the input {p} (argument {k})"
+        if linked and p.is_dir():
+            same = next((f for f in p.rglob("*") if f.is_file() and f.samefile(out)), None)
+            if same is not None:
+                return f"{same} (the same file), inside the input folder {p} (argument {k})"
+        if kind != "into" and exists and p.is_dir() and p in out.parents:
+            return f"{out}, inside the input folder {p} (argument {k}), which the command reads"
+        if kind == "folder" and out in p.parents:
+            return f"the input {p} (argument {k}) it holds"
+    return None
+
+
 def check_outputs(args) -> None:
-    """Check every output path the command declared (:func:`output_argument`), before any work.
+    """Check every output path the command declared (:func:`output_argument`), before any work: it is
+    writable, not kept unless ``--force``, and never one of the command's inputs, even with ``--force``
+    (:func:`replaced_input`).
 
     Raises
     ------
     SessionError
         One line naming the option and the path (missing or unwritable folder, a file where a folder
-        is expected or the other way round, an output that exists and is kept).
+        is expected or the other way round, an output that exists and is kept, an input).
     """
     declared = getattr(args, "_outputs", None) or ()
     if not declared:
@@ -188,14 +239,8 @@ def check_outputs(args) -> None:
     from lasercal.collector.errors import SessionError
     from lasercal.collector.sessions.store import check_output
 
-    outputs = {dest for dest, *_ in declared}
-    inputs = [  # every other path the command was given that exists: an output must not replace one
-        (k, Path(v).resolve())
-        for k, vals in vars(args).items()
-        if k not in outputs and k != "command" and not k.startswith("_")  # 'report -o report' is fine
-        for v in (vals if isinstance(vals, list | tuple) else [vals])
-        if isinstance(v, str) and v.strip() and Path(v).exists()
-    ]
+    inputs = input_paths(args)
+    writes = getattr(args, "_writes", None) or {}
     seen = {}
     for dest, flag, kind, instead in declared:
         value = getattr(args, dest, None)
@@ -206,12 +251,12 @@ def check_outputs(args) -> None:
             if out in seen:
                 raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
             seen[out] = flag
-            for k, p in inputs:
-                # a file is replaced, a folder replaced whole; files written into a folder replace neither
-                if (kind == "file" and p == out) or (kind == "folder" and (p == out or out in p.parents)):
-                    raise SessionError(
-                        f"{flag} {value}: would replace the input {p} (argument {k}; expected another path)"
-                    )
+            targets = [out / n for n in writes.get(dest, lambda a: ())(args)] if kind == "into" else [out]
+            for target in targets:
+                hit = replaced_input(target, kind, inputs)
+                if hit is not None:
+                    what = "" if target == out else f" ({target.name})"
+                    raise SessionError(f"{flag} {value}{what}: would replace {hit} (expected another path)")
         check_output(
             value,
             folder=kind != "file",

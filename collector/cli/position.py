@@ -7,8 +7,9 @@ import sys
 
 import numpy as np
 
+from lasercal.solver.control.nominal import gravity_robot
 from lasercal.solver.errors import FormatError
-from lasercal.solver.formats.session import load_configs
+from lasercal.solver.formats.session import header_beside, load_configs
 from lasercal.solver.identify.position import sensor_points
 from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.gravity import model_torques
@@ -40,14 +41,14 @@ def cmd_predict_position(model: RobotModel, args) -> int:
     ext = extension_from_model(model.extensions, args.model, model.n)
     if ext is not None:
         if "tau" in ext.needs() and tau is None:
-            tau = model_torques(model, q)[0]
+            tau = model_torques(gravity_robot(model, args.model), q)[0]  # the fit's torques
         if "t" in ext.needs() and t is None:
             raise FormatError(
                 args.configs, f"the {ext.effect} extension needs a 't' column (s)", line=1, field="t"
             )
         q = ext.true_q(q, t, tau)
     w = csv.writer(sys.stdout, lineterminator="\n")
-    w.writerow(header + ["x", "y", "z"])
+    w.writerow(header_beside(header, ["x", "y", "z"]))  # the predicted x, y, z keep their names
     for row, p in zip(rows, sensor_points(model, q, names)):
         w.writerow(row + [f"{c:.6f}" for c in p])
     return 0

@@ -173,9 +173,10 @@ def _predict(args) -> int:
     """``lasercal predict``, writing to standard output."""
     import numpy as np
 
+    from lasercal.solver.control.nominal import gravity_robot
     from lasercal.solver.errors import FormatError, warn
     from lasercal.solver.formats.robots import load_model
-    from lasercal.solver.formats.session import load_configs
+    from lasercal.solver.formats.session import header_beside, load_configs
     from lasercal.solver.identify.point import tips
     from lasercal.solver.identify.spot import predict_spots
     from lasercal.solver.kinematics.effects import extension_from_model
@@ -198,7 +199,7 @@ def _predict(args) -> int:
     if ext is not None:
         tau = cfg.tau
         if "tau" in ext.needs() and tau is None:
-            tau = gravity_torques(model, q)  # no logged torques: the robot's gravity model at these poses
+            tau = gravity_torques(gravity_robot(model, args.model), q)  # none logged: the fit's torques
         if "t" in ext.needs() and cfg.t is None:
             raise FormatError(
                 args.configs, f"the model's {ext.effect} extension needs a 't' column (s)", line=1, field="t"
@@ -206,13 +207,13 @@ def _predict(args) -> int:
         q = ext.true_q(q, cfg.t, tau)
     w = csv.writer(sys.stdout, lineterminator="\n")
     if point:
-        w.writerow(cfg.header + ["tip_x", "tip_y", "tip_z"])
+        w.writerow(header_beside(cfg.header, ["tip_x", "tip_y", "tip_z"]))
         for row, p in zip(cfg.rows, tips(model, q)):
             w.writerow(row + [f"{c:.6f}" for c in p])
         return 0
     spots, length = predict_spots(model, q, z)
     valid = np.isfinite(length) & (length >= 0)  # a beam away from the plane or along it has no spot
-    w.writerow(cfg.header + ["spot_x", "spot_y", "laser_length", "valid"])
+    w.writerow(header_beside(cfg.header, ["spot_x", "spot_y", "laser_length", "valid"]))
     for row, s, t, ok in zip(cfg.rows, spots, length, valid):
         xy = [f"{s[0]:.6f}", f"{s[1]:.6f}"] if ok else ["", ""]
         w.writerow(row + xy + [f"{t:.6f}" if np.isfinite(t) else "", "true" if ok else "false"])

@@ -104,4 +104,11 @@ def cmd_validate(args) -> int:
             f"measure the photos with: lasercal spots {res.path.parent}/photos/*.png --layout "
             "LAYOUT_WITH_MARKERS.yaml"
         )
+    if res.failed:  # a batch reports its failures in its exit code (1: the run is written, and resumable)
+        print(
+            f"lasercal: warning: {res.failed} configuration(s) of this run gave no spot (not measured, or "
+            "the arm did not come to rest: the lines above say which)",
+            file=sys.stderr,
+        )
+        return 1
     return 0

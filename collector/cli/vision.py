@@ -1,7 +1,8 @@
 """The vision subcommands: ``spots``, ``beam-check``, ``camera-calibrate``.
 
-Handlers print results to stdout and per-photo problems as warnings to stderr while the
-batch goes on; they return 0, or 2 when nothing could be measured. Errors that stop the
+Handlers print results to stdout and per-photo problems to stderr while the batch goes on; they
+return 0, or 2 when a photo was lost (one error line names it: a batch reports its failures in its
+exit code) or nothing could be measured. Errors that stop the
 whole command are raised as :class:`~lasercal.vision.errors.VisionError` for the main
 program to report.
 
@@ -68,7 +69,14 @@ def _add_measure_args(p: argparse.ArgumentParser, expect_default: str = "1") -> 
         help="camera YAML from camera-calibrate: undo lens distortion",
     )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    output_argument(p, "--overlay", kind="into", metavar="DIR", help="write annotated PNGs to DIR")
+    output_argument(
+        p,
+        "--overlay",
+        kind="into",
+        metavar="DIR",
+        help="write annotated PNGs to DIR",
+        writes=lambda args: [overlay_name(path) for path in args.images],
+    )
     p.add_argument(
         "--method",
         choices=("precise", "imagej"),
@@ -220,7 +228,9 @@ def _context(args):
 
 
 def _measure_all(args):
-    """Measure every photo; a lost photo becomes a warning and an entry with ``error`` (the batch goes on).
+    """Measure every photo; a lost photo becomes an entry with ``error`` (the batch goes on) and is
+    named by :func:`lost_photos`. The overlays are written only when no photo was lost (a bad input
+    leaves no file behind).
 
     Returns
     -------
@@ -236,18 +246,39 @@ def _measure_all(args):
     results = []
     for path in args.images:
         res = measure_file(path, opts, layout, camera, reference)
-        for w in res.warnings:
-            _warn(w if res.error else f"{path}: {w}")
-        if args.overlay and res.error is None:
-            name = Path(args.overlay) / (Path(path).stem + ".overlay.png")
-            title = f"{path}  [{how}]"
-            up = exif_orientation(path)
-            write(name, draw(read_image(path), res.spots, res.plane, title, args.convention, up))
+        if res.error is None:
+            for w in res.warnings:
+                _warn(f"{path}: {w}")
         entry = res.to_dict(opts.method, args.convention, layout.plane_z if layout else None)
         if layout is not None:
             entry["frame"] = layout.frame
         results.append((entry, None if res.error else res))
+    if args.overlay and all(r is not None for _, r in results):
+        for path, (_, res) in zip(args.images, results):
+            up = exif_orientation(path)
+            image = draw(read_image(path), res.spots, res.plane, f"{path}  [{how}]", args.convention, up)
+            write(Path(args.overlay) / overlay_name(path), image)
     return results, layout
+
+
+def lost_photos(entries: list) -> int:
+    """0 when every photo of a batch was measured; else one error line naming the lost ones (why, for
+    the first three) on stderr, and 2: a batch reports its failures in its exit code."""
+    lost = [e for e in entries if e["error"]]
+    if not lost:
+        return 0
+    why = "; ".join(e["error"] if e["error"].startswith(e["image"]) else f"{e['image']}: {e['error']}"
+                    for e in lost[:3])  # fmt: skip
+    more = f"; and {len(lost) - 3} more" if len(lost) > 3 else ""
+    print(
+        f"lasercal: error: {len(lost)} of {len(entries)} photos not measured ({why}{more})", file=sys.stderr
+    )
+    return 2
+
+
+def overlay_name(photo: str) -> str:
+    """The name of a photo's annotated copy in ``--overlay DIR``."""
+    return Path(photo).stem + ".overlay.png"
 
 
 def _fmt(x, spec):
@@ -349,7 +380,7 @@ def spots_command(args) -> int:
                     "corners, "
                     f"fit RMS {p['rms_mm']:.3f} mm, {p['mm_per_px']:.4f} mm/px"
                 )
-    return 0 if any(e["spots"] for e in entries) else 2
+    return lost_photos(entries) or (0 if any(e["spots"] for e in entries) else 2)
 
 
 def beam_check_command(args) -> int:
@@ -438,7 +469,7 @@ def beam_check_command(args) -> int:
                 f"  beam tilt from the joint-7 axis: {t * 1e3:.3f} mrad = {np.degrees(t):.4f} deg "
                 f"(laser length {args.laser_length:g} mm; an upper bound if the beam misses the axis)"
             )
-    return 0
+    return lost_photos([e for e, _ in measured])
 
 
 def camera_calibrate_command(args) -> int:
@@ -469,14 +500,17 @@ def camera_calibrate_command(args) -> int:
             "rows": args.chessboard[1],
             "square": args.square,
         }
-    images = []
+    images, lost = [], []
     for path in args.photos:
         try:
             images.append((path, to_gray(read_image(path))))
         except VisionError as exc:
-            _warn(str(exc))
-    if not images:
-        raise CalibrationError("no readable photo")
+            lost.append(str(exc))
+    if lost:  # a photo named and not read is a failure of the batch, before anything is written
+        more = f"; and {len(lost) - 3} more" if len(lost) > 3 else ""
+        raise CalibrationError(
+            f"{len(lost)} of {len(args.photos)} photos unreadable ({'; '.join(lost[:3])}{more})"
+        )
     cam, used = calibrate(images, pattern, _warn)
     with atomic_output(args.output) as tmp:
         save_camera(tmp, cam, pattern, used)

@@ -102,7 +102,7 @@ def load_validation(folder) -> Validation:
         ) from None
     if metres_hint(xyz):
         raise FormatError(ypath, f"point xyz {xyz.tolist()}: {metres_hint(xyz)}", field="point.xyz")
-    rows = csv_rows(cpath)
+    rows = csv_rows(cpath, f"`lasercal validate --resume {cpath.parent}` cuts the torn row off")
     if not rows or not {"x_mm", "y_mm"} <= set(rows[0][1]):
         raise FormatError(cpath, "expected a header with x_mm and y_mm", line=rows[0][0] if rows else None)
     header = rows[0][1]

@@ -6,6 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
+DIAGNOSIS_PLOTS = ("residuals_vs_regressor.png", "measured_vs_simulated.png", "before_after.png")
+"""The files :func:`diagnosis_plots` may write into its folder."""
+
 
 def pyplot():
     """matplotlib's pyplot on the headless Agg backend, imported when a plot is made (the one set-up)."""
@@ -58,7 +61,7 @@ def diagnosis_plots(d, out) -> list[Path]:
         axs[1].set_xlabel("strongest candidate, -log10 p")
         axs[1].set_title(f"bootstrap p = {b['p_value']:.3g}")
         axs[1].legend()
-        written.append(save(fig, out / "measured_vs_simulated.png"))
+        written.append(save(fig, out / DIAGNOSIS_PLOTS[1]))
 
     fig, ax = plt.subplots(figsize=(5, 5))
     for key, c in (("geometric", "tab:red"), ("extended", "tab:blue")):
@@ -69,7 +72,7 @@ def diagnosis_plots(d, out) -> list[Path]:
     ax.set_ylabel("held-out error y (mm)")
     ax.legend()
     ax.set_title("held-out errors, before/after the extension", fontsize=10)
-    written.append(save(fig, out / "before_after.png"))
+    written.append(save(fig, out / DIAGNOSIS_PLOTS[2]))
     return written
 
 
@@ -118,4 +121,4 @@ def _residuals_vs_regressor(plt, d, res: np.ndarray, out: Path) -> Path:
         ax.set_xlabel(xlab)
         ax.set_ylabel(f"residual as joint {idx[0] + 1} motion (mrad)")
         ax.set_title(f"geometric-fit residuals vs the {ext.effect} regressor")
-    return save(fig, out / "residuals_vs_regressor.png")
+    return save(fig, out / DIAGNOSIS_PLOTS[0])

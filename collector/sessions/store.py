@@ -19,11 +19,11 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from lasercal.collector.errors import SessionError
 from lasercal.solver.formats.robots import load_model, load_yaml
 from lasercal.solver.formats.session import Session, captures_header, format_row, load_session
+from lasercal.solver.whole import dump_yaml
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -249,7 +249,7 @@ class CaptureStore:
                 "folder"
             )
         folder.mkdir(parents=True, exist_ok=True)
-        write_atomic(folder / "session.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
+        write_atomic(folder / "session.yaml", dump_yaml(meta, sort_keys=False, width=120))
         header = captures_header(n, dq=True, tau=True, extra=extra_columns)
         write_atomic(folder / "captures.csv", csv_line(header).decode())
         return cls(folder, meta, header, None)

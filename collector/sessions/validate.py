@@ -20,17 +20,17 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.sessions.capture import wait_still
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
-from lasercal.collector.sessions.store import CsvLog, write_atomic, write_atomic_bytes
+from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.table import csv_rows
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.whole import dump_yaml
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
 from lasercal.vision.exposure import exposure_advice
@@ -284,7 +284,8 @@ class ValidationResult:
     """Where a validation run wrote its table, and the spots it measured ((k, 2) mm, base frame).
 
     ``photos`` counts the rows written by this run, ``done`` those in the table (a resumed run
-    adds to earlier ones) out of ``n`` planned configurations.
+    adds to earlier ones) out of ``n`` planned configurations; ``failed`` the configurations of this
+    run that gave no spot: a photo not measured, or an arm that did not come to rest (skipped).
     """
 
     path: Path
@@ -292,6 +293,7 @@ class ValidationResult:
     spots: np.ndarray
     done: int = 0
     n: int = 0
+    failed: int = 0
 
     @property
     def complete(self) -> bool:
@@ -394,6 +396,8 @@ def run_validation(
         raise DeviceError(
             f"the {robot.name} backend cannot move the arm: the operator guides it, so a trigger is needed"
         )
+    if resume:  # a row a kill tore is cut off (then the log goes on after the last whole row)
+        cut_torn_line(folder / "validation.csv")
     done = done_indices(folder / "validation.csv") if resume else set()
     todo = [i for i in range(len(planned)) if i not in done]
     meta = {
@@ -430,7 +434,7 @@ def run_validation(
         raise
     if not resume:
         (folder / "photos").mkdir(parents=True, exist_ok=True)
-        write_atomic(folder / "validation.yaml", yaml.safe_dump(meta, sort_keys=False, width=120))
+        write_atomic(folder / "validation.yaml", dump_yaml(meta, sort_keys=False, width=120))
     header = ["index"] + [f"q{j + 1}" for j in range(model.n)] + ["photo", "x_mm", "y_mm", "q_dev"]
     log = CsvLog(
         folder / "validation.csv",
@@ -442,7 +446,7 @@ def run_validation(
         resume=resume,
     )
     w = out.write
-    photos, spots = 0, []
+    photos, spots, failed = 0, [], 0
     if resume:
         w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
     try:
@@ -467,6 +471,7 @@ def run_validation(
                     robot.move_to(step)
             state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
             if state is None:
+                failed += 1
                 w(
                     f"configuration {i + 1}: the arm did not come to rest (max |dq| {peak:.4f} rad/s): "
                     "skipped\n"
@@ -490,6 +495,7 @@ def run_validation(
                     xy, advice = measure(img, name)
                 except VisionError as e:  # one unreadable photo must not end the run: it stays on disk
                     msg += f", not measured ({e})"
+                    failed += 1
                 else:
                     row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
                     spots.append(xy)
@@ -514,4 +520,6 @@ def run_validation(
         log.close()
         robot.close()
         camera.close()
-    return ValidationResult(log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n)
+    return ValidationResult(
+        log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n, failed
+    )

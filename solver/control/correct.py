@@ -6,9 +6,10 @@ effects) puts a tool at a goal, and what a controller that keeps the nominal mod
    limits less a margin.
 2. Effects. A robot effect of the model (joint compliance, encoder eccentricity) maps the commanded
    (read) angles to the true ones, q_true = q_cmd + dq(q_cmd, tau(q_cmd)), with tau the gravity torques
-   of the model at the commanded pose (its gravity model, else the lumped wrist load the fit used,
-   :func:`solver.kinematics.gravity.model_torques`). The command is the fixed point
-   q_cmd = q_true - dq(q_cmd, tau(q_cmd)), a contraction since dq changes by milliradians per radian.
+   the fit used at the commanded pose: the nominal robot's gravity model, else its lumped wrist load
+   (:func:`solver.control.nominal.gravity_robot`, :func:`solver.kinematics.gravity.model_torques`).
+   The command is the fixed point q_cmd = q_true - dq(q_cmd, tau(q_cmd)), a contraction since dq
+   changes by milliradians per radian.
    A command pushed past the limit margin by dq is solved again with the bounds of q_true moved by dq.
 3. Check. The calibrated model's miss at q_cmd (with its effects) is the residual; a goal is ``ok`` when
    it is below :data:`OK_MM` (and :data:`OK_RAD` for a pose) with every command inside the limits less
@@ -65,22 +66,25 @@ def joint_effect(ext) -> None:
         )
 
 
-def true_angles(model: RobotModel, ext, q_cmd: np.ndarray) -> np.ndarray:
-    """The true link angles (m, n) at the commanded angles: q_cmd + dq(q_cmd, tau(q_cmd)) (step 2)."""
+def true_angles(model: RobotModel, ext, q_cmd: np.ndarray, gravity: RobotModel | None = None) -> np.ndarray:
+    """The true link angles (m, n) at the commanded angles: q_cmd + dq(q_cmd, tau(q_cmd)) (step 2), tau
+    from the gravity model of ``gravity`` (default ``model``; the fit's: :func:`nominal.gravity_robot`)."""
     if ext is None:
         return q_cmd
-    tau = model_torques(model, q_cmd)[0] if "tau" in ext.needs() else None
+    tau = model_torques(gravity or model, q_cmd)[0] if "tau" in ext.needs() else None
     return ext.true_q(q_cmd, None, tau)
 
 
-def command_angles(model: RobotModel, ext, q_true: np.ndarray) -> np.ndarray:
+def command_angles(
+    model: RobotModel, ext, q_true: np.ndarray, gravity: RobotModel | None = None
+) -> np.ndarray:
     """The commanded angles (m, n) whose true angles are q_true: the fixed point
-    q_cmd = q_true - dq(q_cmd, tau(q_cmd)) (step 2)."""
+    q_cmd = q_true - dq(q_cmd, tau(q_cmd)) (step 2; ``gravity`` as for :func:`true_angles`)."""
     if ext is None:
         return q_true
     q = np.array(q_true, dtype=float)
     for _ in range(_FIXED_POINT_ITERATIONS):
-        nxt = q_true - (true_angles(model, ext, q) - q)
+        nxt = q_true - (true_angles(model, ext, q, gravity) - q)
         converged = np.abs(nxt - q).max(initial=0.0) < _FIXED_POINT_TOL
         q = nxt
         if converged:
@@ -102,6 +106,7 @@ def solve_commands(
     R_goal: np.ndarray | None,
     opts: IKOptions,
     pull: bool = True,
+    gravity: RobotModel | None = None,
 ) -> tuple[np.ndarray, IKSolution]:
     """Steps 1 and 2: commands (m, n) rad for goals of the tool whose frame at q = 0 is M, and the IK report.
 
@@ -114,9 +119,10 @@ def solve_commands(
     p_goal : (m, 3) array, mm; R_goal : (m, 3, 3) array or None
     opts : IKOptions
     pull : bool, the seeds pull a redundant arm towards them (False: they are only where the search starts)
+    gravity : RobotModel, optional, whose gravity model gives the effect's torques (:func:`true_angles`)
     """
     sol = solve_ik(model.screws, M, model.limits, seed, p_goal, R_goal, opts, pull=pull)
-    q = command_angles(model, ext, sol.q)
+    q = command_angles(model, ext, sol.q, gravity)
     lo, hi = model.limits[:, 0] + opts.margin, model.limits[:, 1] - opts.margin
     for _ in range(
         _LIMIT_PASSES
@@ -138,7 +144,7 @@ def solve_commands(
             pull,
             sol.q[redo],
         )
-        q[redo] = command_angles(model, ext, again.q)
+        q[redo] = command_angles(model, ext, again.q, gravity)
         sol = sol.with_rows(redo, again)
     return q, sol
 
@@ -152,11 +158,13 @@ def check(
     p_goal: np.ndarray,
     R_goal: np.ndarray | None,
     opts: IKOptions,
+    gravity: RobotModel | None = None,
 ) -> Commands:
-    """Step 3: the calibrated model's miss at the commands, ok, and the reason of each goal not ok."""
+    """Step 3: the calibrated model's miss at the commands, ok, and the reason of each goal not ok
+    (``gravity`` as for :func:`true_angles`)."""
     from lasercal.solver.kinematics.ik import rotation_error, tool_frames
 
-    T = tool_frames(model.screws, M, true_angles(model, ext, q))[0]
+    T = tool_frames(model.screws, M, true_angles(model, ext, q, gravity))[0]
     res_mm = np.linalg.norm(p_goal - T[:, :3, 3], axis=1)
     res_rad = (
         np.zeros(len(q)) if R_goal is None else np.linalg.norm(rotation_error(R_goal, T[:, :3, :3]), axis=1)

@@ -88,3 +88,28 @@ def nominal_model(model: RobotModel, path=None) -> RobotModel:
             field="nominal",
         )
     return nominal
+
+
+def gravity_robot(model: RobotModel, path=None, nominal: RobotModel | None = None) -> RobotModel:
+    """The robot whose gravity model gives the joint torques of ``model``'s effects at commanded poses
+    when none are logged: its nominal robot, whose torques the fit took (``solve`` takes the session's
+    robot's at the logged poses, :func:`solver.analysis.diagnose.session_torques`), so that ``predict``
+    and ``correct`` reproduce the fit's figures; ``model`` itself when it names no nominal, or when
+    only it has a gravity model.
+
+    Parameters
+    ----------
+    model : RobotModel, a calibrated model
+    path : str or Path, optional, the model's file (a relative ``nominal:`` is relative to its folder)
+    nominal : RobotModel, optional, its nominal model when already loaded (:func:`nominal_model`)
+
+    Returns
+    -------
+    RobotModel
+    """
+    if nominal is None:
+        try:
+            nominal = nominal_model(model, path)
+        except FormatError:
+            return model
+    return nominal if nominal.links or not model.links else model

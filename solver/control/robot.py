@@ -34,7 +34,7 @@ from lasercal.solver.control.correct import (
     solve_commands,
     true_angles,
 )
-from lasercal.solver.control.nominal import nominal_model
+from lasercal.solver.control.nominal import gravity_robot, nominal_model
 from lasercal.solver.control.tools import FLANGE, Tool, flange, identified_points, make_tool
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model as load_robot_model
@@ -86,6 +86,7 @@ class Robot:
 
     def __init__(self, model: RobotModel, nominal: RobotModel, options: IKOptions = DEFAULT_IK, path=None):
         self.model, self.nominal, self.options, self.path = model, nominal, options, path
+        self.gravity = gravity_robot(model, path, nominal)  # the effects' torques: the fit's
         self.extension = extension_from_model(model.extensions, path or model.name, model.n)
         joint_effect(self.extension)
         self.flange = flange(model)
@@ -146,13 +147,13 @@ class Robot:
         q = self._angles(q)
         if nominal:
             return tool_frames(self.nominal.screws, self.tool_frame(tool, nominal=True), q)[0]
-        q_true = true_angles(self.model, self.extension, q)
+        q_true = true_angles(self.model, self.extension, q, self.gravity)
         return tool_frames(self.model.screws, self.tool_frame(tool), q_true)[0]
 
     def command(self, q_true) -> np.ndarray:
         """The joint commands (m, n) rad whose true link angles are ``q_true`` (m, n) rad: the model's effects
         inverted (a configuration planned on the calibrated URDF, which cannot carry them, e.g. by MoveIt)."""
-        return command_angles(self.model, self.extension, self._angles(q_true))
+        return command_angles(self.model, self.extension, self._angles(q_true), self.gravity)
 
     def ik(self, goal, seed=None, tool=None) -> Commands:
         """Inverse kinematics: joint angles (as commanded) putting the tool at each goal under the calibrated
@@ -173,8 +174,8 @@ class Robot:
         M = self.tool_frame(tool)
         pull = seed is not None
         seed = self._seed(seed, len(p))
-        q, sol = solve_commands(self.model, self.extension, M, seed, p, R, self.options, pull)
-        return check(self.model, self.extension, M, q, sol, p, R, self.options)
+        q, sol = solve_commands(self.model, self.extension, M, seed, p, R, self.options, pull, self.gravity)
+        return check(self.model, self.extension, M, q, sol, p, R, self.options, self.gravity)
 
     def correct(self, goal=None, q=None, seed=None, tool=None) -> Correction:
         """Commands for a controller that keeps the nominal model: goals, or a program planned with it.

@@ -149,6 +149,13 @@ def _joint_columns(prefix: str, n: int) -> list[str]:
     return [f"{prefix}{i}" for i in range(1, n + 1)]
 
 
+def captures_repair(folder, meta: dict) -> str:
+    """How to mend a captures.csv whose last row a kill tore (:func:`table.check_last_line`)."""
+    if meta.get("collector"):  # a capture session: its resume cuts the torn row off and goes on
+        return f"`lasercal capture --resume {folder}` cuts the torn row off and goes on"
+    return "delete the torn last row, or make the session again"
+
+
 def _numeric_block(path, rows, header, cols, required=True) -> np.ndarray | None:
     """Columns ``cols`` of the rows as floats, with errors naming line and column."""
     missing = [c for c in cols if c not in header]

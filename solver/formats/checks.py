@@ -172,15 +172,25 @@ def read_text(path) -> str:
 
 
 def load_yaml(path):
-    """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line."""
+    """Parse a YAML file, turning I/O and syntax errors into a FormatError with the line, and a file cut
+    short (:func:`cut_short`) into one naming it."""
     from pathlib import Path
 
     import yaml  # (here: the command line's options load this module for every command)
 
     from lasercal.solver.errors import FormatError
+    from lasercal.solver.whole import cut_short
 
     path = Path(path)
     text = read_text(path)
+    torn = cut_short(text)
+    if torn is not None:
+        raise FormatError(
+            path,
+            "cut short: the file ends before its last line '...' (a write killed, or a partial copy; "
+            "expected the whole file)",
+            line=torn,
+        )
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as e:

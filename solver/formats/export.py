@@ -27,6 +27,7 @@ import yaml
 from lasercal.solver.kinematics.minimal import link_frame
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import inv_T
+from lasercal.solver.whole import dump_yaml
 
 # franka_description (panda_arm.xacro): joint origins relative to the previous link, xyz (m) and rpy (rad).
 FRANKA_ORIGINS = (
@@ -372,7 +373,7 @@ def to_dh(model: RobotModel) -> str:
 
 def to_yaml(model: RobotModel) -> str:
     """The model as lasercal writes it (format lasercal-robot/1, normalised screws)."""
-    return yaml.safe_dump(model.to_dict(), sort_keys=False, width=120)
+    return dump_yaml(model.to_dict(), sort_keys=False, width=120)
 
 
 def export(model: RobotModel, fmt: str) -> str:

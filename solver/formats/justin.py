@@ -32,6 +32,7 @@ from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.checks import read_text
 from lasercal.solver.kinematics.model import Link, RobotModel, _frozen
 from lasercal.solver.kinematics.tree import with_lateral_axes
+from lasercal.solver.whole import dump_yaml
 
 M_TO_MM = 1000.0
 N_COMMANDED = 19
@@ -241,11 +242,14 @@ def write_justin_session(src, folder) -> int:
     index, q, mk, _ = read_dlr_measurements(src)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    import yaml
 
     (folder / "session.yaml").write_text(
-        "# imported by `lasercal import-justin` from DLR's measurement records: mm, rad\n"
-        + yaml.safe_dump(justin_session_meta(Path(src).name), sort_keys=False, width=120)
+        dump_yaml(
+            justin_session_meta(Path(src).name),
+            "# imported by `lasercal import-justin` from DLR's measurement records: mm, rad\n",
+            sort_keys=False,
+            width=120,
+        )
     )
     with open(folder / "captures.csv", "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")

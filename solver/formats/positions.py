@@ -17,7 +17,6 @@ import csv
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.captures import (
@@ -26,6 +25,7 @@ from lasercal.solver.formats.captures import (
     Session,
     _joint_columns,
     _numeric_block,
+    captures_repair,
     check_limits,
     check_repeats,
     format_row,
@@ -33,6 +33,7 @@ from lasercal.solver.formats.captures import (
 from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.table import read_csv
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.whole import dump_yaml
 
 DEFAULT_TARGET = "T1"
 
@@ -52,7 +53,7 @@ def load_position_session(folder: Path, meta: dict, robot: RobotModel, clock: st
     Session with ``measurement='position'``, ``target`` the measured positions (m, 3) mm
     """
     cpath = folder / "captures.csv"
-    header, rows = read_csv(cpath)
+    header, rows = read_csv(cpath, captures_repair(folder, meta))
     n = robot.n
     qcols = _joint_columns("q", robot.n_commanded)  # a coupled robot's commanded joints
     q = robot.described(_numeric_block(cpath, rows, header, qcols))  # the joints they drive
@@ -211,7 +212,7 @@ def write_position_session(
     """Write a position session folder (captures.csv: q1..qN[,t][,tau1..tauN],target,x,y,z[,sigma])."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "session.yaml").write_text(yaml.safe_dump(meta, sort_keys=False, width=120))
+    (folder / "session.yaml").write_text(dump_yaml(meta, sort_keys=False, width=120))
     n = q.shape[1]
     header = (
         _joint_columns("q", n)

@@ -9,7 +9,8 @@
 * Session: a folder with ``session.yaml`` (``format: lasercal-session/1``; ``clock: seconds``, the
   default, or ``order`` when ``t`` is only the recording order) and ``captures.csv``
   (``point,t,q1..qN[,dq1..dqN][,tau1..tauN][,extra...]``; mm, rad, Nm, s).
-* Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through.
+* Configurations CSV: ``q1..qN`` with optional ``t`` and ``tau1..tauN``; other columns pass through
+  (renamed ``measured_NAME`` where an output column takes their name: :func:`header_beside`).
 
 Every malformed input raises :class:`~solver.errors.FormatError` naming file, line and column.
 """
@@ -22,7 +23,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from lasercal.solver.errors import AimingError, FormatError
 from lasercal.solver.formats.captures import (
@@ -31,6 +31,7 @@ from lasercal.solver.formats.captures import (
     Session,
     _joint_columns,
     _numeric_block,
+    captures_repair,
     check_limits,
     check_repeats,
     format_row,
@@ -43,6 +44,7 @@ from lasercal.solver.formats.table import read_csv
 from lasercal.solver.formats.tolerances import load_tolerances
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import SheetPose
+from lasercal.solver.whole import dump_yaml
 
 LAYOUT_FORMAT = "lasercal-layout/1"
 CLOCKS = ("seconds", "order")  # what the t column is: a real clock (s), or the recording order (a count)
@@ -450,7 +452,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
                 ypath, "laser.aperture_z must be a number (mm)", field="laser.aperture_z"
             ) from None
         check_aperture(ypath, aperture_z, robot, "laser.aperture_z")
-    header, rows = read_csv(cpath)
+    header, rows = read_csv(cpath, captures_repair(folder, meta))
     n = robot.n
     if header[:2] != ["point", "t"]:
         raise FormatError(
@@ -487,6 +489,9 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         -1, 3
     )
     frame, sheet = _frame(meta, ypath) if measurement == "laser" else ("base", None)
+    check_consistent(
+        ypath, meta, points, cpath, names, lines, frame, plane_z if measurement == "laser" else None
+    )
     if frame == "sheet":
         check_layout_geometry(ypath, points, 0.0, tuple(points), frame)
         target[:, 2] = plane_z  # x, y on the sheet; z the plane's height in the base frame
@@ -512,6 +517,41 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         frame=frame,
         sheet=sheet,
     )
+
+
+def check_consistent(ypath, meta: dict, points: dict, cpath, names, lines, frame: str, plane_z) -> None:
+    """session.yaml agrees with itself and with captures.csv, as a whole file does: its ``requested`` and
+    ``validation`` lists name its points, every capture is at a requested point, and a laser session's
+    base-frame points lie on its plane (a sheet's [x, y, 0] points whose ``frame: sheet`` was lost do
+    not). A file cut short (by hand, or written before files said where they end, solver/whole.py)
+    fails one of these where its lost keys would otherwise take their defaults.
+
+    Raises
+    ------
+    FormatError
+        Naming the file, the field or line, and what a cut would explain.
+    """
+    requested = _names(meta, "requested", points, ypath)
+    _names(meta, "validation", points, ypath)
+    if requested:
+        for nm, ln in zip(names, lines):
+            if nm not in requested:
+                raise FormatError(
+                    cpath,
+                    f"a capture at {nm}, which {ypath}'s 'requested' ({', '.join(requested)}) does not list "
+                    "(expected a requested point: session.yaml cut short?)",
+                    line=int(ln),
+                    field="point",
+                )
+    if frame == "base" and plane_z is not None:
+        for nm, p in points.items():
+            if p is not None and abs(p[2] - plane_z) > SAME_POINT_MM:
+                raise FormatError(
+                    ypath,
+                    f"point {nm} z = {p[2]:g} mm is off the plane z = {plane_z:g} mm (expected base-frame "
+                    "points on the plane, or 'frame: sheet' for a sheet's [x, y, 0]: cut short?)",
+                    field=f"points.{nm}",
+                )
 
 
 def _distances(meta: dict, points: dict, path) -> tuple:
@@ -559,7 +599,7 @@ def write_session(folder, meta: dict, point, t, q, dq=None, tau=None, extra: dic
     """Write a complete session folder (simulations and imports; the collector appends instead)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "session.yaml").write_text(yaml.safe_dump(meta, sort_keys=False, width=120))
+    (folder / "session.yaml").write_text(dump_yaml(meta, sort_keys=False, width=120))
     q = np.atleast_2d(q)
     extra = extra or {}
     header = captures_header(q.shape[1], dq is not None, tau is not None, extra)
@@ -585,6 +625,20 @@ class Configs:
     q: np.ndarray
     t: np.ndarray | None
     tau: np.ndarray | None
+
+
+def header_beside(header: list, added: list, prefix: str = "measured_") -> list:
+    """The columns of an output: the input's passed through, then ``added``; a passed-through name an
+    added column takes (a position session's measured ``x,y,z`` beside the predicted ones) gets
+    ``prefix``, so that no name is written twice and the added columns keep their documented names."""
+    taken = set(added)
+    out = []
+    for h in header:
+        while h in taken:
+            h = prefix + h
+        taken.add(h)
+        out.append(h)
+    return out + list(added)
 
 
 def load_configs(path, robot: RobotModel) -> Configs:

@@ -42,9 +42,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from lasercal.solver.kinematics.sheet import SheetPose
+from lasercal.solver.whole import dump_yaml
 
 FORMAT = "lasercal-robot/1"
 
@@ -256,4 +256,4 @@ class RobotModel:
 
     def save(self, path) -> None:
         """Write the model as YAML."""
-        Path(path).write_text(yaml.safe_dump(self.to_dict(), sort_keys=False, width=120))
+        Path(path).write_text(dump_yaml(self.to_dict(), sort_keys=False, width=120))
