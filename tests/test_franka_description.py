@@ -134,6 +134,13 @@ def test_the_unmodified_description_is_lasercals_nominal_model(name, robot_id, t
     assert dp < TOL_MM and dr < 1e-9
 
 
+@needs_fd
+@pytest.mark.parametrize("name, robot_id", [("panda", "fer"), ("fr3", "fr3"), ("fr3", "fp3")])
+def test_the_nominal_model_writes_frankas_own_file_value_for_value(name, robot_id):
+    ours = yaml.safe_load(to_franka(load_model(name), robot_id))
+    assert ours == yaml.safe_load((FD / "robots" / robot_id / "kinematics.yaml").read_text())
+
+
 MODELS = {"every deviation": every_deviation_model, "thesis": lambda: load_model("panda_thesis_identified")}
 
 
