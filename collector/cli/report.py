@@ -54,7 +54,7 @@ def args_export(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--format",
-        choices=FORMATS,
+        choices=FORMATS + ("franka",),
         default="urdf",
         help="urdf (default), dh, yaml, or franka: franka_description's robots/<id>/kinematics.yaml "
         "(docs/use.md)",
@@ -116,13 +116,16 @@ def cmd_export(args) -> int:
     from lasercal.solver.formats.robots import load_model
 
     model = load_model(args.model)
-    try:
-        text = export(model, args.format, args.robot_id)
-    except ModelError as e:  # what --format franka cannot write: named with the option and the model
-        raise LasercalError(f"argument --format {args.format}: {args.model}: {e}") from None
     if args.format == "franka":
+        from lasercal.solver.formats.franka import to_franka
+
+        try:
+            text = to_franka(model, args.robot_id)
+        except ModelError as e:  # a model the file cannot describe: named with the option and the model
+            raise LasercalError(f"argument --format franka: {args.model}: {e}") from None
         _franka_notes(model, args.robot_id)
     else:
+        text = export(model, args.format)
         unused(args, "it names the robot of --format franka", "robot_id")
     if args.sensor_output:
         from lasercal.solver.formats.urdf import sensor_urdf

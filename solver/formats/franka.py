@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from lasercal.solver.errors import ModelError
-from lasercal.solver.formats.export import FRANKA_ORIGINS, kinematic_frames, xyz_rpy
+from lasercal.solver.formats.export import FRANKA_ORIGINS, kinematic_frames, model_flange, xyz_rpy
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import inv_T
 
@@ -69,11 +69,9 @@ def franka_origins(model: RobotModel) -> np.ndarray:
     ModelError
         The model is no Franka arm.
     """
-    from lasercal.solver.control.tools import flange
-
     _check_franka(model)
     G = kinematic_frames(model).joints
-    frames = np.concatenate([np.eye(4)[None], G, flange(model)[None]])
+    frames = np.concatenate([np.eye(4)[None], G, model_flange(model)[None]])
     return np.array([inv_T(frames[i]) @ frames[i + 1] for i in range(8)])
 
 
@@ -147,9 +145,7 @@ def to_franka(model: RobotModel, robot_id: str | None = None) -> str:
 
 def _in_flange(model: RobotModel, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A frame at q = 0 (4, 4) mm in the flange's frame: its position mm and its rotation matrix."""
-    from lasercal.solver.control.tools import flange
-
-    L = inv_T(flange(model)) @ T
+    L = inv_T(model_flange(model)) @ T
     return L[:3, 3], L[:3, :3]
 
 
@@ -164,23 +160,22 @@ def _angle(R: np.ndarray) -> float:
 def _effect_size(model: RobotModel) -> tuple[float, float] | None:
     """The largest joint correction (rad) and flange displacement (mm) of the model's robot effects over
     configurations drawn within the limits (seeded), or None when they cannot be evaluated from q alone."""
-    from lasercal.solver.control.correct import joint_effect, true_angles
-    from lasercal.solver.control.tools import flange
     from lasercal.solver.errors import LasercalError
     from lasercal.solver.kinematics.effects import extension_from_model
+    from lasercal.solver.kinematics.gravity import model_torques
     from lasercal.solver.kinematics.ik import tool_frames
     from lasercal.solver.streams import stream
 
     try:
         ext = extension_from_model(model.extensions, model.name, model.n)
-        joint_effect(ext)
     except LasercalError:
         return None
-    if ext is None:
+    if ext is None or "t" in ext.needs():  # a drift needs a session's clock: no size from q alone
         return None
     q = stream(0, "franka-export", "effects").uniform(model.limits[:, 0], model.limits[:, 1], (_SAMPLES, 7))
-    qt = true_angles(model, ext, q)
-    F = flange(model)
+    tau = model_torques(model, q)[0] if "tau" in ext.needs() else None
+    qt = ext.true_q(q, None, tau)  # q_true = q + dq(q, tau(q)), as lasercal correct applies it
+    F = model_flange(model)
     d = tool_frames(model.screws, F, qt)[0][:, :3, 3] - tool_frames(model.screws, F, q)[0][:, :3, 3]
     return float(np.abs(qt - q).max()), float(np.linalg.norm(d, axis=1).max())
 
