@@ -49,7 +49,6 @@ ROBOT_IDS = ("fer", "fr3", "fr3v2", "fp3")
 FAMILY = {"panda": "fer", "fr3": "fr3"}  # kinematic_frames' prefix -> the default robot id
 _DECIMALS = 15  # m and rad: round-off below 1e-12 mm; Franka's nominal values read as Franka writes them
 _SAMPLES = 500  # configurations over which an effect's size is measured
-_LINK8 = "link8"
 
 
 def franka_origins(model: RobotModel) -> np.ndarray:
