@@ -391,6 +391,18 @@ MODEL_BAD = {
 }
 for cid, setup in MODEL_BAD.items():
     case(f"export: {cid}", EXPORT + ["-o", "{o}"], setup, "model.yaml")
+for cid in ("model not utf-8", "model limits in degrees", "model aperture in metres", "model extension nan"):
+    case(f"export --format franka: {cid}", EXPORT + ["--format", "franka", "-o", "{o}"], MODEL_BAD[cid],
+         "model.yaml")  # fmt: skip
+# --format franka writes franka_description's kinematics.yaml: a Franka arm only, a robot id it knows
+case("export --format franka of a robot that is no Franka arm", ["export", "puma560", "--format", "franka",
+     "-o", "{o}"], None, "--format franka")  # fmt: skip
+case("export --format franka of a URDF that is no Franka arm", ["export", str(URDF), "--format", "franka",
+     "-o", "{o}"], None, "--format franka")  # fmt: skip
+case("export --format franka of a tree", ["export", "justin", "--format", "franka", "-o", "{o}"], None,
+     "--format franka")  # fmt: skip
+case("export --robot-id nosuch", EXPORT + ["--format", "franka", "--robot-id", "nosuch", "-o", "{o}"], None,
+     "--robot-id")  # fmt: skip
 for cid in (
     "model not utf-8",
     "model limits in degrees",
@@ -1020,6 +1032,7 @@ for cmd, argv, needle in (
     ("camera-calibrate", CALIB + ["--square", "20", "-o", "{d}/val/photos/0000.png", "--force"],
      "replace the input"),
     ("export", EXPORT + ["-o", "{d}/m.urdf", "--sensor-output", "{d}/m.urdf"], "the same path"),
+    ("export", EXPORT + ["--format", "franka", "-o", "{d}/model.yaml", "--force"], "replace the input"),
     ("correct", BASE["correct"] + ["-o", "{d}/goals.csv", "--force"], "replace the input"),
 ):  # fmt: skip
     case(f"{cmd}: an output that is an input: {' '.join(argv[-3:])}", argv, None, needle, "output")
@@ -1442,6 +1455,12 @@ WARNINGS = [
      "--sheet-pose on a position session", None, "--sheet-pose 5.0 5.0 2.0: ignored"),
     ("simulate", SIM_SHEET + ["-o", "{o}"], "a sheet layout's yaw in radians",
      _sheet_yaml("layout", "sheet", "yaw_deg", 0.5236), "field 'sheet.yaw_deg'"),
+    ("export", EXPORT + ["--robot-id", "fr3", "-o", "{o}"], "--robot-id without --format franka", None,
+     "--robot-id fr3: ignored"),
+    ("export", EXPORT + ["--format", "franka", "-o", "{o}"], "what kinematics.yaml cannot carry", None,
+     "not in kinematics.yaml: the laser"),
+    ("export", EXPORT + ["--format", "franka", "--robot-id", "fr3", "-o", "{o}"],
+     "a Panda written for an FR3", None, "--robot-id fr3: the model"),
     ("correct", _argv("correct"), "a rotation vector longer than pi",
      _touch("goals.csv", "x,y,z,rx,ry,rz\n400,0,500,4.0,0,0\n"), "goals.csv, line 2, column 'rx'"),
     ("solve", SOLVE + ["--prior", "{d}/prior.yaml", "-o", "{o}"], "a prior tolerance in metres",

@@ -14,6 +14,7 @@
     T = robot.fk(q)                             # (m, 4, 4) mm: the flange where the joints read q (rad)
     sol = robot.ik(goals, seed=q0)              # joint angles (m, n) rad reaching goals (m, 3) mm or (m, 6)
     cmd = robot.correct(q=program)              # commands for a controller that keeps the nominal model
+    corrector = lasercal.Corrector(robot, tool=(0, 0, 103.4))  # the same, one goal at a time, at 1 kHz
     found = lasercal.spots(["p1.jpg"], layout="sheet.yaml")  # = lasercal spots
 
 See docs/api.md and docs/use.md. This package is the folder ``collector/api`` (a setuptools package-dir
@@ -41,6 +42,7 @@ _LAZY = {
     "load_model": "lasercal.solver.control.robot",
     "Robot": "lasercal.solver.control.robot",
     "Correction": "lasercal.solver.control.robot",
+    "Corrector": "lasercal.solver.control.corrector",
     "Tool": "lasercal.solver.control.tools",
     "IKOptions": "lasercal.solver.kinematics.ik",
 }

@@ -14,8 +14,10 @@ from lasercal.collector.cli.options import (
     chain_arguments,
     output_argument,
     session_robot,
+    unused,
 )
 from lasercal.solver.formats.export import FORMATS
+from lasercal.solver.formats.franka import ROBOT_IDS
 
 
 def args_report(p: argparse.ArgumentParser) -> None:
@@ -50,7 +52,18 @@ def args_export(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "model", type=ROBOT, help="robot model YAML (e.g. written by lasercal solve) or a built-in name"
     )
-    p.add_argument("--format", choices=FORMATS, default="urdf", help="urdf (default), dh or yaml")
+    p.add_argument(
+        "--format",
+        choices=FORMATS + ("franka",),
+        default="urdf",
+        help="urdf (default), dh, yaml, or franka: franka_description's robots/<id>/kinematics.yaml "
+        "(docs/use.md)",
+    )
+    p.add_argument(
+        "--robot-id",
+        choices=ROBOT_IDS,
+        help="--format franka: the franka_description robot (default: fer for a Panda, fr3 for an FR3)",
+    )
     output_argument(p, "-o", "--output", metavar="FILE", help="write here (default: standard output)")
     output_argument(
         p,
@@ -98,11 +111,22 @@ def cmd_report(args) -> int:
 
 def cmd_export(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
+    from lasercal.solver.errors import LasercalError, ModelError
     from lasercal.solver.formats.export import export
     from lasercal.solver.formats.robots import load_model
 
     model = load_model(args.model)
-    text = export(model, args.format)
+    if args.format == "franka":
+        from lasercal.solver.formats.franka import to_franka
+
+        try:
+            text = to_franka(model, args.robot_id)
+        except ModelError as e:  # a model the file cannot describe: named with the option and the model
+            raise LasercalError(f"argument --format franka: {args.model}: {e}") from None
+        _franka_notes(model, args.robot_id)
+    else:
+        text = export(model, args.format)
+        unused(args, "it names the robot of --format franka", "robot_id")
     if args.sensor_output:
         from lasercal.solver.formats.urdf import sensor_urdf
 
@@ -116,3 +140,14 @@ def cmd_export(args) -> int:
     else:
         sys.stdout.write(text)
     return 0
+
+
+def _franka_notes(model, robot_id) -> None:
+    """What kinematics.yaml cannot carry, one warning each with its size (never dropped in silence)."""
+    from lasercal.solver.errors import warn
+    from lasercal.solver.formats.franka import not_carried, robot_id_note
+
+    if robot_id and robot_id_note(model, robot_id):
+        warn(robot_id_note(model, robot_id))
+    for s in not_carried(model):
+        warn(f"not in kinematics.yaml: {s}")

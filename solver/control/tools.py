@@ -44,13 +44,9 @@ class Tool:
 
 def flange(model: RobotModel) -> np.ndarray:
     """The model's flange frame at q = 0 (4, 4) mm, base frame (module docstring)."""
-    if model.urdf:
-        from lasercal.solver.formats.urdf import tip_frame
+    from lasercal.solver.formats.export import model_flange
 
-        return tip_frame(model)
-    from lasercal.solver.formats.export import flange_frame
-
-    return flange_frame(model)
+    return model_flange(model)
 
 
 def identified_points(model: RobotModel) -> dict:

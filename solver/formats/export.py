@@ -48,7 +48,7 @@ FRANKA_VELOCITY = {
 }
 _FRANKA_MATCH = (0.1, 30.0)  # rad, mm: a model whose axes are this close to Franka's is a Panda or an FR3
 _PARALLEL = 1e-9  # |z_i x z_j| below this: parallel axes, the common normal is anywhere along them
-FORMATS = ("urdf", "dh", "yaml")
+FORMATS = ("urdf", "dh", "yaml")  # and franka_description's kinematics.yaml: solver.formats.franka
 
 
 def transform(xyz, rpy) -> np.ndarray:
@@ -207,6 +207,17 @@ def flange_frame(model: RobotModel, frames: Frames | None = None) -> np.ndarray:
     flange = last.copy()
     flange[:3, 3] = _foot(last[:3, 3], last[:3, 2], model.aperture)
     return flange
+
+
+def model_flange(model: RobotModel) -> np.ndarray:
+    """The model's flange at q = 0 (4, 4) mm, base frame, as every export and ``lasercal correct`` carry it:
+    a URDF model's tip link where the calibrated URDF puts it (:func:`solver.formats.urdf.tip_frame`), else
+    :func:`flange_frame`."""
+    if model.urdf:
+        from lasercal.solver.formats.urdf import tip_frame
+
+        return tip_frame(model)
+    return flange_frame(model)
 
 
 def _num(v: float) -> str:
@@ -378,7 +389,8 @@ def to_yaml(model: RobotModel) -> str:
 
 def export(model: RobotModel, fmt: str) -> str:
     """The model as text in ``fmt``: 'urdf', 'dh' or 'yaml'. A model from a URDF exports as that URDF with
-    calibrated joints (:func:`solver.formats.urdf.calibrated_urdf`)."""
+    calibrated joints (:func:`solver.formats.urdf.calibrated_urdf`). franka_description's kinematics.yaml is
+    :func:`solver.formats.franka.to_franka`."""
     if fmt == "urdf" and model.urdf:
         from lasercal.solver.formats.urdf import calibrated_urdf
 
