@@ -15,7 +15,7 @@ def format_diagnosis(d) -> str:
             best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
         lines.append(f"finding: none -- the geometric model and aiming noise explain the data ({best})")
     else:
-        where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(map(str, o["joints"]))
+        where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
         lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
         for nm, v in o["parameters"].items():
             lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
