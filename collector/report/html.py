@@ -618,6 +618,11 @@ def write_report(
     irows = [
         ["parameters", idf["parameters"]],
         ["rank", idf["rank"]],
+        *(
+            [["what the parameters are", idf["counted"]], ["possible from spots", idf["possible"]]]
+            if "counted" in idf
+            else []
+        ),
         ["condition number", f"{idf['condition']:.1f}"],
         ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
         ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],

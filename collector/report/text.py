@@ -82,6 +82,14 @@ def format_diagnosis(d) -> str:
     return "\n".join(lines)
 
 
+def identifiable_text(rank: int, parameters: int, possible: int | None = None) -> str:
+    """The one wording of the identifiable count (``solve``, the report, ``plan``, the capture coach), over
+    the parameters :func:`~lasercal.solver.identify.laser_parameters.counted_parameters` defines:
+    'identifiable: rank 30 of 31 parameters (30 possible from spots)'."""
+    text = f"identifiable: rank {rank} of {parameters} parameters"
+    return text + (f" ({possible} possible from spots)" if possible is not None else "")
+
+
 def format_solve(rep: dict) -> str:
     """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
     lines = []
@@ -97,9 +105,11 @@ def format_solve(rep: dict) -> str:
         f"{rep['sigma_mm']:.3f} mm per axis\n"
     )
     w(
-        f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number "
+        f"{identifiable_text(idf['rank'], idf['parameters'], idf.get('possible'))}, condition number "
         f"{idf['condition']:.3g}\n"
     )
+    if idf.get("counted"):
+        w(f"  parameters: {idf['counted']}\n")
     if rep.get("warning"):
         w(f"WARNING: {rep['warning']}\n")
     det = rep.get("determined_by")

@@ -23,6 +23,7 @@ import numpy as np
 from lasercal.collector.errors import DeviceError, RobotConnectionError
 from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
+from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.formats.data import reference
@@ -246,8 +247,7 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
     # with no captures the prediction is the prior's, which does not depend on the aiming noise
     spread = f"± {st.uncertainty:.2f} mm" if st.captures else "mm (prior)"
     lines = [
-        f"  coach: captures {per}; identifiable {st.rank} of {st.n_identifiable} parameter combinations "
-        f"({st.n_params} parameters)",
+        f"  coach: captures {per}; {identifiable_text(st.rank, st.n_params, st.n_identifiable)}",
         f"  predicted error at {st.region}: {st.predicted:.2f} {spread}",
     ]
     wk = st.weakest
@@ -319,8 +319,9 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
     )
 
 
-def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
-    """The capture coach of a session: the nominal model with the session's measured aperture height."""
+def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet: bool = False):
+    """The capture coach of a session: the nominal model with the session's measured aperture height;
+    ``layout`` in the base frame, ``sheet``: its points lie on a sheet whose pose ``solve`` identifies."""
     from lasercal.solver.analysis.design import Coach
     from lasercal.solver.formats.tolerances import robot_tolerances
 
@@ -328,7 +329,8 @@ def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg:
     model = (
         nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
     )
-    return Coach(model, layout, cfg["seed"], robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"]))
+    tol = robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"])
+    return Coach(model, layout, cfg["seed"], tol, sheet=sheet)
 
 
 def run_capture(

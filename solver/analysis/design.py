@@ -54,7 +54,8 @@ import numpy as np
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.tolerances import Tolerances, robot_tolerances
-from lasercal.solver.identify.lsq import fit_subspace, identifiability
+from lasercal.solver.identify.laser_parameters import CountedParameters, counted_parameters, counted_rank
+from lasercal.solver.identify.lsq import fit_subspace
 from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
@@ -272,6 +273,8 @@ class Posterior:
     weights : (m,) array, 1 used, 0 flagged as an outlier
     rows : (2 m_used, p) array, the spot Jacobian of the used captures at the estimate
     prior_root : (p, p) array, R = L^-1: the prior covariance is R R^T (eqs. D1, D4)
+    target_xy : (m_used, 2) array, the used captures' points in the base frame, mm (what a sheet's pose
+        would move: :func:`~lasercal.solver.identify.laser_parameters.counted_rank`)
     """
 
     params: LaserParams
@@ -285,6 +288,7 @@ class Posterior:
     weights: np.ndarray
     rows: np.ndarray
     prior_root: np.ndarray
+    target_xy: np.ndarray
 
     @property
     def prior_std(self) -> np.ndarray:
@@ -396,14 +400,13 @@ def posterior(
         def jacobian(v):
             return jac(v, q, target[:, 2])
 
-        fit = fit_subspace(
-            residual, jacobian, x0 if start is None else start, P.names, m >= 10, prior=prior
-        )
+        fit = fit_subspace(residual, jacobian, x0 if start is None else start, P.names, m >= 10, prior=prior)
         v, w, sigma, dof = fit.v, fit.weights, fit.sigma, fit.dof
         J = jacobian(v)[w > 0].reshape(-1, P.size)
         rank = fit.identifiability.rank
     else:
         v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
+    used_xy = target[w > 0, :2] if m else np.zeros((0, 2))
     C = _posterior_cov(J, R, sigma)
     return Posterior(
         P,
@@ -417,6 +420,7 @@ def posterior(
         w,
         J,
         R,
+        used_xy,
     )
 
 
@@ -701,11 +705,17 @@ def weakest(
     return Weakest(names, share, j + 1, np.array([q[:, j].min(), q[:, j].max()]), float(best[:, j].mean()))
 
 
-def identifiable(post: Posterior, cand: Candidates, Jc: np.ndarray | None = None) -> int:
-    """Parameter combinations spot data can identify at all: the SVD rank with every candidate added
-    (``Jc``: :func:`candidate_jacobian`, computed when not given)."""
-    Jc = (candidate_jacobian(post, cand) if Jc is None else Jc).reshape(-1, post.params.size)
-    return identifiability(np.vstack([post.rows, Jc]), post.params.names)[0].rank
+def identifiable(
+    post: Posterior, cand: Candidates, counted: CountedParameters, Jc: np.ndarray | None = None
+) -> tuple[int, int]:
+    """Parameter combinations the captures identify, and how many spot data can identify at all (the SVD
+    rank with every candidate added), over the parameters ``solve`` counts (``counted``; ``Jc``:
+    :func:`candidate_jacobian`, computed when not given)."""
+    Jc = candidate_jacobian(post, cand) if Jc is None else Jc
+    rows = post.rows.reshape(-1, 2, post.params.size)
+    return counted_rank(rows, post.target_xy, counted), counted_rank(
+        np.concatenate([rows, Jc]), np.vstack([post.target_xy, cand.target[:, :2]]), counted
+    )
 
 
 @dataclass(frozen=True)
@@ -715,7 +725,8 @@ class Status:
     Attributes
     ----------
     captures : int
-    rank : int, combinations the captures identify; n_identifiable of n_params can be
+    rank : int, combinations the captures identify; n_identifiable of n_params can be (the parameters
+        ``solve`` counts: :mod:`solver.identify.laser_parameters`)
     n_identifiable, n_params : int
     predicted, uncertainty : float, predicted held-out RMS error at the use region and its std, mm
     region : str, where (e.g. 'P4')
@@ -760,6 +771,8 @@ class Coach:
         is myopic: its early captures serve the next few, not the session (measured with
         ``benchmarks/bench_coach.py``: 29 guided captures reach the thesis protocol's 45 with a
         horizon of 10, 26 with 25, where an offline exchange design of the whole session needs 26-28)
+    sheet : bool, the session's points lie on a sheet whose pose ``solve`` identifies: the pose is counted
+        among the parameters, the base frame's gauge held (:mod:`solver.identify.laser_parameters`)
     """
 
     def __init__(
@@ -775,6 +788,7 @@ class Coach:
         stop_gain: float = 0.05,
         per_point: int = 200,
         horizon: int = 25,
+        sheet: bool = False,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
@@ -785,6 +799,7 @@ class Coach:
         self.cand = candidates(aimer, layout, rng, per_point, con)
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), tolerances)
         self.jacobians = SpotJacobians(self.post.params)
+        self.counted = counted_parameters(self.post.params, sheet)
 
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
         """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
@@ -813,6 +828,7 @@ class Coach:
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         plan = plan.first(k)
         gain = 1.0 - ahead / e if e > 0 else 0.0
+        rank, possible = identifiable(post, self.cand, self.counted, Jc)
         suggestion = polish(post.model, plan.q[:1], plan.target[0])[0]
         if not (
             spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6
@@ -821,9 +837,9 @@ class Coach:
             suggestion = plan.q[0]
         return Status(
             len(q),
-            post.rank,
-            identifiable(post, self.cand, Jc),
-            post.params.size,
+            rank,
+            possible,
+            self.counted.count,
             e,
             de,
             self.region.label,
