@@ -26,6 +26,7 @@ from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.analysis.design import APART_RAD
 from lasercal.solver.formats.data import reference
 from lasercal.solver.formats.session import Layout, check_aperture, session_layout, session_meta
 from lasercal.solver.identify.spot import predict_spots
@@ -63,7 +64,7 @@ class CaptureOptions:
         1 / 64
     )  # a power of two: simulated times sum exactly, so a resumed fake session repeats bit for bit
     check_mm: float = 40.0
-    similar_rad: float = 0.5
+    similar_rad: float = APART_RAD  # the coach suggests no pose this near a capture at its point
     auto_discard: bool = False
     until_mm: float | None = None
     move: bool = False
@@ -395,9 +396,10 @@ def run_capture(
         """Refit the coach on every capture so far and print its status block (the prior's with none)."""
         todo = [nm for nm in requested if counts[nm] < opts.per_point]
         q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
+        aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)
         if len(q_all):
-            coach.update(q_all, np.array([points[p] for p in store.point]))
-        st = coach.status(q_all, allowed=todo or None)
+            coach.update(q_all, aimed)
+        st = coach.status(q_all, allowed=todo or None, target=aimed)
         current = q_all[-1] if len(q_all) else robot.read().q
         w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
         return st

@@ -62,6 +62,11 @@ from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, p
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import space_jacobian
 
+# a suggested capture lies at least this far (joint-space distance, rad) from every capture at its point:
+# nearer, the capture check calls it similar (collector.sessions.capture), and a pose captured again adds
+# little but a new draw of the aiming noise
+APART_RAD = 0.5
+
 
 class DesignError(LasercalError):
     """An experiment design cannot be made (no reachable use point, bad workspace box, K <= 0, ...)."""
@@ -209,9 +214,25 @@ class Candidates:
     point: np.ndarray
     target: np.ndarray
 
-    def available(self, allowed=None) -> np.ndarray:
-        """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one)."""
-        return np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
+    def available(self, allowed=None, taken=None) -> np.ndarray:
+        """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one), apart from the
+        captures ``taken``.
+
+        Parameters
+        ----------
+        allowed : iterable of point names, or None
+        taken : ((m, n) array rad, (m, 3) array mm) or None, the captures so far and their points: a
+            candidate within :data:`APART_RAD` of a capture at its point is not available (the design would
+            otherwise replicate an informative pose -- the same pose again, with a new aiming error --
+            which the capture check then calls similar)
+        """
+        ok = np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
+        if taken is not None and len(taken[0]):
+            q, target = (np.asarray(a, dtype=float) for a in taken)
+            same = np.linalg.norm(self.target[:, None, :] - target[None, :, :], axis=2) < 1e-6  # (N, m)
+            near = np.linalg.norm(self.q[:, None, :] - q[None, :, :], axis=2) < APART_RAD
+            ok &= ~np.any(same & near, axis=1)
+        return ok
 
 
 def candidates(
@@ -601,6 +622,7 @@ def select(
     allowed=None,
     Jc: np.ndarray | None = None,
     passes: int = 3,
+    taken=None,
 ) -> Plan:
     """I-optimal choice of k next captures: greedy (eq. D6), then Fedorov exchange, vectorised over
     candidates.
@@ -618,6 +640,7 @@ def select(
     allowed : iterable of point names, or None: only candidates at these points
     Jc : (N, 2, p) array, :func:`candidate_jacobian` (computed when not given)
     passes : int, exchange sweeps (0: greedy only)
+    taken : the captures so far, (q, target), or None: no candidate near one (:meth:`Candidates.available`)
 
     Returns
     -------
@@ -630,7 +653,7 @@ def select(
     """
     if k <= 0:
         raise DesignError(f"the number of next captures must be positive, got {k}")
-    avail = cand.available(allowed)
+    avail = cand.available(allowed, taken)
     if avail.sum() < k:
         raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
@@ -808,13 +831,15 @@ class Coach:
         )
         return self.post
 
-    def status(self, q: np.ndarray, allowed=None, k: int | None = None) -> Status:
+    def status(self, q: np.ndarray, allowed=None, k: int | None = None, target=None) -> Status:
         """The verdict on the current posterior; q (m, n) are the captures it was fitted to.
 
         Parameters
         ----------
         q : (m, n) array, rad
         allowed : point names the next captures may aim at (default: every calibration point)
+        target : (m, 3) array, mm, the captures' points: no suggestion near a capture at its point
+            (:meth:`Candidates.available`); None: any candidate
         k : int, captures to plan (default ``lookahead``); they are the first k of a design of
             max(k, ``horizon``) captures
         """
@@ -823,8 +848,9 @@ class Coach:
         e, de = predicted_error(post, W)
         Jc = candidate_jacobian(post, self.cand)
         k = k or self.lookahead
-        n = int(self.cand.available(allowed).sum())
-        plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc)
+        taken = None if target is None else (q, target)
+        n = int(self.cand.available(allowed, taken).sum())
+        plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc, taken=taken)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         plan = plan.first(k)
         gain = 1.0 - ahead / e if e > 0 else 0.0

@@ -149,5 +149,5 @@ def plan(
         nominal, layout, seed, tol, workspace=workspace, model=post.model, lookahead=next, sheet=sheet
     )
     coach.post = post
-    st = coach.status(session.q)
+    st = coach.status(session.q, target=session.target)  # no suggestion near a capture at its point
     return CapturePlan(session.m, st, st.plan, post.sigma, nominal.n)
