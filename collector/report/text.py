@@ -90,6 +90,28 @@ def identifiable_text(rank: int, parameters: int, possible: int | None = None) -
     return text + (f" ({possible} possible from spots)" if possible is not None else "")
 
 
+def format_true_sheet(found, true, laid, G) -> str:
+    """A simulated sheet session's check of ``solve``'s sheet pose against the truth (one line).
+
+    Parameters
+    ----------
+    found : dict x_mm, y_mm, yaw_deg (and ``std``: the same keys), the identified pose
+    true : SheetPose, where the sheet truly lies in the true robot's own base frame
+    laid : SheetPose, where it was laid, in the truth file's base frame
+    G : (4, 4) array, the truth file's base frame to its own, mm
+    """
+    turn = np.degrees(np.arctan2(G[1, 0], G[0, 0]))
+    tilt = np.degrees(np.arccos(np.clip(G[2, 2], -1.0, 1.0)))
+    z = [(found[k] - getattr(true, k)) / max(found["std"][k], 1e-12) for k in ("x_mm", "y_mm", "yaw_deg")]
+    return (
+        f"simulated: the sheet truly lies at x {true.x_mm:.2f} mm, y {true.y_mm:.2f} mm, yaw "
+        f"{true.yaw_deg:.3f} deg in that frame (found - true: {z[0]:+.1f}, {z[1]:+.1f}, {z[2]:+.1f} sigma); "
+        f"it was laid at x {laid.x_mm:.2f}, y {laid.y_mm:.2f} mm, yaw {laid.yaw_deg:.3f} deg in the true "
+        f"robot's file frame, which its own frame turns by {turn:.3f} deg about z, tilts by {tilt:.3f} deg "
+        f"and shifts by {np.hypot(G[0, 3], G[1, 3]):.2f} mm\n"
+    )
+
+
 def format_solve(rep: dict) -> str:
     """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
     lines = []
@@ -135,7 +157,9 @@ def format_solve(rep: dict) -> str:
         w(
             f"the sheet lies at x {p['x_mm']:.2f} ± {sd['x_mm']:.2f} mm, y {p['y_mm']:.2f} ± "
             f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg (its origin and x axis "
-            "in the robot's own base frame, docs/formats.md)\n"
+            "in the robot's own base frame: joint 1's axis is the nominal's, joint 2 points as the "
+            "nominal's; a robot whose base differs from the nominal's sees a sheet laid at its placement "
+            "elsewhere, docs/formats.md)\n"
         )
     if rep["outliers"]:
         w(
