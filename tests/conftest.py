@@ -91,3 +91,20 @@ def panda_noisy(tmp_path_factory):
     return make_session(
         tmp_path_factory.mktemp("panda"), "panda_thesis_identified", "thesis", 15, 1.0, 2, "panda"
     )
+
+
+@pytest.fixture(scope="session")
+def full_demo(tmp_path_factory):
+    """``lasercal demo`` as a user runs it (seed 0, full options; a minute or two): exit code, stdout and
+    folder. One run for every test of the figures the README and docs/ show (tests/test_readme.py,
+    tests/test_docs_figures.py)."""
+    import contextlib
+    import io
+
+    from lasercal.collector.cli.main import main
+
+    out = tmp_path_factory.mktemp("full_demo") / "demo"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["demo", "-o", str(out)])
+    return code, buf.getvalue(), out

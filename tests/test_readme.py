@@ -5,8 +5,6 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from lasercal.collector.cli.main import main
-
 README = Path(__file__).resolve().parents[1] / "README.md"
 
 
@@ -22,9 +20,10 @@ def numbers(line: str) -> tuple[str, list[float]]:
     return label, [float(f) for f in figs]
 
 
-def test_readme_shows_what_the_demo_prints(tmp_path, capsys):
-    assert main(["demo", "-o", str(tmp_path / "demo")]) == 0
-    printed = capsys.readouterr().out.split("\n")
+def test_readme_shows_what_the_demo_prints(full_demo):
+    code, stdout, _ = full_demo  # tests/conftest.py: one demo run for every test of its figures
+    assert code == 0
+    printed = stdout.split("\n")
     block = readme_block()
     start = printed.index(block[0])  # the header row, word for word
     for got, want in zip(printed[start + 1 : start + len(block)], block[1:], strict=True):

@@ -139,7 +139,9 @@ def load_validation(folder) -> Validation:
         spots.append((float(r[ix]), float(r[iy])))
     if not spots:
         raise FormatError(
-            cpath, "no measured spot (x_mm, y_mm empty): measure the photos first (lasercal spots)"
+            cpath,
+            "no measured spot (x_mm, y_mm empty): validate measures its photos through a layout with "
+            "markers (lasercal sheet prints one) or the fake camera; validate again with one",
         )
     hint = metres_hint(np.c_[np.array(spots), np.zeros(len(spots))])
     if hint:
