@@ -130,10 +130,6 @@ class Extension:
             std_errors=None if std_errors is None else np.asarray(std_errors, float),
         )
 
-    def named(self, joint_names: tuple) -> Extension:
-        """The same effect, its joints named as the model names them (``joint_names``: all n)."""
-        return replace(self, joint_names=tuple(joint_names))
-
     def needs(self) -> set:
         """Which logged signals the effect needs: 'tau', 't' or nothing."""
         return {"joint_compliance": {"tau"}, "lateral_compliance": {"tau"}, "drift": {"t"}}.get(
@@ -261,9 +257,6 @@ class Combination:
 
     def needs(self) -> set:
         return set().union(*(e.needs() for e in self.parts))
-
-    def named(self, joint_names: tuple) -> Combination:
-        return Combination(tuple(e.named(joint_names) for e in self.parts))
 
     def regressors(self, q, t, tau) -> tuple[np.ndarray, np.ndarray]:
         """Joint index (k,) and regressor values (m, k) of every parameter, part by part."""
