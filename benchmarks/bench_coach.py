@@ -64,7 +64,8 @@ def guided(coach: D.Coach, region, rng) -> tuple[np.ndarray, np.ndarray, D.Poste
     """Held-out and predicted errors after 1..MAX_GUIDED guided captures, and the posterior after 45."""
     qs, ts, meas, pred, at45 = [], [], [], [], None
     for _ in range(MAX_GUIDED):
-        st = coach.status(np.array(qs).reshape(-1, NOMINAL.n))  # what ``lasercal capture`` prints
+        taken = np.array(qs).reshape(-1, NOMINAL.n), np.array(ts).reshape(-1, 3)
+        st = coach.status(taken[0], target=taken[1])  # what ``lasercal capture`` prints
         hit = st.plan.target[0] + np.r_[rng.normal(0.0, NOISE, 2), 0.0]
         q = polish(TRUTH, st.suggestion[None], hit)[0]  # the operator refines the aim on the real robot
         qs.append(q)

@@ -64,7 +64,7 @@ def guided(seed: int):
     rng = np.random.default_rng([seed, 7])
     qs, ts, ps, promise = [], [], [], np.nan
     for _ in range(CAPTURES):
-        st = coach.status(np.array(qs).reshape(-1, NOMINAL.n), k=1)
+        st = coach.status(np.array(qs).reshape(-1, NOMINAL.n), k=1, target=np.array(ts).reshape(-1, 3))
         promise = st.plan.expected[0]  # the predicted error once this capture is taken
         hit = st.plan.target[0] + np.r_[rng.normal(0.0, NOISE, 2), 0.0]
         qs.append(polish(TRUTH, st.suggestion[None], hit)[0])  # the operator refines the aim on the robot

@@ -83,6 +83,8 @@ class DemoOptions:
     effect : Extension, the hidden joint effect with its true parameters
     n_boot, n_refit : int, the diagnosis's bootstrap replicates and full refits
     view_px : int, side of the square validation photos (0.1 mm per pixel, centred on P4)
+    keep_photos : int, photos written per validated model (the first ones; every photo is measured):
+        all 240 noisy 800 x 800 PNGs were 201 MB
     """
 
     seed: int = 0
@@ -93,6 +95,7 @@ class DemoOptions:
     n_boot: int = 2000
     n_refit: int = 10
     view_px: int = 800
+    keep_photos: int = 1
 
     def units(self) -> int:
         """Progress units of a run: captures, photos of four models, three fits, the report, the payoff."""
@@ -288,7 +291,7 @@ def validate_model(
         point,
         arm,
         camera,
-        ValidateOptions(opts.n_validation, opts.seed),
+        ValidateOptions(opts.n_validation, opts.seed, keep_photos=opts.keep_photos),
         measure=lambda img, name: measure_known_view(img, name, view),
         out=io.StringIO(),
         confirm_moves=False,  # the simulated arm
@@ -335,7 +338,8 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
 
     Files (``out`` must be new or empty): ``session/``, ``model_lm.yaml``, ``model_thesis.yaml``,
     ``model_extended.yaml``,
-    ``validation/{nominal,lm,thesis,extended}/``, ``report/index.html``, ``summary.json``.
+    ``validation/{nominal,lm,thesis,extended}/`` (the first ``keep_photos`` photos of each),
+    ``report/index.html``, ``summary.json`` (with 'wrote': the folder, its files and bytes).
 
     Parameters
     ----------
@@ -445,8 +449,15 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
         "seconds": {**seconds, "total": round(time.perf_counter() - t_start, 2)},
         "report": str(report),
     }
+    summary["wrote"] = written(out)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def written(out: Path) -> dict:
+    """What a run wrote in ``out`` besides summary.json: 'folder', 'files' and 'bytes'."""
+    files = [f for f in Path(out).rglob("*") if f.is_file() and f != Path(out) / "summary.json"]
+    return {"folder": str(out), "files": len(files), "bytes": sum(f.stat().st_size for f in files)}
 
 
 def format_summary(s: dict) -> str:
@@ -513,4 +524,10 @@ def format_summary(s: dict) -> str:
         "s"
     )
     rows.append(f"report: {s['report']}")
+    w, o = s["wrote"], s["options"]
+    rows.append(
+        f"wrote {w['folder']}: {w['bytes'] / 1e6:.1f} MB in {w['files']} files and summary.json (session, "
+        f"models, validations with {o['keep_photos']} of their {o['n_validation']} photos each -- every "
+        "photo measured --, report); remove it when done"
+    )
     return "\n".join(rows)

@@ -133,8 +133,12 @@ def test_captures_at_one_point_warn_and_name_what_the_prior_holds(session_dir, t
 
 def test_joints_are_named_by_number_or_by_name_on_trees():
     """A chain's joints by their number; a tree's (lateral axes among its joints) by their names."""
-    from lasercal.solver.identify.degenerate import joint_label
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.kinematics.joint_names import joint_label
 
-    assert [joint_label(j, f"panda_joint{j + 1}") for j in (0, 6)] == ["joint 1", "joint 7"]
-    assert joint_label(3, "joint4") == "joint 4"
-    assert joint_label(51, "left_7") == "joint left_7" and joint_label(1, "torso_1.x") == "joint torso_1.x"
+    panda = [f"panda_joint{j + 1}" for j in range(7)]
+    assert [joint_label(j, panda) for j in (0, 6)] == ["joint 1", "joint 7"]
+    assert joint_label(3, [f"joint{j + 1}" for j in range(6)]) == "joint 4"
+    justin = load_model("justin").joint_names
+    assert joint_label(51, justin) == "joint left_7" and joint_label(1, justin) == "joint torso_1.x"
+    assert joint_label(0, justin) == "joint torso_1"  # its name says 1, but a tree's joints go by name

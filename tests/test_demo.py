@@ -102,10 +102,8 @@ def test_demo_p4_statistics_are_the_photos(demo):
     s = json.loads((out / "summary.json").read_text())
     for name in ("nominal", "lm", "thesis", "extended"):
         v = load_validation(out / "validation" / name)
-        assert (
-            len(v.spots) == DemoOptions().n_validation
-            and len(list((v.folder / "photos").glob("*.png"))) == DemoOptions().n_validation
-        )
+        kept = sorted(p.name for p in (v.folder / "photos").glob("*.png"))
+        assert len(v.spots) == DemoOptions().n_validation and kept == ["0000.png"]
         assert s["p4"][name] == spot_stats(v.spots, v.xyz).as_dict()
     for f in (
         "model_lm.yaml",
@@ -132,6 +130,11 @@ def test_demo_prints_the_summary_and_a_progress_bar(demo):
         f"report: {out / 'report' / 'index.html'}",
     ):
         assert phrase in stdout
+    # it says what it wrote, and how much: the folder's files and bytes (201 MB before one photo per model)
+    files = [f for f in out.rglob("*") if f.is_file() and f.name != "summary.json"]
+    size = sum(f.stat().st_size for f in files)
+    assert f"wrote {out}: {size / 1e6:.1f} MB in {len(files)} files and summary.json" in stdout
+    assert size < 10e6
     assert "validate extended" in stderr and "%|" in stderr  # tqdm's bar, on stderr (a terminal)
 
 

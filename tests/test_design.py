@@ -102,3 +102,20 @@ def test_bad_requests_are_design_errors(coach):
         D.select(coach.post, np.eye(33), coach.cand, 0)
     with pytest.raises(D.DesignError, match="must be <= max"):
         D.use_region(NOMINAL, LAYOUT, np.random.default_rng(0), workspace=([500, 0, -8], [400, 100, -8]))
+
+
+def test_the_coach_never_suggests_a_pose_near_a_capture_at_its_point(coach, thesis_captures):
+    """The design would replicate an informative pose (a new draw of the aiming noise, nothing more) and the
+    capture check would then call the capture similar (joint distance 0.00 rad): with the captures taken, no
+    planned capture lies within APART_RAD of one at its point -- the best pose, once captured, is not
+    suggested again."""
+    q, tgt = thesis_captures
+    post = D.posterior(NOMINAL, q, tgt)
+    W = D.use_weight(post, coach.region)
+    best = D.select(post, W, coach.cand, 1)
+    q, tgt = np.vstack([q, best.q]), np.vstack([tgt, best.target])  # captured exactly as suggested
+    plan = D.select(post, W, coach.cand, 8, taken=(q, tgt))
+    for qs, ts in zip(plan.q, plan.target):
+        at = np.all(np.abs(tgt - ts) < 1e-9, axis=1)
+        assert np.linalg.norm(q[at] - qs, axis=1).min() >= D.APART_RAD
+    assert coach.cand.available(None, (q, tgt)).sum() < len(coach.cand.q)  # it was a candidate: now taken

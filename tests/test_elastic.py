@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from lasercal.collector.report.text import format_diagnosis
 from lasercal.solver.analysis import diagnose as diag
 from lasercal.solver.analysis.diagnose import diagnose, session_torques
 from lasercal.solver.analysis.stats import solve_report
@@ -108,7 +110,13 @@ def test_extend_auto_recovers_known_joint_and_lateral_compliances(linear, monkey
     for k, c in want.items():  # within 4 standard errors (+ the fixed point's < 1e-3 relative torque change)
         assert abs(found[k] - c) < 4 * se[k] + 1e-3 * abs(c), (k, found[k], c, se[k])
     words = [b["words"] for b in bending(model, d.extension, d.session.tau)]
-    assert any("joint 1 of the right arm bends about its x axis" in w for w in words)
+    assert any("joint right_1 (joint 1 of the right arm) bends about its x axis" in w for w in words)
+    # every line a person reads names the tree's joints by name, never by their index among the 16
+    text = format_diagnosis(d)
+    finding = next(line for line in text.splitlines() if line.startswith("finding:"))
+    assert "at joint right_1.x, right_2, left_1 " in finding, finding
+    assert "  c[right_2] = " in text and "  c[right_1.x] = " in text
+    assert not re.search(r"joint \d|\b[abc]\d+ =", text), text
 
 
 def test_geometry_only_data_select_no_elasticity():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 
 import numpy as np
 
@@ -51,3 +52,20 @@ def test_plan_writes_aimed_configurations_and_rejects_bad_input(tmp_path, capsys
     )
     pts = [session.points[r["point"]] for r in rows]
     assert all(spot_error(post.model, qi[None], p)[0] < 0.5 for qi, p in zip(q, pts))
+
+
+def test_plan_counts_the_parameters_solve_counts_on_a_sheet_session(tmp_path, capsys):
+    """One count: a sheet session's pose is a parameter and the base frame's gauge is held, in ``plan`` (as
+    in the capture coach) as in ``solve``; the aperture along the beam is the one combination spots miss."""
+    s = tmp_path / "s"
+    args = ["simulate", "panda_thesis_identified", "--layout", "thesis", "--robot", "panda"]
+    assert main(args + ["--per-point", "6", "--seed", "2", "--sheet-pose", "3", "-2", "1", "-o", str(s)]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(s), "--next", "2", "--json"]) == 0
+    planned = json.loads(capsys.readouterr().out)["identifiable"]
+    assert main(["solve", str(s), "-o", str(tmp_path / "m.yaml"), "--folds", "0", "--json"]) == 0
+    solved = json.loads(capsys.readouterr().out)["identifiability"]
+    # 7 joints x 4 + beam direction 2 + beam start 3 + sheet pose 3 - 5 held for the base frame
+    assert planned["parameters"] == solved["parameters"] == 31
+    assert planned["rank"] == solved["rank"] == planned["of"] == solved["possible"] == 30
+    assert solved["counted"].startswith("31 = 7 joints x 4") and "sheet pose 3 - 5 held" in solved["counted"]

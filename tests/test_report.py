@@ -158,6 +158,9 @@ def test_points_identifiability_and_diagnosis_are_the_librarys(experiment):
     assert idf["rank"] == str(ident.identifiability.rank) and idf["parameters"] == str(
         ident.identifiability.n_params
     )
+    # the count is the one solve, plan and the coach print: the robot's parameters (and a sheet's), named
+    assert idf["what the parameters are"].startswith(f"{ident.identifiability.n_params} = 7 joints x 4")
+    assert idf["possible from spots"] == str(ident.identifiability.n_params - 1)
     det = rep["determined_by"]
     counts = idf["determined by the data / data and prior / the prior"]
     assert counts == f"{det['data']} / {det['data_and_prior']} / {det['prior']}"

@@ -162,11 +162,16 @@ def test_sheet_options_are_refused_where_they_mean_nothing(walkthrough, tmp_path
     assert not any((tmp_path / k).exists() for k in "abc")
 
 
-def _recipe() -> list[str]:
-    """The 'Your robot' block of docs/commands.md, one command a line."""
-    text = DOCS.read_text()
-    block = text.split("## Your robot", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
+def recipe(path: Path) -> list[str]:
+    """The command lines of a document's "Your robot" block, comments cut."""
+    block = path.read_text().split("## Your robot", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
     return [ln.split("  #")[0].strip() for ln in block.splitlines() if ln.startswith("lasercal ")]
+
+
+def test_the_readme_recipe_is_the_docs_recipe():
+    """The README's "Your robot" runs what docs/commands.md's does (validating the nominal too: the report's
+    before), so the test below runs both."""
+    assert recipe(DOCS.parents[1] / "README.md") == recipe(DOCS)
 
 
 def test_the_docs_recipe_runs_as_written_on_the_simulated_robot(tmp_path, monkeypatch):
@@ -177,7 +182,7 @@ def test_the_docs_recipe_runs_as_written_on_the_simulated_robot(tmp_path, monkey
     swap = {"--backend franky --host 172.16.0.2": "--backend fake", " --camera 0": "", "-n 60": f"-n {N}",
             "--per-point 15": "--per-point 5 --auto"}  # fmt: skip
     ran = []
-    for line in _recipe():
+    for line in recipe(DOCS):
         for a, b in swap.items():
             line = line.replace(a, b)
         args = shlex.split(line)[1:]

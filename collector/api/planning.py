@@ -84,10 +84,12 @@ class CapturePlan:
 
     def summary(self) -> str:
         """One line: captures, identifiable rank, the predicted error at the use region."""
+        from lasercal.collector.report.text import identifiable_text
+
         st = self.status
         return (
-            f"{self.captures} captures; identifiable {st.rank} of {st.n_identifiable} ({st.n_params} "
-            f"parameters); predicted error at {st.region}: {st.predicted:.2f} ± {st.uncertainty:.2f} mm"
+            f"{self.captures} captures; {identifiable_text(st.rank, st.n_params, st.n_identifiable)}; "
+            f"predicted error at {st.region}: {st.predicted:.2f} ± {st.uncertainty:.2f} mm"
         )
 
 
@@ -129,7 +131,8 @@ def plan(
         raise DesignError("plan designs laser sessions (spot on a plane), not point sessions")
     # the session's own layout keeps its aiming hints (tilt, length), which the constraints obey
     layout = load_layout(layout) if layout else session_layout(session.meta, session.path)
-    if session.frame == "sheet":  # the sheet where the captures so far put it (or its stated placement)
+    sheet = session.frame == "sheet"
+    if sheet:  # the sheet where the captures so far put it (or its stated placement)
         pose = identify_lm(session).model.sheet if session.m >= MIN_SHEET_CAPTURES else layout.sheet
         layout = layout.in_base(pose)
         session = in_base_frame(session, pose)  # (a pose is known: in_base refused the layout without one)
@@ -142,7 +145,9 @@ def plan(
     if aim_noise is not None:
         tol = tol.with_noise("laser", aim_noise)
     post = posterior(nominal, session.q, session.target, tol)
-    coach = Coach(nominal, layout, seed, tol, workspace=workspace, model=post.model, lookahead=next)
+    coach = Coach(
+        nominal, layout, seed, tol, workspace=workspace, model=post.model, lookahead=next, sheet=sheet
+    )
     coach.post = post
-    st = coach.status(session.q)
+    st = coach.status(session.q, target=session.target)  # no suggestion near a capture at its point
     return CapturePlan(session.m, st, st.plan, post.sigma, nominal.n)

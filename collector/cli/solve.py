@@ -132,6 +132,22 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
+def simulated_sheet(folder, session, model) -> str:
+    """A simulated sheet session's truth beside ``solve``'s sheet pose (a line), or '' for any other session:
+    the figure a user cannot check against a truth says what it is relative to."""
+    from lasercal.collector.report.text import format_true_sheet
+    from lasercal.collector.sessions.world import session_world, true_sheet_pose
+
+    if model.sheet is None:
+        return ""
+    world = session_world(folder)
+    if world is None or world.sheet is None:
+        return ""
+    true, G = true_sheet_pose(world, session.robot, session.plane_z)
+    found = model.sheet.as_dict() | {"std": model.sheet_std}
+    return format_true_sheet(found, true, world.sheet, G)
+
+
 def cmd_solve(args) -> int:
     from lasercal.calibration import calibrate
     from lasercal.collector.sessions.store import atomic_output
@@ -139,8 +155,9 @@ def cmd_solve(args) -> int:
 
     if args.extend == "none":
         unused(args, "the diagnosis of --extend takes it", "payload")
+    session = load_session(args.session, **session_robot(args))
     cal = calibrate(
-        load_session(args.session, **session_robot(args)),
+        session,
         method=args.method,
         extend=args.extend,
         folds=args.folds,
@@ -154,6 +171,7 @@ def cmd_solve(args) -> int:
         print(cal.to_json())
     else:
         sys.stdout.write(cal.summary())
+        sys.stdout.write(simulated_sheet(args.session, session, cal.model))
         print(f"\nwrote {args.output}")
     return 0
 

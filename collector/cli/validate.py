@@ -101,8 +101,9 @@ def cmd_validate(args) -> int:
         )
     elif res.spots.size == 0 and res.photos:
         print(
-            f"measure the photos with: lasercal spots {res.path.parent}/photos/*.png --layout "
-            "LAYOUT_WITH_MARKERS.yaml"
+            "photos kept, not measured (the layout has no markers): the report needs measured spots -- "
+            "validate with a layout with markers (lasercal sheet prints one); lasercal spots "
+            f"{res.path.parent}/photos/*.png prints the spots in pixels"
         )
     if res.failed:  # a batch reports its failures in its exit code (1: the run is written, and resumable)
         print(

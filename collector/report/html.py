@@ -139,7 +139,9 @@ def load_validation(folder) -> Validation:
         spots.append((float(r[ix]), float(r[iy])))
     if not spots:
         raise FormatError(
-            cpath, "no measured spot (x_mm, y_mm empty): measure the photos first (lasercal spots)"
+            cpath,
+            "no measured spot (x_mm, y_mm empty): validate measures its photos through a layout with "
+            "markers (lasercal sheet prints one) or the fake camera; validate again with one",
         )
     hint = metres_hint(np.c_[np.array(spots), np.zeros(len(spots))])
     if hint:
@@ -618,6 +620,11 @@ def write_report(
     irows = [
         ["parameters", idf["parameters"]],
         ["rank", idf["rank"]],
+        *(
+            [["what the parameters are", idf["counted"]], ["possible from spots", idf["possible"]]]
+            if "counted" in idf
+            else []
+        ),
         ["condition number", f"{idf['condition']:.1f}"],
         ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
         ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],

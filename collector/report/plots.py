@@ -113,12 +113,14 @@ def _residuals_vs_regressor(plt, d, res: np.ndarray, out: Path) -> Path:
         lo, hi = np.percentile(1e3 * along, [3, 97])
         pad = 0.3 * (hi - lo)
         ax.set_ylim(lo - pad, hi + pad)  # a few captures with a tiny lever would hide the trend
+        tag = ext.tags[0]  # the joint as every report names it ('2', or 'torso_2' on a tree)
         xlab = {
-            "joint_compliance": f"tau{idx[0] + 1} (Nm)",
-            "encoder_eccentricity": f"sin q{idx[0] + 1}",
+            "joint_compliance": f"tau{tag} (Nm)" if tag.isdigit() else f"tau[{tag}] (Nm)",
+            "lateral_compliance": f"tau[{tag}] (Nm)",
+            "encoder_eccentricity": f"sin q{tag}" if tag.isdigit() else f"sin q[{tag}]",
             "drift": "t (s)",
         }[ext.effect]
         ax.set_xlabel(xlab)
-        ax.set_ylabel(f"residual as joint {idx[0] + 1} motion (mrad)")
+        ax.set_ylabel(f"residual as joint {tag} motion (mrad)")
         ax.set_title(f"geometric-fit residuals vs the {ext.effect} regressor")
     return save(fig, out / DIAGNOSIS_PLOTS[0])

@@ -15,7 +15,7 @@ def format_diagnosis(d) -> str:
             best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
         lines.append(f"finding: none -- the geometric model and aiming noise explain the data ({best})")
     else:
-        where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(map(str, o["joints"]))
+        where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
         lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
         for nm, v in o["parameters"].items():
             lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
@@ -82,6 +82,36 @@ def format_diagnosis(d) -> str:
     return "\n".join(lines)
 
 
+def identifiable_text(rank: int, parameters: int, possible: int | None = None) -> str:
+    """The one wording of the identifiable count (``solve``, the report, ``plan``, the capture coach), over
+    the parameters :func:`~lasercal.solver.identify.laser_parameters.counted_parameters` defines:
+    'identifiable: rank 30 of 31 parameters (30 possible from spots)'."""
+    text = f"identifiable: rank {rank} of {parameters} parameters"
+    return text + (f" ({possible} possible from spots)" if possible is not None else "")
+
+
+def format_true_sheet(found, true, laid, G) -> str:
+    """A simulated sheet session's check of ``solve``'s sheet pose against the truth (one line).
+
+    Parameters
+    ----------
+    found : dict x_mm, y_mm, yaw_deg (and ``std``: the same keys), the identified pose
+    true : SheetPose, where the sheet truly lies in the true robot's own base frame
+    laid : SheetPose, where it was laid, in the truth file's base frame
+    G : (4, 4) array, the truth file's base frame to its own, mm
+    """
+    turn = np.degrees(np.arctan2(G[1, 0], G[0, 0]))
+    tilt = np.degrees(np.arccos(np.clip(G[2, 2], -1.0, 1.0)))
+    z = [(found[k] - getattr(true, k)) / max(found["std"][k], 1e-12) for k in ("x_mm", "y_mm", "yaw_deg")]
+    return (
+        f"simulated: the sheet truly lies at x {true.x_mm:.2f} mm, y {true.y_mm:.2f} mm, yaw "
+        f"{true.yaw_deg:.3f} deg in that frame (found - true: {z[0]:+.1f}, {z[1]:+.1f}, {z[2]:+.1f} sigma); "
+        f"it was laid at x {laid.x_mm:.2f}, y {laid.y_mm:.2f} mm, yaw {laid.yaw_deg:.3f} deg in the true "
+        f"robot's file frame, which its own frame turns by {turn:.3f} deg about z, tilts by {tilt:.3f} deg "
+        f"and shifts by {np.hypot(G[0, 3], G[1, 3]):.2f} mm\n"
+    )
+
+
 def format_solve(rep: dict) -> str:
     """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
     lines = []
@@ -97,9 +127,11 @@ def format_solve(rep: dict) -> str:
         f"{rep['sigma_mm']:.3f} mm per axis\n"
     )
     w(
-        f"identifiable: rank {idf['rank']} of {idf['parameters']} parameters, condition number "
+        f"{identifiable_text(idf['rank'], idf['parameters'], idf.get('possible'))}, condition number "
         f"{idf['condition']:.3g}\n"
     )
+    if idf.get("counted"):
+        w(f"  parameters: {idf['counted']}\n")
     if rep.get("warning"):
         w(f"WARNING: {rep['warning']}\n")
     det = rep.get("determined_by")
@@ -125,7 +157,9 @@ def format_solve(rep: dict) -> str:
         w(
             f"the sheet lies at x {p['x_mm']:.2f} ± {sd['x_mm']:.2f} mm, y {p['y_mm']:.2f} ± "
             f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg (its origin and x axis "
-            "in the robot's own base frame, docs/formats.md)\n"
+            "in the robot's own base frame: joint 1's axis is the nominal's, joint 2 points as the "
+            "nominal's; a robot whose base differs from the nominal's sees a sheet laid at its placement "
+            "elsewhere, docs/formats.md)\n"
         )
     if rep["outliers"]:
         w(

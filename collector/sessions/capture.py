@@ -23,8 +23,10 @@ import numpy as np
 from lasercal.collector.errors import DeviceError, RobotConnectionError
 from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
+from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.solver.analysis.design import APART_RAD
 from lasercal.solver.formats.data import reference
 from lasercal.solver.formats.session import Layout, check_aperture, session_layout, session_meta
 from lasercal.solver.identify.spot import predict_spots
@@ -62,7 +64,7 @@ class CaptureOptions:
         1 / 64
     )  # a power of two: simulated times sum exactly, so a resumed fake session repeats bit for bit
     check_mm: float = 40.0
-    similar_rad: float = 0.5
+    similar_rad: float = APART_RAD  # the coach suggests no pose this near a capture at its point
     auto_discard: bool = False
     until_mm: float | None = None
     move: bool = False
@@ -246,8 +248,7 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
     # with no captures the prediction is the prior's, which does not depend on the aiming noise
     spread = f"± {st.uncertainty:.2f} mm" if st.captures else "mm (prior)"
     lines = [
-        f"  coach: captures {per}; identifiable {st.rank} of {st.n_identifiable} parameter combinations "
-        f"({st.n_params} parameters)",
+        f"  coach: captures {per}; {identifiable_text(st.rank, st.n_params, st.n_identifiable)}",
         f"  predicted error at {st.region}: {st.predicted:.2f} {spread}",
     ]
     wk = st.weakest
@@ -319,8 +320,9 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
     )
 
 
-def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
-    """The capture coach of a session: the nominal model with the session's measured aperture height."""
+def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet: bool = False):
+    """The capture coach of a session: the nominal model with the session's measured aperture height;
+    ``layout`` in the base frame, ``sheet``: its points lie on a sheet whose pose ``solve`` identifies."""
     from lasercal.solver.analysis.design import Coach
     from lasercal.solver.formats.tolerances import robot_tolerances
 
@@ -328,7 +330,8 @@ def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg:
     model = (
         nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
     )
-    return Coach(model, layout, cfg["seed"], robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"]))
+    tol = robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"])
+    return Coach(model, layout, cfg["seed"], tol, sheet=sheet)
 
 
 def run_capture(
@@ -393,9 +396,10 @@ def run_capture(
         """Refit the coach on every capture so far and print its status block (the prior's with none)."""
         todo = [nm for nm in requested if counts[nm] < opts.per_point]
         q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
+        aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)
         if len(q_all):
-            coach.update(q_all, np.array([points[p] for p in store.point]))
-        st = coach.status(q_all, allowed=todo or None)
+            coach.update(q_all, aimed)
+        st = coach.status(q_all, allowed=todo or None, target=aimed)
         current = q_all[-1] if len(q_all) else robot.read().q
         w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
         return st

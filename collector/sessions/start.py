@@ -103,7 +103,10 @@ class StartedCapture:
         cfg, layout = self.settings.cfg, self.settings.layout
         try:
             # Built here, not at start: the coach's design takes a while, after the resume is announced.
-            coach = session_coach(self.store, self.nominal, layout.in_base(), cfg) if self.coach else None
+            coach = None
+            if self.coach:
+                sheet = layout.frame == "sheet"
+                coach = session_coach(self.store, self.nominal, layout.in_base(), cfg, sheet)
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
             self.store.close()
             if not self.settings.resume and not self.store.point:

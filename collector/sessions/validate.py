@@ -5,7 +5,8 @@ point; the arm goes to each (moved by backends that can move, otherwise guided b
 operator), a camera photographs the spot, and validation.csv records the measured
 configuration and the photo. Where the photo can be mapped to the plane -- the fake
 camera's known view, or a layout with fiducial markers -- the spot is measured at once
-(``x_mm, y_mm``); otherwise ``lasercal spots`` measures the photos later.
+(``x_mm, y_mm``); otherwise the photos are kept unmeasured (``lasercal spots`` shows them; the report needs
+measured spots: validate through a layout with markers).
 
 Cameras: an OpenCV capture device (index, URL, or an image sequence such as
 ``frames/%04d.png``), or ``fake``, which renders the spot the fake robot's true beam
@@ -330,6 +331,9 @@ class ValidateOptions:
     speed_threshold, hold, still_timeout, poll : standstill before each photo (rad/s, s, s, s)
     yes : bool, moves confirmed in advance (``--yes``); otherwise typed ``yes`` on a terminal
     max_step : float, rad, largest joint change in one commanded move (larger moves are split)
+    keep_photos : int or None, write only the photos of the first k configurations (None: every one); the
+        others are measured and not kept (their row's ``photo`` is empty): ``lasercal demo``'s 240 fake
+        photos were 200 MB
     """
 
     n: int = 60
@@ -341,6 +345,7 @@ class ValidateOptions:
     poll: float = 1 / 64
     yes: bool = False
     max_step: float = MAX_STEP
+    keep_photos: int | None = None
 
 
 def run_validation(
@@ -414,8 +419,8 @@ def run_validation(
         "units": {"q": "rad", "x_mm": "mm", "y_mm": "mm", "q_dev": "rad"},
         "columns": {
             "q1..qN": "measured joint positions when the photo was taken",
-            "photo": "relative to this folder",
-            "x_mm, y_mm": "the spot on the plane, base frame (empty: not measured; use lasercal spots)",
+            "photo": "relative to this folder (empty: measured, not kept)",
+            "x_mm, y_mm": "the spot on the plane, base frame (empty: not measured -- no markers)",
             "q_dev": "largest joint deviation from the configuration the model computed",
         },
         **(meta_extra or {}),
@@ -478,18 +483,19 @@ def run_validation(
                 )
                 continue
             img = camera.photo()
-            name = f"photos/{i:04d}.png"
-            ok, png = cv2.imencode(".png", img)
-            if not ok:
-                raise DeviceError(f"cannot encode photo {name}")
-            write_atomic_bytes(folder / name, png.tobytes())  # a kill leaves no truncated photo
+            name = f"photos/{i:04d}.png" if opts.keep_photos is None or i < opts.keep_photos else ""
+            if name:
+                ok, png = cv2.imencode(".png", img)
+                if not ok:
+                    raise DeviceError(f"cannot encode photo {name}")
+                write_atomic_bytes(folder / name, png.tobytes())  # a kill leaves no truncated photo
             row = {
                 "index": str(i),
                 **{f"q{j + 1}": v for j, v in enumerate(state.q)},
                 "photo": name,
                 "q_dev": float(np.abs(state.q - q).max()),
             }
-            msg = f"photo {i + 1}/{opts.n}: {name}"
+            msg = f"photo {i + 1}/{opts.n}: {name or 'not kept'}"
             if measure is not None:
                 try:
                     xy, advice = measure(img, name)

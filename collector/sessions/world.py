@@ -101,6 +101,32 @@ def session_world(folder) -> SimulatedWorld | None:
     return SimulatedWorld(truth, placed, f"session {folder.name!r}: simulated, the sheet at its placement")
 
 
+def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tuple[SheetPose, np.ndarray]:
+    """Where a simulated sheet truly lies in the frame ``solve`` reports its pose in: the true robot's own
+    base frame (eq. S2: joint 1 as the nominal's, joint 2 pointing as the nominal's), not the truth file's.
+
+    A truth whose base differs from the nominal's (the thesis's Panda: turned 0.44 deg about joint 1) puts
+    a sheet laid at its placement (450, 0, 0) elsewhere in its own frame (y -4.0 mm): the number ``solve``
+    finds, within its sigma.
+
+    Parameters
+    ----------
+    world : SimulatedWorld with a sheet, in the truth's base frame
+    nominal : RobotModel, the robot the session names
+    z : float, the plane's height, mm
+
+    Returns
+    -------
+    SheetPose, the sheet in the truth's own frame; (4, 4) array G, the truth's base frame to its own, mm
+    """
+    G = own_frame(world.truth, nominal)
+    yaw = np.radians(world.sheet.yaw_deg)
+    origin = G[:3, :3] @ np.r_[world.sheet.x_mm, world.sheet.y_mm, z] + G[:3, 3]
+    x_axis = G[:3, :3] @ np.r_[np.cos(yaw), np.sin(yaw), 0.0]
+    yaw_deg = float(np.degrees(np.arctan2(x_axis[1], x_axis[0])))
+    return SheetPose(float(origin[0]), float(origin[1]), yaw_deg), G
+
+
 def model_session(model: RobotModel, model_path) -> Path | None:
     """The session folder a model was identified from (``identification.session``, relative to the model
     file's folder or absolute), or None when it names none or it is gone."""

@@ -54,12 +54,18 @@ import numpy as np
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.tolerances import Tolerances, robot_tolerances
-from lasercal.solver.identify.lsq import fit_subspace, identifiability
+from lasercal.solver.identify.laser_parameters import CountedParameters, counted_parameters, counted_rank
+from lasercal.solver.identify.lsq import fit_subspace
 from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import space_jacobian
+
+# a suggested capture lies at least this far (joint-space distance, rad) from every capture at its point:
+# nearer, the capture check calls it similar (collector.sessions.capture), and a pose captured again adds
+# little but a new draw of the aiming noise
+APART_RAD = 0.5
 
 
 class DesignError(LasercalError):
@@ -208,9 +214,25 @@ class Candidates:
     point: np.ndarray
     target: np.ndarray
 
-    def available(self, allowed=None) -> np.ndarray:
-        """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one)."""
-        return np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
+    def available(self, allowed=None, taken=None) -> np.ndarray:
+        """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one), apart from the
+        captures ``taken``.
+
+        Parameters
+        ----------
+        allowed : iterable of point names, or None
+        taken : ((m, n) array rad, (m, 3) array mm) or None, the captures so far and their points: a
+            candidate within :data:`APART_RAD` of a capture at its point is not available (the design would
+            otherwise replicate an informative pose -- the same pose again, with a new aiming error --
+            which the capture check then calls similar)
+        """
+        ok = np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
+        if taken is not None and len(taken[0]):
+            q, target = (np.asarray(a, dtype=float) for a in taken)
+            same = np.linalg.norm(self.target[:, None, :] - target[None, :, :], axis=2) < 1e-6  # (N, m)
+            near = np.linalg.norm(self.q[:, None, :] - q[None, :, :], axis=2) < APART_RAD
+            ok &= ~np.any(same & near, axis=1)
+        return ok
 
 
 def candidates(
@@ -272,6 +294,8 @@ class Posterior:
     weights : (m,) array, 1 used, 0 flagged as an outlier
     rows : (2 m_used, p) array, the spot Jacobian of the used captures at the estimate
     prior_root : (p, p) array, R = L^-1: the prior covariance is R R^T (eqs. D1, D4)
+    target_xy : (m_used, 2) array, the used captures' points in the base frame, mm (what a sheet's pose
+        would move: :func:`~lasercal.solver.identify.laser_parameters.counted_rank`)
     """
 
     params: LaserParams
@@ -285,6 +309,7 @@ class Posterior:
     weights: np.ndarray
     rows: np.ndarray
     prior_root: np.ndarray
+    target_xy: np.ndarray
 
     @property
     def prior_std(self) -> np.ndarray:
@@ -396,14 +421,13 @@ def posterior(
         def jacobian(v):
             return jac(v, q, target[:, 2])
 
-        fit = fit_subspace(
-            residual, jacobian, x0 if start is None else start, P.names, m >= 10, prior=prior
-        )
+        fit = fit_subspace(residual, jacobian, x0 if start is None else start, P.names, m >= 10, prior=prior)
         v, w, sigma, dof = fit.v, fit.weights, fit.sigma, fit.dof
         J = jacobian(v)[w > 0].reshape(-1, P.size)
         rank = fit.identifiability.rank
     else:
         v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
+    used_xy = target[w > 0, :2] if m else np.zeros((0, 2))
     C = _posterior_cov(J, R, sigma)
     return Posterior(
         P,
@@ -417,6 +441,7 @@ def posterior(
         w,
         J,
         R,
+        used_xy,
     )
 
 
@@ -597,6 +622,7 @@ def select(
     allowed=None,
     Jc: np.ndarray | None = None,
     passes: int = 3,
+    taken=None,
 ) -> Plan:
     """I-optimal choice of k next captures: greedy (eq. D6), then Fedorov exchange, vectorised over
     candidates.
@@ -614,6 +640,7 @@ def select(
     allowed : iterable of point names, or None: only candidates at these points
     Jc : (N, 2, p) array, :func:`candidate_jacobian` (computed when not given)
     passes : int, exchange sweeps (0: greedy only)
+    taken : the captures so far, (q, target), or None: no candidate near one (:meth:`Candidates.available`)
 
     Returns
     -------
@@ -626,7 +653,7 @@ def select(
     """
     if k <= 0:
         raise DesignError(f"the number of next captures must be positive, got {k}")
-    avail = cand.available(allowed)
+    avail = cand.available(allowed, taken)
     if avail.sum() < k:
         raise DesignError(f"only {int(avail.sum())} candidate configurations for {k} next captures")
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
@@ -701,11 +728,17 @@ def weakest(
     return Weakest(names, share, j + 1, np.array([q[:, j].min(), q[:, j].max()]), float(best[:, j].mean()))
 
 
-def identifiable(post: Posterior, cand: Candidates, Jc: np.ndarray | None = None) -> int:
-    """Parameter combinations spot data can identify at all: the SVD rank with every candidate added
-    (``Jc``: :func:`candidate_jacobian`, computed when not given)."""
-    Jc = (candidate_jacobian(post, cand) if Jc is None else Jc).reshape(-1, post.params.size)
-    return identifiability(np.vstack([post.rows, Jc]), post.params.names)[0].rank
+def identifiable(
+    post: Posterior, cand: Candidates, counted: CountedParameters, Jc: np.ndarray | None = None
+) -> tuple[int, int]:
+    """Parameter combinations the captures identify, and how many spot data can identify at all (the SVD
+    rank with every candidate added), over the parameters ``solve`` counts (``counted``; ``Jc``:
+    :func:`candidate_jacobian`, computed when not given)."""
+    Jc = candidate_jacobian(post, cand) if Jc is None else Jc
+    rows = post.rows.reshape(-1, 2, post.params.size)
+    return counted_rank(rows, post.target_xy, counted), counted_rank(
+        np.concatenate([rows, Jc]), np.vstack([post.target_xy, cand.target[:, :2]]), counted
+    )
 
 
 @dataclass(frozen=True)
@@ -715,7 +748,8 @@ class Status:
     Attributes
     ----------
     captures : int
-    rank : int, combinations the captures identify; n_identifiable of n_params can be
+    rank : int, combinations the captures identify; n_identifiable of n_params can be (the parameters
+        ``solve`` counts: :mod:`solver.identify.laser_parameters`)
     n_identifiable, n_params : int
     predicted, uncertainty : float, predicted held-out RMS error at the use region and its std, mm
     region : str, where (e.g. 'P4')
@@ -760,6 +794,8 @@ class Coach:
         is myopic: its early captures serve the next few, not the session (measured with
         ``benchmarks/bench_coach.py``: 29 guided captures reach the thesis protocol's 45 with a
         horizon of 10, 26 with 25, where an offline exchange design of the whole session needs 26-28)
+    sheet : bool, the session's points lie on a sheet whose pose ``solve`` identifies: the pose is counted
+        among the parameters, the base frame's gauge held (:mod:`solver.identify.laser_parameters`)
     """
 
     def __init__(
@@ -775,6 +811,7 @@ class Coach:
         stop_gain: float = 0.05,
         per_point: int = 200,
         horizon: int = 25,
+        sheet: bool = False,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
@@ -785,6 +822,7 @@ class Coach:
         self.cand = candidates(aimer, layout, rng, per_point, con)
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), tolerances)
         self.jacobians = SpotJacobians(self.post.params)
+        self.counted = counted_parameters(self.post.params, sheet)
 
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
         """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
@@ -793,13 +831,15 @@ class Coach:
         )
         return self.post
 
-    def status(self, q: np.ndarray, allowed=None, k: int | None = None) -> Status:
+    def status(self, q: np.ndarray, allowed=None, k: int | None = None, target=None) -> Status:
         """The verdict on the current posterior; q (m, n) are the captures it was fitted to.
 
         Parameters
         ----------
         q : (m, n) array, rad
         allowed : point names the next captures may aim at (default: every calibration point)
+        target : (m, 3) array, mm, the captures' points: no suggestion near a capture at its point
+            (:meth:`Candidates.available`); None: any candidate
         k : int, captures to plan (default ``lookahead``); they are the first k of a design of
             max(k, ``horizon``) captures
         """
@@ -808,11 +848,13 @@ class Coach:
         e, de = predicted_error(post, W)
         Jc = candidate_jacobian(post, self.cand)
         k = k or self.lookahead
-        n = int(self.cand.available(allowed).sum())
-        plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc)
+        taken = None if target is None else (q, target)
+        n = int(self.cand.available(allowed, taken).sum())
+        plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc, taken=taken)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         plan = plan.first(k)
         gain = 1.0 - ahead / e if e > 0 else 0.0
+        rank, possible = identifiable(post, self.cand, self.counted, Jc)
         suggestion = polish(post.model, plan.q[:1], plan.target[0])[0]
         if not (
             spot_error(post.model, suggestion[None], plan.target[0])[0] < 1e-6
@@ -821,9 +863,9 @@ class Coach:
             suggestion = plan.q[0]
         return Status(
             len(q),
-            post.rank,
-            identifiable(post, self.cand, Jc),
-            post.params.size,
+            rank,
+            possible,
+            self.counted.count,
             e,
             de,
             self.region.label,

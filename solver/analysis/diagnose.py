@@ -88,7 +88,7 @@ class CandidateTest:
     @property
     def label(self) -> str:
         e = self.extension
-        return f"{e.effect}[{e.point}]" if e.point else f"{e.effect}[joint {','.join(map(str, e.joints))}]"
+        return f"{e.effect}[{e.point}]" if e.point else f"{e.effect}[joint {','.join(e.tags)}]"
 
 
 @dataclass(frozen=True, eq=False)
@@ -563,11 +563,10 @@ def _grow(session: Session, first: Extension, fixed: list, exts: list, tau, alph
         nxt = best_test(session, ext_fit, rest, tau)
         if nxt.p_adjusted >= alpha:
             return grown, ext_fit
-        grown = Extension(
-            grown.effect,
-            tuple(sorted(grown.joints + nxt.extension.joints)),
-            None,
-            np.zeros(grown.size + nxt.extension.size),
+        grown = replace(
+            grown,
+            joints=tuple(sorted(grown.joints + nxt.extension.joints)),
+            params=np.zeros(grown.size + nxt.extension.size),
         )
         ext_fit = _fit(session, combine(fixed + [grown]), sus)
 
@@ -582,8 +581,9 @@ def _merge(terms: list) -> Extension | Combination:
     """One extension from single-joint terms: an Extension per effect (joints sorted), combined."""
     parts = []
     for eff in dict.fromkeys(t.effect for t in terms):
-        joints = tuple(sorted(j for t in terms if t.effect == eff for j in t.joints))
-        parts.append(Extension(eff, joints, None, np.zeros(sum(t.size for t in terms if t.effect == eff))))
+        mine = [t for t in terms if t.effect == eff]
+        joints = tuple(sorted(j for t in mine for j in t.joints))
+        parts.append(replace(mine[0], joints=joints, params=np.zeros(sum(t.size for t in mine))))
     return combine(parts)
 
 
@@ -612,7 +612,7 @@ def _combination(
         return None
     second, _ = _grow(session, nxt.extension, [chosen], exts, tau, alpha, sus)
     terms = [
-        Extension(e.effect, (j,), None, np.zeros(e.size // len(e.joints)))
+        replace(e, joints=(j,), params=np.zeros(e.size // len(e.joints)), std_errors=None)
         for e in (chosen, second)
         for j in e.joints
     ]
@@ -682,7 +682,7 @@ def diagnose(
     pts = list(dict.fromkeys(session.point)) if session.measurement == "laser" else []
     clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
     lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
-    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral)
+    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral, session.robot.joint_names)
     cannot = untested(
         session.measurement, tau is not None, session.clock, session.t is not None and np.ptp(session.t) > 0
     )

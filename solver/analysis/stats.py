@@ -395,6 +395,8 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
             "unidentifiable": idf.unidentifiable,
         },
     }
+    if "counted" in ident.extra:  # a laser fit: what the count is; spots never see the beam's start along it
+        rep["identifiability"] |= {"possible": idf.n_params - 1, "counted": ident.extra["counted"]}
     if session.measurement == "point":
         nominal = (
             ident.nominal

@@ -377,7 +377,8 @@ def to_dh(model: RobotModel) -> str:
     if model.extensions:
         d["extensions"] = model.extensions
     head = (
-        f"# lasercal export of {model.name}: modified DH parameters and joint screws (see solver/export.py)\n"
+        f"# lasercal export of {model.name}: modified DH parameters and joint screws "
+        "(see solver/formats/export.py)\n"
     )
     return head + yaml.safe_dump(d, sort_keys=False, width=10**6, default_flow_style=None)
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lasercal.solver.identify.lsq import RANK_RTOL, Identifiability
+from lasercal.solver.kinematics.joint_names import joint_label
 
 STILL_RAD = 1e-6  # a joint whose range over the session is below this never moves
 _COMPONENT_TOL = 1e-6  # singular values of a null-space block below this: no component there
@@ -60,13 +61,6 @@ class Deficiency:
         return f"{self.combination} ({self.fix})"
 
 
-def joint_label(j: int, name: str) -> str:
-    """'joint 4' for the 0-based index j, or 'joint left_7' by its name when the name is not its number (a
-    tree, whose lateral axes count among the joints: left_7 is its joint 52)."""
-    digits = "".join(ch for ch in name if ch.isdigit())
-    return f"joint {j + 1}" if digits == str(j + 1) else f"joint {name}"
-
-
 def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, str, list[int], bool, str]]:
     """Physical parameter groups: (combination, fix, parameter indices, joint never moves, what it affects),
     in chain order."""
@@ -82,7 +76,7 @@ def _groups(names: list, joint_names: tuple, q: np.ndarray) -> list[tuple[str, s
     for (head, kind), idx in out.items():
         if head in joint_names:
             j = joint_names.index(head)
-            jn = joint_label(j, head)
+            jn = joint_label(j, joint_names)
             still = bool(ranges[j] < STILL_RAD)
             what = f"{jn}'s axis {kind}" if kind else f"{jn}'s {head}"
             fix = (

@@ -30,13 +30,13 @@ from scipy import optimize
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.tolerances import Tolerances
+from lasercal.solver.identify.laser_parameters import counted_parameters
 from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_outliers, identifiability
 from lasercal.solver.identify.prior import Prior, make_prior
 from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_jacobian
-from lasercal.solver.kinematics.minimal import anchor_heights, screw_from_eta
+from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.model import RobotModel
-from lasercal.solver.kinematics.poe import ad
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
 from lasercal.solver.kinematics.sheet import SheetPose, sheet_to_base
 
@@ -187,29 +187,6 @@ def _aperture_gauge(
     return gauge(v), G @ cov @ G.T
 
 
-SHEET_NAMES = ["sheet.x", "sheet.y", "sheet.yaw"]  # mm, mm, rad: eq. S1's pose, identified with the robot
-
-
-def sheet_gauge(P: LaserParams) -> list[int]:
-    """Parameters held to fix the robot's own base frame when the points lie on a sheet of unknown pose.
-
-    Spots on a sheet cannot tell a rigid motion of the base in the table's plane (x, y, and a rotation
-    about the plane's normal) from the sheet's own: the base frame is then the robot's (docs/formats.md,
-    "The robot's own base frame"). Held at nominal: joint 1's four parameters (its axis, direction and
-    position, is the nominal's: the table is normal to it) and the direction component of joint 2 that a
-    rotation about joint 1 moves most (joint 2's axis at q = 0 keeps the nominal's direction: a Panda's
-    has no x component). The height is the plane's (the session's ``plane.z``).
-
-    Returns
-    -------
-    list of indices into P's parameters
-    """
-    S1, S2 = P.model.screws[0], P.model.screws[1]
-    _, dS2 = screw_from_eta(P.frames[1], np.zeros(4))
-    d_eta = np.linalg.lstsq(dS2, ad(S1) @ S2, rcond=None)[0]  # joint 2's eta under a rotation about joint 1
-    return [0, 1, 2, 3, 4 + int(np.argmax(np.abs(d_eta[:2])))]
-
-
 def rigid_2d(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
     """The rotation angle (rad) and translation (2,) with b ~ R a + t, least squares (Kabsch in the plane).
 
@@ -265,8 +242,9 @@ def identify_lm(
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
 
     The parameters are the laser robot's (:class:`~lasercal.solver.kinematics.laser.LaserParams`), then
-    for a sheet session the sheet's pose [x mm, y mm, yaw rad] (eq. S1, with the gauge of
-    :func:`sheet_gauge` held), then the extension's; the fit is MAP with the session's prior.
+    for a sheet session the sheet's pose [x mm, y mm, yaw rad] (eq. S1, with the gauge held), then the
+    extension's (:func:`~lasercal.solver.identify.laser_parameters.counted_parameters`); the fit is MAP
+    with the session's prior.
 
     Parameters
     ----------
@@ -297,11 +275,12 @@ def identify_lm(
         raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
     pose0 = (session.sheet or sheet_start(session, start)) if sheet else None
     u0 = np.r_[P.x0(), pose0.vector if sheet else [], np.zeros(k)]
-    held = sheet_gauge(P) if sheet else []
-    free = np.setdiff1d(np.arange(len(u0)), held)
-    names_all = P.names + (SHEET_NAMES if sheet else []) + (extension.names if extension else [])
-    kinds_all = P.kinds + (["sheet_pos", "sheet_pos", "sheet_yaw"] if sheet else []) + (
-        extension.kinds if extension else []
+    counted = counted_parameters(P, sheet, extension.names if extension else ())
+    held, free, names_all = counted.held, counted.free, list(counted.names)
+    kinds_all = (
+        P.kinds
+        + (["sheet_pos", "sheet_pos", "sheet_yaw"] if sheet else [])
+        + (extension.kinds if extension else [])
     )
     names = [names_all[i] for i in free]
     tol = session.tolerances
@@ -431,7 +410,8 @@ def identify_lm(
             "span": fit.span,
             "constraint_span": fit.constraint_span,
             "constraint_residuals": fit.constraint_residuals,
-            "held": [names_all[i] for i in held],
+            "held": held,
+            "counted": counted.describe(),
         },
         fitted,
         iterations=iterations,

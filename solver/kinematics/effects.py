@@ -25,11 +25,12 @@ to p_k is then the spot's joint Jacobian column j_k times g_k.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from lasercal.solver.errors import FormatError, ModelError
+from lasercal.solver.kinematics.joint_names import joint_tags, parameter_name
 
 JOINT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "drift", "lateral_compliance")
 EFFECTS = JOINT_EFFECTS + ("reference_point_offset", "none")
@@ -61,6 +62,8 @@ class Extension:
 
     ``params`` is ordered joint by joint, then by the effect's parameter names
     (e.g. a_2, b_2, a_4, b_4 for eccentricity on joints 2 and 4), or (dx, dy) for a point.
+    ``joint_names`` are the model's joint names (all n), so that what a person reads names a tree's joints
+    by name (:mod:`solver.kinematics.joint_names`); empty: by number.
     """
 
     effect: str
@@ -68,6 +71,7 @@ class Extension:
     point: str | None = None
     params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     std_errors: np.ndarray | None = None
+    joint_names: tuple = field(default=(), compare=False, repr=False)
 
     @property
     def size(self) -> int:
@@ -76,11 +80,16 @@ class Extension:
         return per * (len(self.joints) if self.effect in JOINT_EFFECTS else 1)
 
     @property
+    def tags(self) -> list[str]:
+        """How each of its joints is named: '2' (a serial arm's number) or 'torso_2' (a tree's name)."""
+        return joint_tags(self.joints, self.joint_names)
+
+    @property
     def names(self) -> list[str]:
-        """Parameter names, e.g. 'c2' or 'dx'."""
+        """Parameter names, e.g. 'c2', 'c[torso_2]' or 'P2.dx'."""
         if self.effect == "reference_point_offset":
             return [f"{self.point}.dx", f"{self.point}.dy"]
-        return [f"{p}{j}" for j in self.joints for p in _PARAMS[self.effect]]
+        return [parameter_name(p, t) for t in self.tags for p in _PARAMS[self.effect]]
 
     @property
     def kinds(self) -> list[str]:
@@ -104,24 +113,21 @@ class Extension:
 
     @property
     def label(self) -> str:
-        """'joint_compliance at joints 2,3' or 'reference_point_offset at P2'."""
+        """'joint_compliance at joints 2,3', 'joint_compliance at joint torso_2' or
+        'reference_point_offset at P2'."""
         if self.point:
             return f"{self.effect} at {self.point}"
-        return (
-            f"{self.effect} at joint{'s' if len(self.joints) > 1 else ''} {','.join(map(str, self.joints))}"
-        )
+        return f"{self.effect} at joint{'s' if len(self.joints) > 1 else ''} {','.join(self.tags)}"
 
     def model_entries(self) -> dict:
         """The model file's ``extensions`` entries: effect -> :meth:`to_dict`."""
         return {self.effect: self.to_dict()}
 
     def with_params(self, params, std_errors=None) -> Extension:
-        return Extension(
-            self.effect,
-            self.joints,
-            self.point,
-            np.asarray(params, float),
-            None if std_errors is None else np.asarray(std_errors, float),
+        return replace(
+            self,
+            params=np.asarray(params, float),
+            std_errors=None if std_errors is None else np.asarray(std_errors, float),
         )
 
     def needs(self) -> set:
@@ -234,6 +240,7 @@ class Combination:
     kinds = property(lambda self: [k for e in self.parts for k in e.kinds])
     units = property(lambda self: [u for e in self.parts for u in e.units])
     label = property(lambda self: " + ".join(e.label for e in self.parts))
+    tags = property(lambda self: joint_tags(self.joints, self.parts[0].joint_names))
 
     @property
     def std_errors(self) -> np.ndarray | None:
@@ -321,7 +328,7 @@ def extension_from_model(
     return combine(parts) if parts else None
 
 
-def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=()) -> list[Extension]:
+def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_names=()) -> list[Extension]:
     """Every single-joint (or single-point) extension the data can test.
 
     Parameters
@@ -331,6 +338,7 @@ def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=()) -> list[E
     has_tau : bool, torques logged or from a gravity model
     has_t : bool, a real clock that changes (``clock: seconds``): drift needs time, not row order
     lateral : 1-based joints that are lateral axes (they only bend: ``lateral_compliance`` is their effect)
+    joint_names : the model's n joint names (how the candidates name their joints), optional
     """
     out = []
     for effect in JOINT_EFFECTS:
@@ -339,7 +347,7 @@ def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=()) -> list[E
         ):
             continue
         on = [j for j in range(1, n + 1) if (j in lateral) == (effect == "lateral_compliance")]
-        out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect]))) for j in on]
+        out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect])), None, joint_names) for j in on]
     out += [Extension("reference_point_offset", (), p, np.zeros(2)) for p in points]
     return out
 

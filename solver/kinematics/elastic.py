@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from lasercal.solver.kinematics.gravity import gravity_torques
+from lasercal.solver.kinematics.joint_names import joint_label
 from lasercal.solver.kinematics.model import RobotModel
 
 FIXED_POINT_ITERATIONS = 10  # at most; each shrinks the change by the bend (mrad): 3-4 reach round-off
@@ -49,13 +50,14 @@ def deflected(model: RobotModel, ext, q: np.ndarray, t=None, iterations: int = F
 
 
 def joint_words(model: RobotModel, j: int) -> str:
-    """Joint j (0-based) in words: 'joint 3 of the right arm' for a joint named ``right_3``."""
-    name = model.joint_names[j]
-    part, _, k = name.rpartition("_")
-    if part and k.isdigit():
+    """Joint j (0-based) as every report names it, and where it is: 'joint right_3 (joint 3 of the right
+    arm)' for a tree's joint named ``right_3``, 'joint 3' on a serial arm."""
+    label = joint_label(j, model.joint_names)
+    part, _, k = model.joint_names[j].rpartition("_")
+    if part and k.isdigit() and label != f"joint {j + 1}":
         where = {"torso": "the torso"}.get(part, f"the {part} arm")
-        return f"joint {k} of {where}"
-    return f"joint {name}"
+        return f"{label} (joint {k} of {where})"
+    return label
 
 
 def bending(model: RobotModel, ext, tau: np.ndarray) -> list[dict]:
@@ -70,8 +72,8 @@ def bending(model: RobotModel, ext, tau: np.ndarray) -> list[dict]:
     Returns
     -------
     list of dict: 'joint' (name), 'axis' ('its axis', 'its x axis', ...), 'c_rad_per_nm', 'std_error',
-    'full_load_nm', 'bend_mrad' and 'words' ("joint 3 of the right arm bends about its x axis: 0.8 mrad
-    at full load (24 Nm)")
+    'full_load_nm', 'bend_mrad' and 'words' ("joint right_3 (joint 3 of the right arm) bends about its x
+    axis: 0.8 mrad at full load (24 Nm)")
     """
     out = []
     for part in ext.parts:

@@ -1,0 +1,134 @@
+"""What a laser fit moves, and the one count of it that every command prints.
+
+A laser fit's parameters (``solve``, the report, ``plan`` and the capture coach all count these, through
+:func:`counted_parameters` and :func:`counted_rank`):
+
+* the robot's: per joint its axis direction (wx, wy) and position across it (qx, qy), eq. M1 of
+  :mod:`solver.kinematics.minimal`; the beam's direction (laser.vx, vy) and where it starts (M.x, y, z);
+* on a sheet session (``frame: sheet``), the sheet's pose on the table (sheet.x, sheet.y, sheet.yaw, eq. S1),
+  less the parameters held to fix the robot's own base frame (:func:`sheet_gauge`): spots on a sheet
+  cannot tell a motion of the base in the table's plane from the sheet's;
+* an extension's (``--extend``), when one is fitted.
+
+Of these, spots never see where the beam starts along itself (one combination of M.x, y, z: the height
+``aperture_z`` fixes it), so rank = parameters - 1 is a fully identified fit. The rank is the SVD rank of
+the captures' Jacobian over the counted parameters, without the prior (:func:`solver.identify.lsq.
+identifiability`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lasercal.solver.identify.lsq import identifiability
+from lasercal.solver.kinematics.laser import LaserParams
+from lasercal.solver.kinematics.minimal import screw_from_eta
+from lasercal.solver.kinematics.poe import ad
+
+SHEET_NAMES = ["sheet.x", "sheet.y", "sheet.yaw"]  # mm, mm, rad: eq. S1's pose, identified with the robot
+
+
+def sheet_gauge(P: LaserParams) -> list[int]:
+    """Parameters held to fix the robot's own base frame when the points lie on a sheet of unknown pose.
+
+    Spots on a sheet cannot tell a rigid motion of the base in the table's plane (x, y, and a rotation
+    about the plane's normal) from the sheet's own: the base frame is then the robot's (docs/formats.md,
+    "The robot's own base frame"). Held at nominal: joint 1's four parameters (its axis, direction and
+    position, is the nominal's: the table is normal to it) and the direction component of joint 2 that a
+    rotation about joint 1 moves most (joint 2's axis at q = 0 keeps the nominal's direction: a Panda's
+    has no x component). The height is the plane's (the session's ``plane.z``).
+
+    Returns
+    -------
+    list of indices into P's parameters
+    """
+    S1, S2 = P.model.screws[0], P.model.screws[1]
+    _, dS2 = screw_from_eta(P.frames[1], np.zeros(4))
+    d_eta = np.linalg.lstsq(dS2, ad(S1) @ S2, rcond=None)[0]  # joint 2's eta under a rotation about joint 1
+    return [0, 1, 2, 3, 4 + int(np.argmax(np.abs(d_eta[:2])))]
+
+
+@dataclass(frozen=True)
+class CountedParameters:
+    """The parameters a laser fit moves (module docstring).
+
+    Attributes
+    ----------
+    names : tuple of str, every parameter: the robot's, then the sheet's pose (a sheet session), then the
+        extension's
+    free : (k,) int array, indices into ``names`` of the parameters the fit moves (the count)
+    robot : int, how many of ``names`` are the robot's
+    sheet : bool, a sheet session (its pose among the parameters, the gauge held)
+    """
+
+    names: tuple
+    free: np.ndarray
+    robot: int
+    sheet: bool
+
+    @property
+    def held(self) -> list[str]:
+        """The parameters held at nominal to fix the base frame (none off a sheet)."""
+        return [nm for i, nm in enumerate(self.names) if i not in set(self.free.tolist())]
+
+    @property
+    def count(self) -> int:
+        return len(self.free)
+
+    def describe(self) -> str:
+        """What the count is, e.g. '31 = 7 joints x 4 (axis direction, position) + beam direction 2 + beam
+        start 3 + sheet pose 3 - 5 held for the base frame (joint1.wx, ...)'."""
+        joints = (self.robot - 5) // 4
+        parts = [f"{joints} joints x 4 (axis direction, position)", "beam direction 2", "beam start 3"]
+        if self.sheet:
+            parts.append("sheet pose 3")
+        extra = len(self.names) - self.robot - 3 * self.sheet
+        if extra:
+            parts.append(f"extension {extra}")
+        text = f"{self.count} = " + " + ".join(parts)
+        if self.held:
+            text += f" - {len(self.held)} held for the robot's own base frame ({', '.join(self.held)})"
+        return text
+
+
+def counted_parameters(P: LaserParams, sheet: bool, extension_names=()) -> CountedParameters:
+    """The parameters a laser fit of this robot moves (module docstring): the one definition of the count.
+
+    Parameters
+    ----------
+    P : LaserParams
+    sheet : bool, the session's points lie on a sheet of unknown pose (``frame: sheet``)
+    extension_names : parameter names of a fitted extension, if any
+    """
+    names = tuple(P.names) + tuple(SHEET_NAMES if sheet else ()) + tuple(extension_names)
+    held = sheet_gauge(P) if sheet else []
+    return CountedParameters(names, np.setdiff1d(np.arange(len(names)), held), P.size, sheet)
+
+
+def counted_rank(J: np.ndarray, target_xy: np.ndarray, counted: CountedParameters) -> int:
+    """The SVD rank of the captures' spot Jacobian over the counted parameters (no prior).
+
+    Parameters
+    ----------
+    J : (m, 2, p) array, d spot / d robot parameters (P's order)
+    target_xy : (m, 2) array, the captures' points in the base frame, mm (a sheet's pose moves them:
+        d point / d(x, y, yaw) = [e_x, e_y, e_z x point], eq. S1; where the turn is about does not change
+        the rank)
+    counted : CountedParameters of the robot (and sheet), without an extension
+
+    Returns
+    -------
+    int, 0 without captures
+    """
+    if not len(J):
+        return 0
+    cols = [J]
+    if counted.sheet:
+        S = np.zeros((len(J), 2, 3))
+        S[:, 0, 0] = S[:, 1, 1] = -1.0  # residual = spot - point
+        S[:, 0, 2], S[:, 1, 2] = target_xy[:, 1], -target_xy[:, 0]
+        cols.append(S)
+    A = np.concatenate(cols, axis=2)[:, :, counted.free]
+    return identifiability(A.reshape(-1, counted.count), [counted.names[i] for i in counted.free])[0].rank
