@@ -151,7 +151,8 @@ def read_series(folder) -> dict:
     Returns
     -------
     dict with ``q`` (m, 6) rad, ``T`` (m, 4, 4) the probe in the tracker frame (mm), ``std`` (m, 6) or None
-    (x, y, z mm; rx, ry, rz rad, the Euler angles' stated deviations), ``temperature`` (m,) deg C, ``file``
+    (x, y, z mm; rx, ry, rz rad, the Euler angles' stated deviations), ``temperature`` (m,) deg C or None,
+    ``file``
 
     Raises
     ------
@@ -163,7 +164,7 @@ def read_series(folder) -> dict:
     if len(lines) < 2:
         raise FormatError(path, "no measurements (a header and no rows)", line=2)
     header = [h.strip() for h in lines[0].split(";")]
-    need = list(UR_JOINTS) + ["measurement_temperature"] + [f"measurement_{k}" for k in POSE]
+    need = list(UR_JOINTS) + [f"measurement_{k}" for k in POSE]  # the temperature is optional
     missing = [h for h in need if h not in header]
     if missing:
         raise FormatError(path, f"missing column(s) {', '.join(missing)}", line=1, field=missing[0])
@@ -183,7 +184,8 @@ def read_series(folder) -> dict:
     if np.abs(q).max() > 2 * np.pi + 1e-6:
         i, j = np.unravel_index(np.argmax(np.abs(q)), q.shape)
         raise FormatError(path, f"joint angle {q[i, j]:g}: expected rad", line=int(i) + 2, field=UR_JOINTS[j])
-    return {"q": q, "T": T, "std": std, "temperature": a[:, col["measurement_temperature"]], "file": path}
+    temp = a[:, col["measurement_temperature"]] if "measurement_temperature" in col else None
+    return {"q": q, "T": T, "std": std, "temperature": temp, "file": path}
 
 
 def write_ipa_session(folder, out) -> int:
