@@ -135,29 +135,14 @@ def load_pose_session(folder, robot=None) -> PoseSession:
     FormatError
         Naming file, line and column of the first problem.
     """
-    from lasercal.solver.formats.checks import load_yaml
+    from lasercal.solver.formats.session import session_yaml
 
     folder = Path(folder)
-    ypath, cpath = folder / "session.yaml", folder / "captures.csv"
-    if not folder.is_dir():
-        raise FormatError(
-            folder, "not a session folder (expected a folder with session.yaml and captures.csv)"
-        )
-    meta = load_yaml(ypath)
-    if not isinstance(meta, dict):
-        raise FormatError(ypath, "session.yaml must be a YAML mapping")
-    if meta.get("format") != SESSION_FORMAT:
-        raise FormatError(
-            ypath, f"expected 'format: {SESSION_FORMAT}', got {meta.get('format')!r}", field="format"
-        )
+    meta, ypath, cpath = session_yaml(folder)
     if meta.get("measurement") != "pose":
         raise FormatError(
             ypath, f"expected 'measurement: pose', got {meta.get('measurement')!r}", field="measurement"
         )
-    units = meta.get("units") or {}
-    for k, v in UNITS.items():
-        if units.get(k, v) != v:
-            raise FormatError(ypath, f"units.{k} must be {v!r}", field=f"units.{k}")
     if robot is not None:
         model = load_model(robot)
     elif "robot" not in meta:

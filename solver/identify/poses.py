@@ -25,7 +25,7 @@ tolerances, identifiable subspace, outlier test.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import sparse
@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.identify.fullpose import estimate_frames
-from lasercal.solver.identify.lsq import Identifiability, flag_outliers, identifiability
+from lasercal.solver.identify.lsq import SubspaceFit, flag_outliers, identifiability
 from lasercal.solver.identify.position import PositionParams, branch_chains, twist_point_rates
 from lasercal.solver.identify.prior import make_prior
 from lasercal.solver.kinematics.effects import Extension, extension_from_model
@@ -435,20 +435,6 @@ def _noise_ratio(res: np.ndarray, used: np.ndarray) -> float:
     return float(pos / max(rot, 1e-15)) if pos > 0 else 1000.0
 
 
-@dataclass(frozen=True, eq=False)
-class MapFit:
-    """What :func:`lm_map` returns (the fields :class:`PoseFit` reports; cf. ``SubspaceFit``)."""
-
-    v: np.ndarray
-    cov: np.ndarray
-    residuals: np.ndarray
-    weights: np.ndarray
-    sigma: float
-    identifiability: Identifiability
-    converged: bool
-    iterations: int
-
-
 _LM_ITERS = 50
 _LM_RTOL = 1e-10  # relative decrease of the cost below which LM has converged
 
@@ -475,7 +461,7 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
 
     Returns
     -------
-    v (p,), MapFit
+    v (p,), SubspaceFit (no history; no span: nested-model tests are not run on pose fits)
     """
     p = len(v0)
     sw = used.astype(float)[:, None]
@@ -528,4 +514,8 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
     keep = ev > 1e-12 * ev[-1]
     Vk = V[:, keep] / d[:, None]
     cov = sigma**2 * (Vk / ev[keep]) @ Vk.T
-    return v, MapFit(v, cov, P.residual(v) * w, used.astype(float), sigma, ident, converged, it)
+    dof = float(6 * used.sum() - int(keep.sum()))  # rows less parameters (the prior's weight ignored)
+    res, span = P.residual(v) * w, np.zeros((0, 6, 0))  # no span: no nested-model test on pose fits
+    c = np.zeros((0, 0))
+    fit = SubspaceFit(v, cov, res, used.astype(float), sigma, ident, converged, it, [], span, c, np.zeros(0))
+    return v, replace(fit, prior=prior, dof=dof)
