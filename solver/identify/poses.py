@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import sparse
+from scipy.linalg import cho_factor, cho_solve
 from scipy.spatial.transform import Rotation
 
 from lasercal.solver.errors import IdentificationError
@@ -385,6 +386,8 @@ def fit_poses(
     sig_pos = float(np.sqrt(np.mean(res[used, 3:] ** 2)))
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     screws, _, fr, (ext, jm) = P.unpack(v)
+    if not joints:  # register keeps the robot bit for bit (the etas' zero rebuilds it only to round-off)
+        screws = nominal.screws
     if ext is not None:
         ext = ext.with_params(v[P.dense - P.k : P.dense], se[P.dense - P.k : P.dense])
     if jm is not None:
@@ -494,7 +497,11 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
     while it < _LM_ITERS:
         it += 1
         d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
-        step = -np.linalg.lstsq(H / np.outer(d, d) + lam * np.eye(p), g / d, rcond=None)[0] / d
+        A = H / np.outer(d, d) + lam * np.eye(p)
+        try:  # positive definite wherever data or the prior fix every direction: Cholesky
+            step = -cho_solve(cho_factor(A), g / d) / d
+        except np.linalg.LinAlgError:
+            step = -np.linalg.lstsq(A, g / d, rcond=None)[0] / d
         c = cost(v + step)
         if c <= c0:
             gain = (c0 - c) / max(c0, 1e-300)
