@@ -8,6 +8,8 @@ order), score the other half, swap; for the nominal UR10 (frames only), the geom
 compliance under gravity (joints 2, 3, 4: the joints the gravity model loads), + a joint error map.
 Temperature: the held-out residuals of the best model regressed on (T - mean T of the series) times the
 predicted origin's offset from the base (a uniform thermal scale of the arm, 1/K), per series.
+Wall times depend on what else the 2 shared cores run; the CPU times are this process's (one BLAS
+thread: wall = CPU on an idle machine).
 """
 
 from __future__ import annotations
@@ -63,15 +65,17 @@ def main(data: Path = DATA) -> None:
     S = {s: load_pose_session(tmp / s) for s in "ABC"}
     nominal = load_model("ur10")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     geo = fit_poses(list(S.values()), nominal)
     print(
-        f"solve A+B+C, geometry: {time.perf_counter() - t:.1f} s, peak memory {peak_mb():.0f} MB; noise "
+        f"solve A+B+C, geometry: {time.perf_counter() - t:.1f} s wall, {time.process_time() - c:.1f} s CPU, "
+        f"peak memory {peak_mb():.0f} MB; noise "
         f"{geo.sigma_pos:.3f} mm, {1e3 * geo.sigma_rot:.3f} mrad per axis"
     )
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     auto = extend_auto(list(S.values()), nominal)
-    print(f"solve A+B+C --extend auto (with its cross-validation): {time.perf_counter() - t:.1f} s, "
+    print(f"solve A+B+C --extend auto (with its cross-validation): {time.perf_counter() - t:.1f} s wall, "
+          f"{time.process_time() - c:.1f} s CPU, "
           f"peak memory {peak_mb():.0f} MB; kept: {auto.chosen}")  # fmt: skip
     for row in auto.table:
         print(f"  {row['label']}: held out {row['position_mm']:.3f} mm, {row['rotation_mrad']:.3f} mrad")
