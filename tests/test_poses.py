@@ -129,7 +129,7 @@ def test_pose_rows_round_trip():
 
 
 # ----------------------------------------------------------------------------- several sessions, one robot
-def truth_and_sessions(rng, n_sessions=3, m=60, compliance=None, noise=0.0):
+def truth_and_sessions(rng, n_sessions=3, m=60, compliance=None, noise=0.0, span=np.pi):
     """A perturbed UR10 (axes ~2 mrad, positions ~2 mm) and sessions of its poses, each with its own sensor
     placement and tool mounting."""
     nominal = load_model("ur10")
@@ -142,8 +142,8 @@ def truth_and_sessions(rng, n_sessions=3, m=60, compliance=None, noise=0.0):
     for k in range(n_sessions):
         X = exp6(np.r_[rng.normal(0, 0.5, 3), rng.normal(0, 1000, 3)])
         M = nominal.ee_pose @ exp6(np.r_[rng.normal(0, 0.3, 3), rng.normal(0, 50, 3)])
-        q = rng.uniform(-np.pi, np.pi, (m, 6))
-        q[:, 1] = rng.uniform(-2.8, -0.3, m)
+        q = rng.uniform(-span, span, (m, 6))
+        q[:, 1] = rng.uniform(-2.8, -0.3, m) if span > 1.3 else -1.55 + q[:, 1]
         # the torques of the nominal's gravity model: what the fit uses (its masses are not identified)
         qt = q if ext is None else ext.true_q(q, None, gravity_torques(nominal, q))
         T = X @ fk(truth.screws, M, qt)
@@ -290,3 +290,19 @@ def test_solve_register_predict_round_trip(tmp_path):
     pred = frames_from_pose(np.stack([out[k] for k in ("x", "y", "z", "rx", "ry", "rz")], axis=1))
     p, r = errors(pred, T[30:])
     assert p.max() < 1e-5 and r.max() < 1e-8
+
+
+def test_extend_auto_on_one_session_keeps_the_joint_compliance_it_hides(tmp_path, capsys):
+    """One session (its three blocks of rows stand in for sessions): a hidden compliance on joints 2, 3 (twice
+    the UR10's), 0.01 mm / 0.01 mrad noise: auto keeps it, and it predicts the held-out blocks 3x better."""
+    rng = np.random.default_rng(13)
+    nominal, truth, ext, sessions, _ = truth_and_sessions(rng, 1, 120, [-2e-5, -2e-5], noise=0.01, span=0.8)
+    write_session(tmp_path / "s", sessions[0].q, sessions[0].T)
+    out = tmp_path / "m.yaml"
+    assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--extend", "auto", "--folds", "0"]) == 0
+    text = capsys.readouterr().out
+    table = text.split("held out (")[1].split("kept: ")[0].splitlines()[1:]
+    held = {ln.split(":")[0].strip(): float(ln.split(":")[1].split()[0]) for ln in table}
+    kept = text.split("kept: ")[1].split("\n")[0]
+    assert kept.startswith("joint compliance") and held[kept] < held["geometric"] / 3
+    assert "joint_compliance" in load_model(out).extensions

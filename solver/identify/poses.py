@@ -372,16 +372,15 @@ def fit_poses(
     for _ in range(passes):
         w = np.repeat([ratio, 1.0], 3)
         sigma = float(np.sqrt(np.mean(P.residual(v)[used, 3:] ** 2)))
-        v, fit = lm_map(P, w, v, prior, sigma, used)
-        res = fit.residuals / w
-        before = used
-        if robust:
-            used = ~flag_outliers(fit.residuals, used.astype(float), 1.0)[0]
-        new = _noise_ratio(res, used)
-        done = abs(new / ratio - 1) < _WEIGHT_RTOL and np.array_equal(before, used)
-        ratio = new
-        if done:
+        v, fit = lm_map(P, w, v, prior, sigma, used, final=False)
+        flagged = ~flag_outliers(fit.residuals, used.astype(float), 1.0)[0] if robust else used
+        new = _noise_ratio(fit.residuals / w, flagged)
+        if abs(new / ratio - 1) < _WEIGHT_RTOL and np.array_equal(flagged, used):
             break
+        ratio, used = new, flagged
+    steps, converged = fit.iterations, fit.converged
+    v, fit = lm_map(P, w, v, prior, sigma, used, iterations=0)  # the covariance at the last fit's weights
+    fit = replace(fit, iterations=steps, converged=converged)
     res = P.residual(v)
     sig_pos = float(np.sqrt(np.mean(res[used, 3:] ** 2)))
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
@@ -438,11 +437,19 @@ def _noise_ratio(res: np.ndarray, used: np.ndarray) -> float:
     return float(pos / max(rot, 1e-15)) if pos > 0 else 1000.0
 
 
-_LM_ITERS = 50
 _LM_RTOL = 1e-10  # relative decrease of the cost below which LM has converged
 
 
-def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, used: np.ndarray) -> tuple:
+def lm_map(
+    P: PoseParams,
+    w: np.ndarray,
+    v0: np.ndarray,
+    prior,
+    sigma: float,
+    used: np.ndarray,
+    final: bool = True,
+    iterations: int = 50,
+) -> tuple:
     """The MAP estimate (eq. P2 of :mod:`solver.identify.prior`) by Levenberg-Marquardt on the normal
     equations: the estimate of :func:`~lasercal.solver.identify.lsq.fit_subspace`, formed as the (p, p) normal
     matrix because 16,000 poses x 6 rows made MINPACK's QR of the (97,000, p) Jacobian and the outlier test's
@@ -461,6 +468,8 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
     prior : Prior or None
     sigma : float, the position noise (mm) weighting the prior's rows
     used : (m,) bool, the poses fitted (False: flagged outliers)
+    final : bool, False: skip the identifiability and the covariance (a pass before the noise settles)
+    iterations : int, most LM steps (0: only the identifiability and covariance at v0)
 
     Returns
     -------
@@ -494,7 +503,7 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
     c0 = cost(v)
     lam, it, converged = 1e-4, 0, False
     H, g, Jd = normal(v)
-    while it < _LM_ITERS:
+    while it < iterations:
         it += 1
         d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
         A = H / np.outer(d, d) + lam * np.eye(p)
@@ -515,6 +524,11 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
             if lam > 1e8:
                 converged = True  # no step lowers the cost: at the minimum to round-off
                 break
+    res, span = P.residual(v) * w, np.zeros((0, 6, 0))  # no span: no nested-model test on pose fits
+    if not final:
+        return v, SubspaceFit(
+            v, None, res, used.astype(float), sigma, None, converged, it, [], span, None, None
+        )
     ident, _ = identifiability(np.linalg.qr(Jd, mode="r"), P.names[: P.dense])
     d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
     ev, V = np.linalg.eigh(H / np.outer(d, d))
@@ -522,7 +536,6 @@ def lm_map(P: PoseParams, w: np.ndarray, v0: np.ndarray, prior, sigma: float, us
     Vk = V[:, keep] / d[:, None]
     cov = sigma**2 * (Vk / ev[keep]) @ Vk.T
     dof = float(6 * used.sum() - int(keep.sum()))  # rows less parameters (the prior's weight ignored)
-    res, span = P.residual(v) * w, np.zeros((0, 6, 0))  # no span: no nested-model test on pose fits
     c = np.zeros((0, 0))
     fit = SubspaceFit(v, cov, res, used.astype(float), sigma, ident, converged, it, [], span, c, np.zeros(0))
     return v, replace(fit, prior=prior, dof=dof)
