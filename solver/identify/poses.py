@@ -326,8 +326,8 @@ def fit_poses(
     robust : bool, flag outlier poses (chi-square test of :func:`~lasercal.solver.identify.lsq.flag_outliers`)
     frames : dict name -> (X, M), optional starts of the sessions' frames
     tolerances : Tolerances or None, the prior (default: the first session's)
-    warm : PoseFit, optional: a fit of a superset of these sessions with the same parameters (a cross-
-        validation fold's start: its values by name, its frames and its noise ratio; one weighting pass)
+    warm : PoseFit, optional: a fit of a superset of these sessions, the start (its values by name, its
+        frames, its noise ratio); of the same parameters (a cross-validation fold) one weighting pass
 
     Returns
     -------
@@ -366,7 +366,11 @@ def fit_poses(
                 for nm in P.names
             ]
         )
-        ratio, passes = warm.sigma_pos / warm.sigma_rot, 1
+        ratio = warm.sigma_pos / warm.sigma_rot
+        # a fold of the same model: its noise is the whole fit's (one pass); another model re-weighs
+        passes = (
+            1 if all(nm in at for nm in P.names if ".sensor." not in nm and ".tool." not in nm) else passes
+        )
     else:
         ratio = _noise_ratio(P.residual(v), used)
     for _ in range(passes):
