@@ -65,8 +65,10 @@ def ipa_text(m: int = 30) -> str:
 
     ur = load_model("ur10")
     q = np.random.default_rng(5).uniform(-2.5, 2.5, (m, 6))
-    T = exp6(np.r_[0.1, -0.2, 0.5, 2500.0, -1500.0, -1200.0]) @ fk(ur.screws, ur.ee_pose, q) @ exp6(
-        np.r_[0, 0, -1.5708, 0, 0.3, 93.0]
+    T = (
+        exp6(np.r_[0.1, -0.2, 0.5, 2500.0, -1500.0, -1200.0])
+        @ fk(ur.screws, ur.ee_pose, q)
+        @ exp6(np.r_[0, 0, -1.5708, 0, 0.3, 93.0])
     )
     eul = Rotation.from_matrix(T[:, :3, :3]).as_euler("XYZ", degrees=True)
     head = ["Timestamp", *UR_JOINTS, "measurement_temperature"] + [f"measurement_{k}" for k in POSE]
