@@ -55,6 +55,29 @@ JUSTIN = justin_text(JUSTIN_RECORDS)
 PRIOR = "format: lasercal-prior/1\nunits: {length: mm, angle: rad}\nprior: {offset_mm: 4.0}\n"
 
 
+def ipa_text(m: int = 30) -> str:
+    """A series file as ipa-robot-accuracy publishes it (';', decimal commas, Euler XYZ in degrees) of the
+    nominal UR10 seen by a tracker 3 m away, the probe 93 mm off the flange."""
+    from scipy.spatial.transform import Rotation
+
+    from lasercal.solver.formats.ipa import POSE, UR_JOINTS
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.kinematics.poe import exp6, fk
+
+    ur = load_model("ur10")
+    q = np.random.default_rng(5).uniform(-2.5, 2.5, (m, 6))
+    T = (
+        exp6(np.r_[0.1, -0.2, 0.5, 2500.0, -1500.0, -1200.0])
+        @ fk(ur.screws, ur.ee_pose, q)
+        @ exp6(np.r_[0, 0, -1.5708, 0, 0.3, 93.0])
+    )
+    eul = Rotation.from_matrix(T[:, :3, :3]).as_euler("XYZ", degrees=True)
+    head = ["Timestamp", *UR_JOINTS, "measurement_temperature"] + [f"measurement_{k}" for k in POSE]
+    rows = [[2.02011e13, *q[i], 21.7, *T[i, :3, 3], *eul[i]] for i in range(m)]
+    text = [";".join(head)] + [";".join(f"{v:.9g}".replace(".", ",") for v in r) for r in rows]
+    return "\n".join(text) + "\n"
+
+
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
     """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/, pos/
@@ -90,6 +113,11 @@ def base(tmp_path_factory):
     (d / "goals.csv").write_text(GOALS)
     (d / "prior.yaml").write_text(PRIOR)
     (d / "justin.csv").write_text(JUSTIN)
+    (d / "ipa").mkdir()
+    (d / "ipa" / "measurements_test.csv").write_text(ipa_text())
+    assert main(["import-ipa", str(d / "ipa"), "-o", str(d / "ps")]) == 0
+    assert main(["solve", str(d / "ps"), "-o", str(d / "pmodel.yaml"), "--folds", "0"]) == 0
+    (d / "pcfg.csv").write_text("q1,q2,q3,q4,q5,q6\n0.1,-1.2,1.1,-0.5,0.7,0.2\n0.3,-1.0,0.9,-0.4,0.6,0.1\n")
     assert main(["sheet", "-o", str(d / "sheet"), "--place", "450", "0", "0"]) == 0
     for drawing in ("sheet.pdf", "sheet.svg"):  # read by no command: not copied for every case
         (d / "sheet" / drawing).unlink()
@@ -229,6 +257,8 @@ EXPORT = ["export", "{d}/model.yaml"]
 PREDICT = ["predict", "{d}/model.yaml", "{d}/configs.csv"]
 IMPORT = ["import-mukca", "{d}/mukca/panda_1"]
 JUSTIN_IMPORT = ["import-justin", "{d}/justin.csv"]
+IPA_IMPORT = ["import-ipa", "{d}/ipa"]
+REGISTER = ["register", "{d}/pmodel.yaml", "{d}/ps"]
 PLAN = ["plan", "{d}/sess", "--next", "2"]
 STUDY = ["study-mukca", "{d}/mukca", "--robots", "panda_1", "--quick"]
 
@@ -476,6 +506,51 @@ def _justin_record(k: int, joints: str | None, markers: str | None):
 for cid, spoil in JUSTIN_BAD.items():
     case(f"import-justin: {cid}", JUSTIN_IMPORT + ["-o", "{o}"], _justin_record(*spoil), "justin.csv")
 
+
+def _ipa_cell(row: int, col: str, text: str):
+    """The series file with one cell replaced (data row ``row``, 0-based)."""
+
+    def fn(d: Path):
+        p = d / "ipa" / "measurements_test.csv"
+        lines = p.read_text().splitlines()
+        head = lines[0].split(";")
+        cells = lines[1 + row].split(";")
+        cells[head.index(col)] = text
+        lines[1 + row] = ";".join(cells)
+        p.write_text("\n".join(lines) + "\n")
+
+    return fn
+
+
+IPA_BAD = {  # (setup, needle)
+    "a joint angle text": (_ipa_cell(3, "elbow_joint", "abc"), "elbow_joint"),
+    "a position blank": (_ipa_cell(5, "measurement_y", ""), "measurement_y"),
+    "a joint angle in degrees": (_ipa_cell(2, "wrist_1_joint", "270,5"), "wrist_1_joint"),
+    "a column missing": (lambda d: (d / "ipa/measurements_test.csv").write_text(
+        (d / "ipa/measurements_test.csv").read_text().replace("measurement_rz", "rz")), "measurement_rz"),
+    "no measurements file": (_rm("ipa/measurements_test.csv"), "measurements_*.csv"),
+    "two measurements files": (_touch("ipa/measurements_more.csv", "a;b\n"), "measurements_"),
+}  # fmt: skip
+for cid, (setup, needle) in IPA_BAD.items():
+    case(f"import-ipa: {cid}", IPA_IMPORT + ["-o", "{o}"], setup, needle)
+POSES_BAD = {  # register's session and model, solve of pose sessions, predict of a pose model
+    "register: rx in degrees": (REGISTER, _degrees("ps/captures.csv", ["rx", "ry", "rz"]), "rx"),
+    "register: a laser model": (["register", "{d}/model.yaml", "{d}/ps"], None, "not a pose model"),
+    "register: x nan": (REGISTER, _cell("ps/captures.csv", 2, "x", "nan"), "captures.csv"),
+    "register: too few poses": (REGISTER, _keep_only("ps/captures.csv", 2), "poses"),
+    "register: a laser session": (["register", "{d}/pmodel.yaml", "{d}/sess"], None, "measurement: pose"),
+    "solve: a pose and a laser session": (["solve", "{d}/ps", "{d}/sess"], None, "sess"),
+    "solve: two laser sessions": (["solve", "{d}/sess", "{d}/sess"], None, "pose sessions"),
+    "solve: two pose sessions of one name": (["solve", "{d}/ps", "{d}/ps"], None, "folder name"),
+    "solve: pose sessions --extend drift": (["solve", "{d}/ps", "--extend", "drift"], None, "--extend"),
+    "predict: a pose model, configs without q6": (["predict", "{d}/pmodel.yaml", "{d}/pcfg.csv"],
+        lambda d: (d / "pcfg.csv").write_text("q1,q2,q3,q4,q5\n0,0,0,0,0\n"), "q6"),
+}  # fmt: skip
+for cid, (argv, setup, needle) in POSES_BAD.items():
+    case(cid, argv + ["-o", "{o}"], setup, needle)
+case("register: positions in metres", REGISTER + ["-o", "{o}"], _metres("ps/captures.csv", ["x", "y", "z"]),
+     "metres", "silent")  # fmt: skip
+
 FP_BAD = {
     "fullpose not utf-8": _latin1("fp.csv"),
     "fullpose in metres": _metres("fp.csv", ["x", "y", "z"]),
@@ -687,6 +762,8 @@ BASE = {  # an argv of every command that parses and runs on the valid inputs (o
     "simulate-fullpose": SIMFP,
     "import-mukca": IMPORT,
     "import-justin": JUSTIN_IMPORT,
+    "import-ipa": IPA_IMPORT,
+    "register": REGISTER,
     "study-mukca": STUDY,
     "sheet": ["sheet"],
     "correct": ["correct", "{d}/model.yaml", "{d}/goals.csv"],
@@ -694,6 +771,7 @@ BASE = {  # an argv of every command that parses and runs on the valid inputs (o
 OUT = {"demo": "-o", "capture": "-o", "solve": "-o", "plan": "-o", "validate": "-o", "report": "-o",
        "export": "-o", "simulate": "-o", "diagnose": "--report", "camera-calibrate": "-o", "fullpose": "-o",
        "simulate-fullpose": "-o", "import-mukca": "-o", "import-justin": "-o", "study-mukca": "-o",
+       "import-ipa": "-o", "register": "-o",
        "spots": "--overlay", "beam-check": "--overlay", "sheet": "-o", "correct": "-o"}  # fmt: skip
 
 
@@ -750,6 +828,8 @@ INPUT_FILES = {
     "fullpose": ["fp.csv"],
     "import-mukca": ["mukca/panda_1/front/hole_0.csv"],
     "import-justin": ["justin.csv"],
+    "import-ipa": ["ipa/measurements_test.csv"],
+    "register": ["ps/session.yaml", "ps/captures.csv", "pmodel.yaml"],
     "study-mukca": ["mukca/panda_1/front/hole_1.csv", PRIOR_FILE],
     "spots": [("cam.yaml", ["--camera", "{d}/cam.yaml"]), ("markers.yaml", ["--layout", "{d}/markers.yaml"])],
     "beam-check": [("cam.yaml", ["--camera", "{d}/cam.yaml"])],

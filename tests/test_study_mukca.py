@@ -18,8 +18,8 @@ from lasercal.collector.cli.main import main
 from lasercal.collector.report.mukca import stiffness
 from lasercal.collector.studies.mukca import consistency, load_robot, summarise
 from lasercal.collector.studies.mukca_checks import homogeneity, jackknife_se
-from lasercal.collector.studies.mukca_import import position_of
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.mukca import position_of
 from lasercal.solver.formats.session import load_session
 from lasercal.solver.identify.measurement import fit
 

@@ -134,6 +134,18 @@ COMMANDS = (
         "a position session from DLR's Agile Justin measurement records (both hands, robot justin)",
     ),
     Command(
+        "import-ipa",
+        "poses",
+        "cmd_import_ipa",
+        "a pose session from one series of the ipa-robot-accuracy UR10 laser-tracker data set",
+    ),
+    Command(
+        "register",
+        "poses",
+        "cmd_register",
+        "place a calibrated robot anew: keep the robot, fit only a new session's sensor and tool frames",
+    ),
+    Command(
         "study-mukca",
         "study",
         "cmd_study",

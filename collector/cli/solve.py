@@ -31,7 +31,13 @@ from lasercal.solver.kinematics.effects import JOINT_EFFECTS
 
 def args_solve(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal solve``."""
-    p.add_argument("session", type=INFOLDER, help="session folder (session.yaml + captures.csv)")
+    p.add_argument(
+        "session",
+        type=INFOLDER,
+        nargs="+",
+        help="session folder (session.yaml + captures.csv); several pose sessions: one robot, each session's "
+        "own sensor and tool frames",
+    )
     output_argument(p, "-o", "--output", required=True, help="identified model YAML to write")
     chain_arguments(p, SESSION_ROBOT)
     p.add_argument(
@@ -151,8 +157,20 @@ def simulated_sheet(folder, session, model) -> str:
 def cmd_solve(args) -> int:
     from lasercal.calibration import calibrate
     from lasercal.collector.sessions.store import atomic_output
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.poses import is_pose_session
     from lasercal.solver.formats.session import load_session
 
+    if any(is_pose_session(s) for s in args.session):
+        from lasercal.collector.cli.poses import solve_poses
+
+        unused(args, "pose sessions", "method", "payload", "allow_partial", "base_link", "tip_link", "json")
+        return solve_poses(args)
+    if len(args.session) > 1:
+        raise LasercalError(
+            f"{len(args.session)} sessions: only pose sessions (measurement: pose) are solved together"
+        )
+    args.session = args.session[0]
     if args.extend == "none":
         unused(args, "the diagnosis of --extend takes it", "payload")
     session = load_session(args.session, **session_robot(args))
@@ -201,6 +219,10 @@ def _predict(args) -> int:
     from lasercal.solver.kinematics.gravity import gravity_torques
 
     model = load_model(args.model)
+    if model.identification.get("measurement") == "pose":
+        from lasercal.collector.cli.poses import cmd_predict_pose
+
+        return cmd_predict_pose(model, args)
     if model.identification.get("measurement") == "position":
         from lasercal.collector.cli.position import cmd_predict_position
 

@@ -66,7 +66,7 @@ def args_study_mukca(p: argparse.ArgumentParser) -> None:
 
 def cmd_import(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.collector.studies.mukca_import import import_mukca
+    from lasercal.solver.formats.mukca import import_mukca
 
     only = list(args.positions) if args.positions else None
     with atomic_output(args.output, folder=True) as tmp:

@@ -56,10 +56,10 @@ from scipy.special import stdtrit  # quantile of Student's t (scipy.stats.t.ppf)
 from lasercal.calibration import calibrate
 from lasercal.collector.report.mukca import markdown, write_plots
 from lasercal.collector.studies.mukca_checks import agreement, jackknife_se, outlier_audit, simulation_check
-from lasercal.collector.studies.mukca_import import import_mukca, position_of, positions
 from lasercal.collector.studies.options import ROBOTS, StudyOptions
 from lasercal.solver.analysis.diagnose import Diagnosis, diagnose, session_torques
 from lasercal.solver.errors import FormatError
+from lasercal.solver.formats.mukca import import_mukca, position_of, positions
 from lasercal.solver.formats.session import Session, load_session
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.point import tip_joint_jacobian, tips

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from lasercal.collector.studies.mukca_import import position_of
 from lasercal.solver.analysis.diagnose import Diagnosis, Tester
+from lasercal.solver.formats.mukca import position_of
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.spot import Identification
 from lasercal.solver.kinematics.effects import Extension, candidates

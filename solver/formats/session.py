@@ -389,8 +389,14 @@ def load_session(
     return replace(session, tolerances=load_tolerances(prior, session.robot), robot_source=source)
 
 
-def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
-    """:func:`load_session` without the prior (the session's robot's own)."""
+def session_yaml(folder: Path) -> tuple[dict, Path, Path]:
+    """A session folder's checked ``session.yaml`` mapping (format, units), its path and the captures' path.
+
+    Raises
+    ------
+    FormatError
+        Not a folder, not a mapping, another format, other units (naming the file and field).
+    """
     ypath, cpath = folder / "session.yaml", folder / "captures.csv"
     if not folder.is_dir():
         raise FormatError(
@@ -407,6 +413,12 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     for k, v in UNITS.items():
         if units.get(k, v) != v:
             raise FormatError(ypath, f"units.{k} must be {v!r}", field=f"units.{k}")
+    return meta, ypath, cpath
+
+
+def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
+    """:func:`load_session` without the prior (the session's robot's own)."""
+    meta, ypath, cpath = session_yaml(folder)
     if robot is not None:
         robot = load_model(robot, base_link=base_link, tip_link=tip_link)
     elif "robot" not in meta:

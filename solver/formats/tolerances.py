@@ -38,6 +38,7 @@ KINDS = {
     "lateral_compliance": "compliance_rad_per_nm",  # a link bending across its joint (same tolerance)
     "encoder_eccentricity": "eccentricity_rad",
     "drift": "drift_rad_per_s",
+    "joint_map": "joint_map_rad",
     "reference_point_offset": "point_offset_mm",
 }
 
@@ -63,6 +64,7 @@ class Tolerances:
     compliance_rad_per_nm : float, a joint compliance c (q_true = q + c tau)
     eccentricity_rad : float, an encoder eccentricity amplitude (a, b)
     drift_rad_per_s : float, a joint drift rate
+    joint_map_rad : float, a knot of a joint error map (solver.kinematics.joint_map)
     point_offset_mm : float, a reference point's offset from where the layout says (per axis)
     noise_mm : dict measurement -> sigma_0, the nominal measurement noise per axis (mm)
     noise_dof : float, nu_0: pseudo-observations behind noise_mm
@@ -82,6 +84,7 @@ class Tolerances:
     compliance_rad_per_nm: float = 1e-3
     eccentricity_rad: float = 1e-2
     drift_rad_per_s: float = 1e-5
+    joint_map_rad: float = 3e-4  # 0.3 mrad: the UR10's angle errors beyond geometry (docs/real-data.md)
     point_offset_mm: float = 3.0
     noise_mm: tuple = (("laser", 1.0), ("point", 0.3), ("position", 0.02))
     noise_dof: float = 4.0

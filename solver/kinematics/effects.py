@@ -38,7 +38,7 @@ EFFECTS = JOINT_EFFECTS + ("reference_point_offset", "none")
 # they belong to the robot and go into MODEL.yaml. Session effects explain one session's data (the
 # clock of this session, where this table's point really is) but are not part of the robot: they are
 # fitted, so that they do not bend the geometry, and reported, never exported.
-ROBOT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "lateral_compliance")
+ROBOT_EFFECTS = ("joint_compliance", "encoder_eccentricity", "lateral_compliance", "joint_map")
 SESSION_EFFECTS = ("drift", "reference_point_offset")
 UNITS = {
     "joint_compliance": "rad/Nm",
@@ -291,7 +291,8 @@ def extension_from_model(
 ) -> Extension | Combination | None:
     """The joint effect(s) a model file carries in ``extensions``, validated: an Extension, a
     Combination when it carries several effects, or None."""
-    unknown = [e for e in (extensions or {}) if e not in EFFECTS]
+    # joint_map (solver.kinematics.joint_map, pose models) is read by joint_map_from_model
+    unknown = [e for e in (extensions or {}) if e not in EFFECTS and e != "joint_map"]
     if unknown:
         raise FormatError(
             path,

@@ -1,0 +1,161 @@
+"""Pose sessions on the command line: ``import-ipa``, ``register``, and the pose pieces of ``solve`` and
+``predict`` (called from cli/solve.py). Thin layers over solver.identify.poses and solver.analysis.pose_cv."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from lasercal.collector.cli.options import INFOLDER, ROBOT, output_argument
+
+
+def args_import_ipa(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal import-ipa``."""
+    p.add_argument("series", type=INFOLDER, help="one published series folder (e.g. ur10-tracker/Series_A)")
+    output_argument(p, "-o", "--output", kind="folder", required=True, help="pose session folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+
+
+def cmd_import_ipa(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output
+    from lasercal.solver.formats.ipa import write_ipa_session
+
+    with atomic_output(args.output, folder=True) as tmp:
+        m = write_ipa_session(args.series, tmp)
+    print(
+        f"wrote {args.output}: {m} poses (robot ur10; the probe in the tracker frame, mm and rotation vector)"
+    )
+    return 0
+
+
+def args_register(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal register``."""
+    p.add_argument("model", type=ROBOT, help="a model calibrated from pose sessions (lasercal solve)")
+    p.add_argument(
+        "session", type=INFOLDER, help="pose session measured after the move (session.yaml + captures.csv)"
+    )
+    output_argument(
+        p, "-o", "--output", required=True, help="model YAML to write: the robot kept, the frames new"
+    )
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+
+
+def cmd_register(args) -> int:
+    from lasercal.collector.sessions.store import atomic_output
+    from lasercal.solver.analysis.pose_cv import register
+    from lasercal.solver.formats.poses import load_pose_session
+
+    model = pose_model(args.model)
+    session = load_pose_session(args.session, robot=args.model)
+    fit = register(model, session)
+    ((pos, rot),) = fit.errors.values()
+    with atomic_output(args.output) as tmp:
+        fit.model.save(tmp)
+    print(
+        f"registered {session.name} ({session.m} poses): sensor and tool frames fitted, robot kept; "
+        f"residual mean {pos.mean():.3f} mm, {1e3 * rot.mean():.3f} mrad\nwrote {args.output}"
+    )
+    return 0
+
+
+def pose_model(path):
+    """A model calibrated from pose sessions (``identification.measurement: pose``), else a one-line error."""
+    from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.robots import load_model
+
+    model = load_model(path)
+    if (
+        model.identification.get("measurement") != "pose"
+        or model.sensor_pose is None
+        or model.ee_pose is None
+    ):
+        raise FormatError(
+            path,
+            "not a pose model (expected one written by 'lasercal solve' of pose sessions)",
+            field="identification",
+        )
+    return model
+
+
+def solve_poses(args) -> int:
+    """``lasercal solve S1 [S2 ...]`` of pose sessions: one robot, each session's own frames."""
+    import numpy as np
+
+    from lasercal.collector.sessions.store import atomic_output
+    from lasercal.solver.analysis.pose_cv import candidates, extend_auto, half_scores
+    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.formats.poses import load_pose_session
+    from lasercal.solver.identify.poses import fit_poses
+
+    if args.extend not in ("none", "auto", "joint_compliance"):
+        raise LasercalError(f"--extend {args.extend}: pose sessions take none, auto or joint_compliance")
+    sessions = [load_pose_session(s, robot=args.robot) for s in args.session]
+    names = [s.name for s in sessions]
+    if len(set(names)) != len(names):
+        raise LasercalError(
+            f"two sessions share the folder name {names[0]!r}: each session's frames go by it"
+        )
+    nominal = sessions[0].robot
+    if args.prior is not None:
+        from dataclasses import replace
+
+        from lasercal.solver.formats.tolerances import load_tolerances
+
+        tol = load_tolerances(args.prior, nominal)
+        sessions = [replace(s, tolerances=tol) for s in sessions]
+    table = None
+    if args.extend == "auto":
+        auto = extend_auto(sessions, nominal, robust=not args.no_robust)
+        fit, table = auto.fit, auto.table
+    else:
+        ext = candidates(nominal, sessions)[1].extension if args.extend == "joint_compliance" else None
+        fit = fit_poses(sessions, nominal, ext, robust=not args.no_robust)
+    model = fit.model.replace(nominal=str(sessions[0].meta.get("robot", nominal.name)))
+    with atomic_output(args.output) as tmp:
+        model.save(tmp)
+    out = [f"pose sessions: {', '.join(f'{s.name} ({s.m})' for s in sessions)}; {fit.seconds:.1f} s"]
+    out.append(
+        f"noise the data show: {fit.sigma_pos:.3f} mm, {1e3 * fit.sigma_rot:.3f} mrad per axis; "
+        f"{model.identification['outliers']} outlier poses left out"
+    )
+    for nm, (p, r) in fit.errors.items():
+        out.append(f"  {nm}: fitted poses mean {p.mean():.3f} mm, {1e3 * r.mean():.3f} mrad")
+    if table:
+        out.append("held out (leave one session out; frames registered on one half, the other half scored):")
+        for row in table:
+            out.append(
+                f"  {row['label']}: {row['position_mm']:.3f} mm, {row['rotation_mrad']:.3f} mrad "
+                f"(fitted {row['train_position_mm']:.3f} mm)"
+            )
+        out.append(f"kept: {auto.chosen}")
+    elif args.folds and len(sessions) > 1:
+        pos, rot = [], []
+        for k, held in enumerate(sessions):
+            f = fit_poses(
+                [s for j, s in enumerate(sessions) if j != k],
+                nominal,
+                fit.effects[0],
+                robust=not args.no_robust,
+                warm=fit,
+            )
+            p, r = half_scores(f.model, held)
+            pos.append(p.mean())
+            rot.append(r.mean())
+            out.append(f"  held out {held.name}: {pos[-1]:.3f} mm, {1e3 * rot[-1]:.3f} mrad")
+        out.append(f"leave one session out: {np.mean(pos):.3f} mm, {1e3 * np.mean(rot):.3f} mrad mean")
+    print("\n".join(out) + f"\nwrote {args.output}")
+    return 0
+
+
+def cmd_predict_pose(model, args) -> int:
+    """``lasercal predict`` of a pose model: x, y, z (mm) and rx, ry, rz (rad, rotation vector) of the
+    frame in the sensor frame, each input row followed by them."""
+    from lasercal.solver.formats.poses import write_pose_rows
+    from lasercal.solver.formats.session import load_configs
+    from lasercal.solver.identify.poses import model_effects, session_frames
+
+    pose_model(args.model)
+    cfg = load_configs(args.configs, model)
+    T = session_frames(model, cfg.q, model.sensor_pose, model.ee_pose, model_effects(model, args.model))
+    write_pose_rows(sys.stdout, cfg.header, cfg.rows, T)
+    return 0

@@ -1,0 +1,163 @@
+"""Held-out accuracy of pose models and the choice of ``--extend auto`` for pose sessions.
+
+The protocol (the issue's, and the outside check's): a model fitted on some sessions is placed anew on a
+held-out session -- its frames (sensor and tool) re-fitted on one half of the session's poses
+(:func:`register`) -- and scored on the other half, then the halves are swapped (:func:`half_scores`). The
+halves are the first and second half in recording order: the later half was measured after the earlier.
+
+``--extend auto`` (:func:`extend_auto`) compares the geometric model, joint compliance under gravity on the
+joints the gravity model loads, and that plus a joint error map (:mod:`solver.kinematics.joint_map`) by this
+protocol over the sessions (leave one session out; one session: three blocks of rows in order), and keeps
+the one with the lowest held-out score (position mean / sigma_pos + rotation mean / sigma_rot, the noise
+levels of the geometric fit). Each fold's fit starts from the whole data's fit of the same candidate (a few
+LM steps, not a fit from scratch).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from lasercal.solver.errors import IdentificationError
+from lasercal.solver.formats.poses import PoseSession
+from lasercal.solver.identify.poses import PoseFit, errors, fit_poses, session_frames
+from lasercal.solver.kinematics.effects import Extension
+from lasercal.solver.kinematics.gravity import model_torques
+from lasercal.solver.kinematics.joint_map import JointMap
+from lasercal.solver.kinematics.model import RobotModel
+
+TORQUE_RANGE_NM = (
+    5.0  # a joint whose gravity torque spans less than this over the data is not a compliance candidate
+)
+MIN_SPLIT = 12  # poses in a half below which a session is too small to be split for scoring
+
+
+def register(model: RobotModel, session: PoseSession) -> PoseFit:
+    """The model placed on a session: its robot (screws, extension, map) kept, the session's sensor and
+    tool frames fitted (``lasercal register``)."""
+    return fit_poses([session], model, joints=False)
+
+
+def predict_session(fit: PoseFit, session: PoseSession) -> np.ndarray:
+    """Predicted frames (m, 4, 4) of a session's poses by a registered model (its only session's frames)."""
+    X, M = next(iter(fit.frames.values()))
+    return session_frames(fit.model, session.q, X, M, fit.effects)
+
+
+def half_scores(model: RobotModel, session: PoseSession) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pose held-out errors of a session: frames registered on each half, the other half predicted.
+
+    Returns
+    -------
+    position (m,) mm and rotation angle (m,) rad, each pose predicted from the half it is not in
+    """
+    m = session.m
+    if m < 2 * MIN_SPLIT:
+        raise IdentificationError(
+            f"{session.name}: {m} poses are too few to register on one half and score the other"
+        )
+    h = m // 2
+    pos, rot = np.empty(m), np.empty(m)
+    for a, b in ((np.arange(h), np.arange(h, m)), (np.arange(h, m), np.arange(h))):
+        T = predict_session(register(model, session.subset(a)), session.subset(b))
+        pos[b], rot[b] = errors(T, session.T[b])
+    return pos, rot
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A model family of ``--extend auto``: a label, a joint extension (or None) and a joint map (or None)."""
+
+    label: str
+    extension: Extension | None = None
+    joint_map: JointMap | None = None
+
+
+def candidates(nominal: RobotModel, sessions: list) -> list:
+    """Geometric; + joint compliance on the joints the gravity model loads (torque range over the data above
+    :data:`TORQUE_RANGE_NM`); + a joint error map on every joint (knots over the angles of every session)."""
+    out = [Candidate("geometric")]
+    q = np.vstack([s.q for s in sessions])
+    comp = None
+    if nominal.links:
+        tau = model_torques(nominal, q)[0]
+        joints = tuple(int(j) + 1 for j in np.flatnonzero(np.ptp(tau, axis=0) > TORQUE_RANGE_NM))
+        if joints:
+            comp = Extension("joint_compliance", joints, None, np.zeros(len(joints)))
+            out.append(Candidate(f"joint compliance (joints {','.join(map(str, joints))})", comp))
+    label = "joint compliance + joint error map" if comp else "joint error map"
+    out.append(Candidate(label, comp, JointMap.covering(q)))
+    return out
+
+
+def folds(sessions: list) -> list:
+    """Leave-one-out units: the sessions, or one session's three blocks of rows in order (as sessions)."""
+    if len(sessions) > 1:
+        return list(sessions)
+    s = sessions[0]
+    parts = np.array_split(np.arange(s.m), 3)
+    return [_renamed(s.subset(p), f"{s.name}.block{k + 1}") for k, p in enumerate(parts)]
+
+
+def _renamed(s: PoseSession, name: str) -> PoseSession:
+    from dataclasses import replace
+
+    return replace(s, path=s.path.with_name(name))
+
+
+@dataclass(frozen=True)
+class AutoResult:
+    """What ``--extend auto`` measured and chose.
+
+    Attributes
+    ----------
+    fit : PoseFit, the chosen candidate fitted on every session
+    table : list of dict, per candidate: label, held-out position and rotation means (mm, mrad), score, train
+    chosen : str, the chosen candidate's label
+    seconds : float
+    """
+
+    fit: PoseFit
+    table: list
+    chosen: str
+    seconds: float
+
+
+def extend_auto(sessions: list, nominal: RobotModel, robust: bool = True) -> AutoResult:
+    """Fit every :func:`candidates` model on all sessions, cross-validate each (module docstring), keep the
+    best."""
+    t0 = time.perf_counter()
+    units = folds(sessions)
+    split = len(sessions) == 1
+    fits, table, prev = {}, [], None
+    for c in candidates(nominal, sessions):
+        full = fit_poses(
+            units if split else sessions, nominal, c.extension, c.joint_map, robust=robust, warm=prev
+        )
+        prev = full
+        pos, rot = [], []
+        for k, held in enumerate(units):
+            train = [u for j, u in enumerate(units) if j != k]
+            f = fit_poses(train, nominal, c.extension, c.joint_map, robust=robust, warm=full)
+            p, r = half_scores(f.model, held)
+            pos.append(p.mean())
+            rot.append(r.mean())
+        fits[c.label] = full
+        table.append(
+            {
+                "label": c.label,
+                "position_mm": float(np.mean(pos)),
+                "rotation_mrad": 1e3 * float(np.mean(rot)),
+                "train_position_mm": float(np.mean(np.concatenate([e[0] for e in full.errors.values()]))),
+            }
+        )
+    ref = fits[table[0]["label"]]
+    for row in table:
+        row["score"] = row["position_mm"] / ref.sigma_pos + row["rotation_mrad"] * 1e-3 / ref.sigma_rot
+    best = min(table, key=lambda r: r["score"])
+    chosen = fits[best["label"]]
+    if split:  # the blocks were fitted as sessions of their own: refit the whole session once
+        chosen = fit_poses(sessions, nominal, chosen.effects[0], chosen.effects[1], robust=robust)
+    return AutoResult(chosen, table, best["label"], time.perf_counter() - t0)
