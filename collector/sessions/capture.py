@@ -278,7 +278,12 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
     return lines
 
 
-def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nominal, rangefinder):
+SPOT_COLUMNS = ("photo", "spot_x", "spot_y", "spot_sx", "spot_sy", "spot_note")  # a camera session's
+
+
+def new_session(
+    folder, cfg: dict, layout: Layout, layout_path: Path, robot, nominal, rangefinder, camera=None, world=None
+):
     """Create a capture session folder whose session.yaml holds everything a resume needs.
 
     Parameters
@@ -289,12 +294,15 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
     robot : RobotAdapter, its extra columns are logged (the fake robot's truth is named as simulated)
     nominal : RobotModel, the robot the session names
     rangefinder : the rangefinder or None (then no ``laser_length_measured`` column)
+    camera : the camera or None (then no :data:`SPOT_COLUMNS`)
+    world : fakeworld.World or None, the simulated world's effects (fake backend)
 
     Returns
     -------
     CaptureStore, open for appending
     """
     columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
+    columns += list(SPOT_COLUMNS) if camera is not None else []
     fake = cfg["backend"] == "fake"
     aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if fake else None)
     if aperture is not None:  # refused now, not when the finished session is loaded
@@ -314,9 +322,61 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
             "aim_noise_mm": cfg["aim_noise"],
             "seed": cfg["seed"],
         }
+        if world is not None and world.effects:
+            extra["simulated"]["world"] = world.as_dict()
+    if camera is not None:  # the operator aims beside each cross: a spot on ink would be biased
+        from lasercal.collector.sessions.spotcam import BESIDE_MM
+
+        extra["aim_offset"] = list(BESIDE_MM)
     return CaptureStore.create(
         folder, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
     )
+
+
+def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta: dict) -> tuple[dict, str]:
+    """Photograph a capture, keep the photo and measure its spot: the row's :data:`SPOT_COLUMNS` and the
+    line(s) said at once.
+
+    A spot that cannot be measured (hidden by the arm, outside the view, unreadable, two candidates)
+    leaves ``spot_x``..``spot_sy`` empty and its reason in ``spot_note``: the capture is kept as an aimed
+    one (fitted to its cross with the aiming noise), and the operator may discard it and retake it.
+
+    Parameters
+    ----------
+    folder : Path, the session folder (photos/ is made in it)
+    camera, measure : see :func:`run_capture`
+    t : float, the capture's session time, s (names the photo: unique across resumes)
+    point : (3,) array, the cross aimed at, base frame at the placement (the message's distance), mm
+    meta : dict, session.yaml (a sheet's placement maps the measured spot to the base frame)
+    """
+    import cv2
+
+    from lasercal.collector.sessions.store import write_atomic_bytes
+    from lasercal.vision.errors import VisionError
+
+    img = camera.photo()
+    name = f"photos/capture_{int(round(t * 1000)):09d}.png"
+    ok, png = cv2.imencode(".png", img)
+    if not ok:
+        raise DeviceError(f"cannot encode photo {name}")
+    (folder / "photos").mkdir(exist_ok=True)
+    write_atomic_bytes(folder / name, png.tobytes())  # before the row: a row never names a missing photo
+    try:
+        m = measure(img, name)
+    except VisionError as e:
+        why = str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)
+        return {"photo": name, "spot_note": why.replace("\n", " ")}, (
+            f"  ! camera: the spot could not be measured ({why}): kept as an aimed capture, fitted to its "
+            "cross with the aiming noise (d Enter discards it, to retake it)\n"
+        )
+    cells = {"photo": name, "spot_x": m.xy[0], "spot_y": m.xy[1], "spot_sx": m.sigma[0]}
+    cells.update(spot_sy=m.sigma[1], spot_note=m.note.replace("\n", " "))
+    layout = session_layout(meta, folder)
+    said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
+    if layout.frame != "sheet" or layout.sheet is not None:  # where the placement puts it: the cross's frame
+        where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
+        said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the cross"
+    return cells, said + "\n"
 
 
 def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
@@ -342,6 +402,8 @@ def run_capture(
     resume_hint: str = "",
     coach=None,
     confirm_moves: bool = True,
+    camera=None,
+    measure=None,
 ) -> CaptureResult:
     """Run (or continue) a capture session until every requested point has its captures.
 
@@ -360,6 +422,9 @@ def run_capture(
         ``opts.move`` the arm is moved there), and the stopping rule
     confirm_moves : bool, with ``opts.move``: preview and ask (:func:`collector.sessions.motion.confirm`)
         before the first move; off only for the simulated robot
+    camera : a camera (``photo()``) or None: after standstill each capture is photographed, the photo kept
+        (photos/, written atomically before its row) and the spot measured (:func:`spot_cells`)
+    measure : callable(img, name) -> spotcam.SpotMeasure, raising VisionError when it cannot
 
     A Ctrl-C or a lost link stops the arm (:meth:`RobotAdapter.stop`); every capture taken is on
     disk (appended durably one by one) and ``resume_hint`` continues the session.
@@ -473,10 +538,14 @@ def run_capture(
             extra = dict(state.extra)
             if length is not None:
                 extra["laser_length_measured"] = length
+            seen = ""
+            if camera is not None:
+                cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta)
+                extra.update(cells)
             store.append({"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, **extra})
             counts[name] += 1
             captured += 1
-            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n")
+            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n" + seen)
             if check.flag and opts.auto_discard:
                 store.discard_last()
                 counts[name] -= 1
