@@ -124,7 +124,8 @@ def test_a_mixed_session_finds_the_noise_of_each_kind(tmp_path):
                 for key in cells:
                     cells[key].append("")
     meta = session_meta("panda", layout, None)
-    folder = write_session(tmp_path / "mixed", meta, names, np.arange(len(q), dtype=float), np.array(q), extra=cells)
+    t = np.arange(len(q), dtype=float)
+    folder = write_session(tmp_path / "mixed", meta, names, t, np.array(q), extra=cells)
     session = load_session(folder)
     assert session.measured.sum() == 45
     noise = identify_lm(session).extra["noise"]
@@ -134,3 +135,22 @@ def test_a_mixed_session_finds_the_noise_of_each_kind(tmp_path):
     assert 0.75 < noise["measured_mm"] / truth_measured < 1.3, noise
     assert 0.025 < noise["unseen_mm"] < 0.075, noise
 
+
+def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tmp_path):
+    """--guide move with a camera: no hand -- the fake arm moves (at its bounded speed, on the simulated
+    clock) to each of the coach's poses, aimed beside the crosses, and the camera measures every capture."""
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 2}
+    out = io.StringIO()
+    guide = CaptureGuide(auto=True, move=True, yes=True)
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), guide).run(out)
+    said = out.getvalue()
+    assert said.count("hands-free") >= 5 and "the camera measures where the beam lands" in said
+    session = load_session(tmp_path / "s")
+    assert session.m == 5
+    measured = session.measured
+    assert measured.sum() >= 4, said  # a pose the camera cannot see is guided by hand once (then aimed)
+    assert set(session.extra["robot_mode"][measured]) == {"Move"}  # nobody guided these
+    layout = load_layout(sheet)
+    cross = np.array([layout.points[p][:2] for p in session.point])
+    off = np.linalg.norm(session.target[measured, :2] - cross[measured], axis=1)
+    assert np.all(off < 40.0)  # on the sheet, near the crosses the coach planned for

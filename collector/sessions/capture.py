@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import datetime
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -338,8 +338,8 @@ def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta:
     line(s) said at once.
 
     A spot that cannot be measured (hidden by the arm, outside the view, unreadable, two candidates)
-    leaves ``spot_x``..``spot_sy`` empty and its reason in ``spot_note``: the capture is kept as an aimed
-    one (fitted to its cross with the aiming noise), and the operator may discard it and retake it.
+    leaves ``spot_x``..``spot_sy`` empty and its reason in ``spot_note``; the line said then has no
+    newline: the caller says what becomes of the capture.
 
     Parameters
     ----------
@@ -364,11 +364,8 @@ def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta:
     try:
         m = measure(img, name)
     except VisionError as e:
-        why = str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)
-        return {"photo": name, "spot_note": why.replace("\n", " ")}, (
-            f"  ! camera: the spot could not be measured ({why}): kept as an aimed capture, fitted to its "
-            "cross with the aiming noise (d Enter discards it, to retake it)\n"
-        )
+        why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
+        return {"photo": name, "spot_note": why}, f"  ! camera: the spot could not be measured ({why})"
     cells = {"photo": name, "spot_x": m.xy[0], "spot_y": m.xy[1], "spot_sx": m.sigma[0]}
     cells.update(spot_sy=m.sigma[1], spot_note=m.note.replace("\n", " "))
     layout = session_layout(meta, folder)
@@ -377,6 +374,15 @@ def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta:
         where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
         said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the cross"
     return cells, said + "\n"
+
+
+def aimed_layout(layout: Layout, offset) -> Layout:
+    """The layout with its points where the operator aims: ``offset`` (dx, dy) mm beside each (a camera
+    session's ``aim_offset``, in the layout's frame), or the layout itself without one."""
+    if offset is None:
+        return layout
+    shift = np.r_[np.asarray(offset, dtype=float), 0.0]
+    return replace(layout, points={k: v + shift for k, v in layout.points.items()})
 
 
 def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict):
@@ -441,8 +447,9 @@ def run_capture(
         ``opts.move`` and the moves were not confirmed: the arm did not move.
     """
     meta = store.meta
-    # base frame: a sheet's points where its stated placement puts them (the check, the coach, the prompt)
-    points = session_layout(meta, store.path).in_base().points
+    # base frame: a sheet's points where its stated placement puts them (the check, the coach, the prompt),
+    # beside the crosses where a camera session aims
+    points = aimed_layout(session_layout(meta, store.path), meta.get("aim_offset")).in_base().points
     requested = list(meta["requested"])
     counts = store.counts(requested)
     w = out.write
@@ -474,11 +481,19 @@ def run_capture(
             confirmed[0] = True
         for step in plan.steps:
             robot.move_to(step)
-        w("  at the suggested pose: refine the aim by hand, then trigger\n")
+        w(
+            "  at the suggested pose: the camera measures where the beam lands\n"
+            if hands_free and not by_hand
+            else "  at the suggested pose: refine the aim by hand, then trigger\n"
+        )
 
+    # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the camera
+    # measures each; a pose whose spot it cannot measure is guided by hand once (then kept as aimed)
+    hands_free = opts.move and camera is not None
+    by_hand = False
     try:
         robot.connect()
-        if robot.guidance:
+        if robot.guidance and not hands_free:
             w(f"{robot.name}: {robot.guidance}\n")
         t_run = robot.clock.now()
         t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
@@ -498,17 +513,21 @@ def run_capture(
             name = todo[0]
             if status is not None and status.plan.point[0] in todo:
                 name = str(status.plan.point[0])
-                if opts.move:
+                if opts.move and not by_hand:
                     move_to(status.suggestion)
                 robot.suggest_pose(status.suggestion)
-            robot.prompt_point(name, points[name], counts[name])
             x, y, z = points[name]
             w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
-            w(
-                f"aim at {name} ({x:.1f}, {y:.1f}, {z:.1f}) mm: capture {counts[name] + 1} of "
-                f"{opts.per_point}   [{trigger.hint}]\n"
-            )
-            cmd = trigger.wait()
+            if hands_free and not by_hand:
+                w(f"at {name}: capture {counts[name] + 1} of {opts.per_point}, hands-free  [Ctrl-C stops]\n")
+                cmd = "capture"
+            else:
+                robot.prompt_point(name, points[name], counts[name])
+                w(
+                    f"aim at {name} ({x:.1f}, {y:.1f}, {z:.1f}) mm: capture {counts[name] + 1} of "
+                    f"{opts.per_point}   [{trigger.hint}]\n"
+                )
+                cmd = trigger.wait()
             if cmd == "quit":
                 w(f"stopped: {saved()}\n")
                 return CaptureResult(False, counts, captured, discarded)
@@ -542,6 +561,18 @@ def run_capture(
             if camera is not None:
                 cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta)
                 extra.update(cells)
+                if "spot_x" in cells:
+                    pass  # measured
+                elif hands_free and not by_hand:  # no aim and no measurement: no data
+                    w(f"{seen}: not kept; this pose is guided by hand once: aim beside the cross, trigger\n")
+                    by_hand = True
+                    continue
+                else:
+                    seen += (
+                        ": kept as an aimed capture, fitted to where it was aimed with the aiming noise "
+                        "(d Enter discards it, to retake it)\n"
+                    )
+            by_hand = False
             store.append({"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, **extra})
             counts[name] += 1
             captured += 1

@@ -19,6 +19,7 @@ from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trig
 from lasercal.collector.sessions.capture import (
     CaptureOptions,
     CaptureResult,
+    aimed_layout,
     new_session,
     run_capture,
     session_coach,
@@ -109,7 +110,8 @@ class StartedCapture:
         cfg, layout = self.settings.cfg, self.settings.layout
         try:
             # Built here, not at start: the coach's design takes a while, after the resume is announced.
-            coach = session_coach(self.store, self.nominal, layout.in_base(), cfg) if self.coach else None
+            aimed = aimed_layout(layout, self.store.meta.get("aim_offset")).in_base()  # beside the crosses
+            coach = session_coach(self.store, self.nominal, aimed, cfg) if self.coach else None
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
             self.store.close()
             if not self.settings.resume and not self.store.point:
