@@ -401,13 +401,13 @@ for cid in (
     case(f"validate: {cid}", VALIDATE + ["-o", "{o}"], MODEL_BAD[cid], "model.yaml")
 
 def _spots(cells: str, row: int = 0):
-    """A camera session's spot columns added to captures.csv, ``cells`` (spot_x..spot_sy) on data row
+    """A camera session's spot columns added to captures.csv, ``cells`` (camera_x..camera_sy) on data row
     ``row`` and the others empty (aimed captures)."""
 
     def fn(d: Path):
         p = d / "sess/captures.csv"
         lines = p.read_text().splitlines()
-        out = [lines[0] + ",spot_x,spot_y,spot_sx,spot_sy"]
+        out = [lines[0] + ",camera_x,camera_y,camera_sx,camera_sy"]
         out += [ln + "," + (cells if i == row else ",,,") for i, ln in enumerate(lines[1:])]
         p.write_text("\n".join(out) + "\n")
 
@@ -415,11 +415,11 @@ def _spots(cells: str, row: int = 0):
 
 
 SESSION_BAD = {
-    "captures spot_sx negative": (_spots("0,0,-0.1,0.1"), "spot_sx"),
-    "captures spot_x nan": (_spots("nan,0,0.1,0.1"), "spot_x"),
-    "captures spot partly empty": (_spots(",0,0.1,0.1"), "spot_x"),
-    "captures spot uncertainty in metres-like text": (_spots("0,0,0.1,abc"), "spot_sy"),
-    "captures spot far from its point": (_spots("5000,0,0.1,0.1"), "spot_x"),
+    "captures camera_sx negative": (_spots("0,0,-0.1,0.1"), "camera_sx"),
+    "captures camera_x nan": (_spots("nan,0,0.1,0.1"), "camera_x"),
+    "captures spot partly empty": (_spots(",0,0.1,0.1"), "camera_x"),
+    "captures spot uncertainty in metres-like text": (_spots("0,0,0.1,abc"), "camera_sy"),
+    "captures spot far from its point": (_spots("5000,0,0.1,0.1"), "camera_x"),
     "session.yaml not utf-8": (_latin1("sess/session.yaml"), "session.yaml"),
     "captures not utf-8": (_latin1("sess/captures.csv"), "captures.csv"),
     "captures in degrees": (_degrees("sess/captures.csv", Q), "captures.csv"),

@@ -87,7 +87,7 @@ def test_a_hidden_spot_is_said_at_once_and_kept_as_an_aimed_capture(sheet, tmp_p
     session = load_session(folder)
     assert session.m == 5 and not session.measured.any()
     assert all((folder / p).is_file() for p in session.extra["photo"])
-    assert all(n for n in session.extra["spot_note"])
+    assert all(n for n in session.extra["camera_note"])
     layout = load_layout(sheet)
     cross = np.array([layout.points[p][:2] for p in session.point])
     np.testing.assert_allclose(session.target[:, :2], cross + BESIDE_MM)  # where the operator aimed
@@ -106,7 +106,7 @@ def test_a_mixed_session_finds_the_noise_of_each_kind(tmp_path):
     layout = load_layout("thesis")
     rng = np.random.default_rng(38)
     s_a, s_m = 1.0, 0.05
-    names, q, cells = [], [], {k: [] for k in ("spot_x", "spot_y", "spot_sx", "spot_sy")}
+    names, q, cells = [], [], {k: [] for k in ("camera_x", "camera_y", "camera_sx", "camera_sy")}
     for name in layout.calibration:
         p = layout.points[name]
         for k, q0 in enumerate(aim(truth, p, 30, rng, **layout.aim_kwargs())):

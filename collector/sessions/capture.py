@@ -278,7 +278,8 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
     return lines
 
 
-SPOT_COLUMNS = ("photo", "spot_x", "spot_y", "spot_sx", "spot_sy", "spot_note")  # a camera session's
+# a camera session's columns (docs/formats.md)
+SPOT_COLUMNS = ("photo", "camera_x", "camera_y", "camera_sx", "camera_sy", "camera_note")
 
 
 def new_session(
@@ -338,7 +339,7 @@ def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta:
     line(s) said at once.
 
     A spot that cannot be measured (hidden by the arm, outside the view, unreadable, two candidates)
-    leaves ``spot_x``..``spot_sy`` empty and its reason in ``spot_note``; the line said then has no
+    leaves ``camera_x``..``camera_sy`` empty and its reason in ``camera_note``; the line said then has no
     newline: the caller says what becomes of the capture.
 
     Parameters
@@ -365,9 +366,9 @@ def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta:
         m = measure(img, name)
     except VisionError as e:
         why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
-        return {"photo": name, "spot_note": why}, f"  ! camera: the spot could not be measured ({why})"
-    cells = {"photo": name, "spot_x": m.xy[0], "spot_y": m.xy[1], "spot_sx": m.sigma[0]}
-    cells.update(spot_sy=m.sigma[1], spot_note=m.note.replace("\n", " "))
+        return {"photo": name, "camera_note": why}, f"  ! camera: the spot could not be measured ({why})"
+    cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
+    cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
     layout = session_layout(meta, folder)
     said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
     if layout.frame != "sheet" or layout.sheet is not None:  # where the placement puts it: the cross's frame
@@ -561,7 +562,7 @@ def run_capture(
             if camera is not None:
                 cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta)
                 extra.update(cells)
-                if "spot_x" in cells:
+                if "camera_x" in cells:
                     pass  # measured
                 elif hands_free and not by_hand:  # no aim and no measurement: no data
                     w(f"{seen}: not kept; this pose is guided by hand once: aim beside the cross, trigger\n")

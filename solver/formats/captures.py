@@ -67,7 +67,7 @@ class Session:
         ``target`` holds their x, y there with z the plane's height in the base frame; the sheet's pose
         is identified with the robot (:mod:`solver.kinematics.sheet`)
     sheet : SheetPose or None, a sheet session's stated rough placement (the prior's mean), if any
-    spot_sigma : (m,) array or None, a camera session's (``spot_x``.. columns): the measured spot's
+    spot_sigma : (m,) array or None, a camera session's (``camera_x``.. columns): the measured spot's
         1-sigma uncertainty per axis, mm (RMS of its two axes), NaN for a capture whose spot was not
         measured (an aimed one); a measured capture's ``target`` holds the measured spot, not its cross
     robot_source : (str, Path or None) or None, how the robot was named and the folder a relative path is
@@ -155,7 +155,8 @@ class Session:
         )
 
 
-SPOT_XY = ("spot_x", "spot_y", "spot_sx", "spot_sy")  # a camera session's measured spot and its 1-sigma, mm
+# a camera session's measured spot and its 1-sigma, mm
+SPOT_XY = ("camera_x", "camera_y", "camera_sx", "camera_sy")
 SPOT_SIGMA_MAX_MM = 50.0  # a stated uncertainty beyond this is no measurement (a unit or column mistake)
 
 
@@ -169,12 +170,12 @@ def measured_spots(path, rows, header) -> tuple[np.ndarray, np.ndarray] | None:
         Naming line and column: some of the four cells empty, a value not a finite number, an
         uncertainty not in (0, 50] mm.
     """
-    if "spot_x" not in header:
+    if "camera_x" not in header:
         return None
     missing = [c for c in SPOT_XY if c not in header]
     if missing:
         raise FormatError(
-            path, f"spot_x without {', '.join(missing)} in the header", line=1, field=missing[0]
+            path, f"camera_x without {', '.join(missing)} in the header", line=1, field=missing[0]
         )
     idx = [header.index(c) for c in SPOT_XY]
     xy, sig = np.full((len(rows), 2), np.nan), np.full(len(rows), np.nan)
@@ -192,7 +193,7 @@ def measured_spots(path, rows, header) -> tuple[np.ndarray, np.ndarray] | None:
                 x = math.nan
             if not math.isfinite(x):
                 what = (
-                    "missing value (a measured spot fills all four of spot_x..spot_sy)"
+                    "missing value (a measured spot fills all four of camera_x..camera_sy)"
                     if not text
                     else (f"not a finite number: {text!r}")
                 )

@@ -518,7 +518,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
                 f"{names[i]} "
                 f"(expected within {SPOT_FAR_MM:g} mm of the point aimed at, mm in the layout's frame)",
                 line=int(lines[i]),
-                field="spot_x",
+                field="camera_x",
             )
         target[ok, :2] = spots[0][ok]
         spot_sigma = spots[1]
