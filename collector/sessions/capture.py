@@ -279,6 +279,7 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
 
 
 # a camera session's columns (docs/formats.md)
+CAMERA_NOISE_MM = 0.1  # per axis: what camera sessions' measured captures show (0.07-0.10 mm, issue 38)
 SPOT_COLUMNS = ("photo", "camera_x", "camera_y", "camera_sx", "camera_sy", "camera_note")
 
 
@@ -395,7 +396,10 @@ def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg:
     model = (
         nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
     )
-    return Coach(model, layout, cfg["seed"], robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"]))
+    # a camera session's captures are measured: the camera's noise and what it does not see (the noise
+    # camera sessions find, docs/sessions.md), not the aiming noise
+    noise = CAMERA_NOISE_MM if cfg.get("camera") else cfg["aim_noise"]
+    return Coach(model, layout, cfg["seed"], robot_tolerances(nominal).with_noise("laser", noise))
 
 
 def run_capture(
@@ -462,12 +466,21 @@ def run_capture(
         safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {store.path}"
         return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
 
+    layout = session_layout(meta, store.path)
+    beside = np.r_[np.asarray(meta.get("aim_offset") or (0.0, 0.0), dtype=float), 0.0]
+
+    def spots_in_base(targets) -> np.ndarray:
+        """Where the captures' spots were (layout frame, a measured spot or the aim), in the base frame at
+        the sheet's placement: the coach fits the camera's measurements, as solve will."""
+        t = np.array(targets, dtype=float).reshape(-1, 3)
+        return layout.sheet.to_base(t[:, :2], layout.plane_z) if layout.frame == "sheet" else t
+
     def coach_status():
         """Refit the coach on every capture so far and print its status block (the prior's with none)."""
         todo = [nm for nm in requested if counts[nm] < opts.per_point]
         q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
         if len(q_all):
-            coach.update(q_all, np.array([points[p] for p in store.point]))
+            coach.update(q_all, spots_in_base(store.target))
         st = coach.status(q_all, allowed=todo or None)
         current = q_all[-1] if len(q_all) else robot.read().q
         w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
@@ -503,7 +516,7 @@ def run_capture(
             # a resumed session: the coach goes through the fits (each warm-started from the one before)
             # that the uninterrupted session made, so its suggestions are the same to the last bit
             q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
-            aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)
+            aimed = spots_in_base(store.target)
             for k in range(1, len(q_all)):
                 coach.update(q_all[:k], aimed[:k])
             status = coach_status()
@@ -574,7 +587,13 @@ def run_capture(
                         "(d Enter discards it, to retake it)\n"
                     )
             by_hand = False
-            store.append({"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, **extra})
+            spot = layout.points[name] + beside  # where it was aimed, layout frame (a sheet's: z 0)
+            if "camera_x" in extra:
+                spot = np.r_[extra["camera_x"], extra["camera_y"], spot[2]]
+            if layout.frame == "sheet":
+                spot = np.r_[spot[:2], layout.plane_z]  # as load_session's target: z the plane's height
+            row = {"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, "target": spot}
+            store.append({**row, **extra})
             counts[name] += 1
             captured += 1
             w("\n".join(_report(check, counts[name], t, peak, length)) + "\n" + seen)
