@@ -154,3 +154,25 @@ def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tm
     cross = np.array([layout.points[p][:2] for p in session.point])
     off = np.linalg.norm(session.target[measured, :2] - cross[measured], axis=1)
     assert np.all(off < 40.0)  # on the sheet, near the crosses the coach planned for
+
+
+def test_a_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet, tmp_path):
+    """Crash-safe as an aimed session: a lost link keeps every capture and photo on disk, and --resume ends
+    where an uninterrupted session ends, measured spots included (the photos' noise is keyed by the pose)."""
+    from lasercal.collector.errors import RobotConnectionError
+
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 4}
+    guide = CaptureGuide(auto=True, coach=False)
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "ref")), guide).run(io.StringIO())
+    ref = load_session(tmp_path / "ref")
+    cut = start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), guide)
+    cut.robot.disconnect_at = ref.t[1] + 1.0
+    with pytest.raises(RobotConnectionError):
+        cut.run(io.StringIO())
+    assert load_session(tmp_path / "s").m == 2
+    start_capture(capture_settings({}, resume=str(tmp_path / "s")), guide).run(io.StringIO())
+    s = load_session(tmp_path / "s")
+    np.testing.assert_array_equal(s.q, ref.q)
+    np.testing.assert_array_equal(s.target, ref.target)  # the camera measured the same spots
+    np.testing.assert_array_equal(s.spot_sigma, ref.spot_sigma)
+    assert len(list((tmp_path / "s" / "photos").iterdir())) == 5

@@ -10,6 +10,7 @@ Cameras: an OpenCV device (index, URL or ``frames/%04d.png``, as ``validate`` ta
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,7 +104,6 @@ class SheetCamera:
         prints = tuple(aruco_print(markers.dictionary, i, printed(c)) for i, c in markers.corners.items())
         prints += tuple(sheet_cross(printed(p[None])[0], S) for p in np.atleast_2d(crosses))
         self.background = reflectance(self.view, prints, PSF_PX)  # the same for every photo: pasted once
-        self._count = 0
 
     def photo(self) -> np.ndarray:
         """One photo of the sheet with the spot where the true beam meets it, (h, w, 3) BGR uint8."""
@@ -114,12 +114,12 @@ class SheetCamera:
         b = P.beam(P.x0(), q[None])
         a, d = b.aperture[0], b.direction[0]
         spot = a + (self.z - a[2]) / d[2] * d
-        self._count += 1
         spots = ()
         if d[2] < 0 and not (self.world.has("occlusion") and hidden(arm_capsules(truth, q), self.eye, spot)):
             spots = (self._spot(spot[:2], d),)
         photo = Photo(self.view, (), spots, psf=PSF_PX, gamma=2.2, background=self.background)
-        return render(photo, seed=self.seed * 100003 + self._count)
+        # the image noise keyed by the pose (itself keyed by the capture): a resumed session repeats itself
+        return render(photo, seed=self.seed * 1_000_003 + zlib.crc32(q.tobytes()))
 
     def _spot(self, xy: np.ndarray, d: np.ndarray):
         """The footprint of a beam of direction d at xy (mm) as a LaserSpot in pixels: round on the sheet
