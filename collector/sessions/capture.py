@@ -475,13 +475,25 @@ def run_capture(
         t = np.array(targets, dtype=float).reshape(-1, 3)
         return layout.sheet.to_base(t[:, :2], layout.plane_z) if layout.frame == "sheet" else t
 
+    def coach_data(k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The first k captures the coach fits, (j, n) rad and (j, 3) mm base frame: in a camera session the
+        measured ones (an aimed one, at the aiming noise, adds next to nothing and would be taken for the
+        camera's noise), else all."""
+        q = np.asarray(store.q[:k], dtype=float).reshape(-1, nominal.n)
+        spots = spots_in_base(store.target[:k])
+        if camera is None:
+            return q, spots
+        keep = np.array([t is not None and m for t, m in zip(store.target[:k], store.measured[:k])], bool)
+        return q[keep], spots[keep]
+
     def coach_status():
         """Refit the coach on every capture so far and print its status block (the prior's with none)."""
         todo = [nm for nm in requested if counts[nm] < opts.per_point]
         q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
-        if len(q_all):
-            coach.update(q_all, spots_in_base(store.target))
-        st = coach.status(q_all, allowed=todo or None)
+        q_fit, spots = coach_data(len(q_all))
+        if len(q_fit):
+            coach.update(q_fit, spots)
+        st = coach.status(q_fit, allowed=todo or None)
         current = q_all[-1] if len(q_all) else robot.read().q
         w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
         return st
@@ -515,10 +527,10 @@ def run_capture(
         if coach is not None:
             # a resumed session: the coach goes through the fits (each warm-started from the one before)
             # that the uninterrupted session made, so its suggestions are the same to the last bit
-            q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
-            aimed = spots_in_base(store.target)
-            for k in range(1, len(q_all)):
-                coach.update(q_all[:k], aimed[:k])
+            for k in range(1, len(store.q)):
+                q_fit, spots = coach_data(k)
+                if len(q_fit):
+                    coach.update(q_fit, spots)
             status = coach_status()
         while True:
             todo = [nm for nm in requested if counts[nm] < opts.per_point]

@@ -218,6 +218,7 @@ class CaptureStore:
     q : list of (n,) arrays, rad
     target : list of (3,) arrays or None, where each capture's spot was, layout frame, mm (a camera
         session's measured spot, else where it was aimed: :func:`solver.session.load_session`'s ``target``)
+    measured : list of bool, a camera measured the capture's spot
     recovered : int, bytes of a torn last line cut off when the session was opened
     """
 
@@ -229,6 +230,7 @@ class CaptureStore:
         self.t = [] if session is None else [float(t) for t in session.t]
         self.q = [] if session is None else list(session.q)
         self.target = [] if session is None else list(session.target)
+        self.measured = [] if session is None else list(session.measured)
         self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
 
     @property
@@ -308,6 +310,7 @@ class CaptureStore:
         self.t.append(float(values["t"]))
         self.q.append(np.asarray(values["q"], dtype=float))
         self.target.append(values.get("target"))
+        self.measured.append(values.get("camera_x") not in (None, ""))
 
     def discard_last(self) -> str | None:
         """Remove the last capture from the file (durably); returns its point, or None if there is none."""
@@ -320,6 +323,7 @@ class CaptureStore:
         self.t.pop()
         self.q.pop()
         self.target.pop()
+        self.measured.pop()
         return self.point.pop()
 
     def remove_empty(self) -> None:
