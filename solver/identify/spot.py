@@ -314,9 +314,11 @@ def fit_kinds(session: Session, residual, jacobian, v0, names, prior_at, robust,
         used = fit.weights > 0
         a, g = used & aimed, used & meas
         new_a = float(np.sqrt(r2[a].sum() / max(free_rows[a].sum(), 1e-9))) if a.any() else s_a
-        unseen = max((r2[g] - free_rows[g] * u[g] ** 2).sum(), 0.0) / max(free_rows[g].sum(), 1e-9)
-        new_m = float(np.sqrt(unseen))
-        typical = np.sqrt(s_m**2 + np.mean(u[g] ** 2))
+        new_m = s_m
+        if g.any():  # (every measured capture flagged: nothing to learn their noise from)
+            unseen = max((r2[g] - free_rows[g] * u[g] ** 2).sum(), 0.0) / max(free_rows[g].sum(), 1e-9)
+            new_m = float(np.sqrt(unseen))
+        typical = np.sqrt(s_m**2 + np.mean(u[meas] ** 2))
         done = abs(new_a / s_a - 1) < KIND_RTOL and abs(new_m - s_m) < KIND_RTOL * typical
         s_a, s_m, v0 = new_a, new_m, fit.v
         if done:
