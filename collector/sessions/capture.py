@@ -476,15 +476,16 @@ def run_capture(
         return layout.sheet.to_base(t[:, :2], layout.plane_z) if layout.frame == "sheet" else t
 
     def coach_data(k: int) -> tuple[np.ndarray, np.ndarray]:
-        """The first k captures the coach fits, (j, n) rad and (j, 3) mm base frame: in a camera session the
-        measured ones (an aimed one, at the aiming noise, adds next to nothing and would be taken for the
-        camera's noise), else all."""
+        """The first k captures the coach fits, (k, n) rad and (k, 3) mm base frame. In a camera session a
+        capture the camera could not measure enters as spent: its spot where the coach's fit predicts it
+        (an aimed spot's residual, at the aiming noise, would be taken for the camera's noise; left out,
+        the coach would ask for the same hidden pose again)."""
         q = np.asarray(store.q[:k], dtype=float).reshape(-1, nominal.n)
         spots = spots_in_base(store.target[:k])
-        if camera is None:
-            return q, spots
-        keep = np.array([t is not None and m for t, m in zip(store.target[:k], store.measured[:k])], bool)
-        return q[keep], spots[keep]
+        spent = ~np.array(store.measured[:k], bool)
+        if camera is not None and spent.any():
+            spots[spent] = predict_spots(coach.post.model, q[spent], spots[spent, 2])[0]
+        return q, spots
 
     def coach_status():
         """Refit the coach on every capture so far and print its status block (the prior's with none)."""
