@@ -400,6 +400,7 @@ for cid in (
     case(f"predict: {cid}", PREDICT, MODEL_BAD[cid], "model.yaml")
     case(f"validate: {cid}", VALIDATE + ["-o", "{o}"], MODEL_BAD[cid], "model.yaml")
 
+
 def _spots(cells: str, row: int = 0):
     """A camera session's spot columns added to captures.csv, ``cells`` (camera_x..camera_sy) on data row
     ``row`` and the others empty (aimed captures)."""
