@@ -301,6 +301,7 @@ OPTION_VALUES = {
         "--until": ["0", "-1", "nan", "inf"],
         "--max-step": ["0", "-0.5", "nan", "4"],
         "--guide": ["fly"],
+        "--effects": ["fly", "all,rain", ""],
     }),
     "validate": (VALIDATE + ["-o", "{o}"], {
         "--hold": ["-1", "0", "nan"],
@@ -442,7 +443,27 @@ for cid in (
     case(f"predict: {cid}", PREDICT, MODEL_BAD[cid], "model.yaml")
     case(f"validate: {cid}", VALIDATE + ["-o", "{o}"], MODEL_BAD[cid], "model.yaml")
 
+
+def _spots(cells: str, row: int = 0):
+    """A camera session's spot columns added to captures.csv, ``cells`` (camera_x..camera_sy) on data row
+    ``row`` and the others empty (aimed captures)."""
+
+    def fn(d: Path):
+        p = d / "sess/captures.csv"
+        lines = p.read_text().splitlines()
+        out = [lines[0] + ",camera_x,camera_y,camera_sx,camera_sy"]
+        out += [ln + "," + (cells if i == row else ",,,") for i, ln in enumerate(lines[1:])]
+        p.write_text("\n".join(out) + "\n")
+
+    return fn
+
+
 SESSION_BAD = {
+    "captures camera_sx negative": (_spots("0,0,-0.1,0.1"), "camera_sx"),
+    "captures camera_x nan": (_spots("nan,0,0.1,0.1"), "camera_x"),
+    "captures spot partly empty": (_spots(",0,0.1,0.1"), "camera_x"),
+    "captures spot uncertainty in metres-like text": (_spots("0,0,0.1,abc"), "camera_sy"),
+    "captures spot far from its point": (_spots("5000,0,0.1,0.1"), "camera_x"),
     "session.yaml not utf-8": (_latin1("sess/session.yaml"), "session.yaml"),
     "captures not utf-8": (_latin1("sess/captures.csv"), "captures.csv"),
     "captures in degrees": (_degrees("sess/captures.csv", Q), "captures.csv"),
@@ -581,6 +602,12 @@ case("validate --resume missing", ["validate", "--resume", "{d}/nothing"], None,
 REAL = ["validate", "{d}/model.yaml", "--backend", "franky", "--host", "192.0.2.1", "--camera", "0"]
 case("validate real backend without --layout", REAL + ["-o", "{o}"], None, "--layout")
 case("capture --hold on resume -1", ["capture", "--resume", "{d}/sess", "--hold", "-1"], None, "--hold")
+case("capture --camera fake on a layout without markers", FAKE_CAPTURE + ["-o", "{o}", "--camera", "fake"],
+     None, "markers")  # fmt: skip
+case("capture --camera 7 absent", FAKE_CAPTURE + ["-o", "{o}", "--camera", "7"], None, "camera")
+case("capture --effects on a real backend",
+     ["capture", "--backend", "franky", "--host", "192.0.2.1", "--layout", "{d}/layout.yaml",
+      "--per-point", "2", "-o", "{o}", "--effects", "all"], None, "--effects")  # fmt: skip
 
 MUKCA_BAD = {
     "mukca missing hole file": (_rm("mukca/panda_1/front/hole_1.csv"), "hole_1.csv"),

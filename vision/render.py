@@ -278,6 +278,7 @@ class Photo:
     gamma: float = 1.0  # 2.2 for an sRGB-like camera JPEG
     jpeg: int | None = None  # JPEG quality, None for lossless
     camera: PhoneCamera | None = None  # a phone's pipeline; replaces bloom, bloom_sigma, gamma and jpeg
+    background: np.ndarray | None = None  # (h, w, 3) reflectance, prints already pasted (:func:`reflectance`)
 
     def truth(self) -> np.ndarray:
         """(n, 2) array of the spots' true centres, px."""
@@ -334,6 +335,16 @@ def _paste(refl: np.ndarray, view: View, item: Print, blur: float) -> None:
     refl[y0:y1, x0:x1] *= vals
 
 
+def reflectance(view: View, prints: tuple, psf: float = 0.6) -> np.ndarray:
+    """The printed sheet's reflectance as seen through ``view``, (h, w, 3) float32: a photo's
+    ``background`` when many photos share the prints and the view (the prints are pasted once)."""
+    w, h = view.size
+    refl = np.ones((h, w, 3), np.float32)
+    for item in prints:
+        _paste(refl, view, item, np.hypot(psf, np.sqrt(1 / 12)))  # PSF and pixel aperture
+    return refl
+
+
 def _spot_box(u, v, r, w, h):
     x0, y0 = max(int(np.floor(u - r)), 0), max(int(np.floor(v - r)), 0)
     return x0, y0, min(int(np.ceil(u + r)) + 1, w), min(int(np.ceil(v + r)) + 1, h)
@@ -366,7 +377,7 @@ def scene_light(photo: Photo, rng) -> np.ndarray:
     auto exposure and clipping: the mean the camera then samples (as :func:`render` does).
     """
     w, h = photo.view.size
-    refl = np.ones((h, w, 3), np.float32)
+    refl = np.ones((h, w, 3), np.float32) if photo.background is None else photo.background.copy()
     for item in photo.prints:
         _paste(refl, photo.view, item, np.hypot(photo.psf, np.sqrt(1 / 12)))  # PSF and pixel aperture
     xs = np.linspace(-0.5, 0.5, w, dtype=np.float32)

@@ -71,6 +71,18 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         help="fake backend: aiming noise per in-plane axis, mm (default 1.0)",
     )
     p.add_argument(
+        "--camera",
+        help="photograph each capture and measure its spot on the sheet through the sheet's markers: fake "
+        "(--backend fake), or an OpenCV device: index, URL or frames/%%04d.png (the layout needs markers)",
+    )
+    p.add_argument(
+        "--effects",
+        metavar="LIST",
+        help="fake backend: the simulated world's effects, all, none or a comma list of "
+        "repeatability, distortion, occlusion, ellipse, print-scale, sheet-height (default: all with "
+        "--camera fake, none without; docs/sessions.md)",
+    )
+    p.add_argument(
         "--until",
         type=number(0, 1e4, "mm", lo_open=True),
         metavar="MM",

@@ -36,7 +36,7 @@ def fake_truth(cfg: dict, nominal, base=None):
     return load_model(cfg["truth"], base=base)
 
 
-def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None):
+def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None, points=None, repeat_sigma=0.0):
     """The robot adapter a settings mapping asks for.
 
     Parameters
@@ -47,6 +47,9 @@ def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None):
     per_point : int, captures per point the simulated operator takes (0: no operator)
     truth : RobotModel or None, the fake robot's true geometry (None: the settings' ``truth`` or
         ``perturb_seed``; a validation on a sheet passes its simulated world's, :mod:`sessions.world`)
+    points : dict or None, where the simulated operator aims, name -> (3,) mm in the true robot's frame
+        (None: the layout's calibration points; :func:`fakeworld.table_points`)
+    repeat_sigma : float, the fake arm's repeatability, rad (:mod:`collector.hardware.fakeworld`)
 
     Returns
     -------
@@ -60,13 +63,13 @@ def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None):
         from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 
         truth = fake_truth(cfg, nominal) if truth is None else truth
-        pts = {k: layout.points[k] for k in layout.calibration}
+        pts = {k: (layout.points if points is None else points)[k] for k in layout.calibration}
         operator = (
             FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())
             if per_point
             else None
         )
-        return FakeRobot(truth, FakeClock(), operator, seed=cfg["seed"])
+        return FakeRobot(truth, FakeClock(), operator, seed=cfg["seed"], repeat_sigma=repeat_sigma)
     if not cfg.get("host"):
         raise LasercalError(f"--backend {backend} needs --host (the robot's or rosbridge's address)")
     if backend == "franky":

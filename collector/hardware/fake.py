@@ -142,6 +142,9 @@ class FakeRobot(RobotAdapter):
     motion : Motion
     seed : int, seed of the motion and sensor noise
     disconnect_at : float or None, simulated time after which every read fails, s (tests)
+    repeat_sigma : float, the arm's repeatability (:mod:`collector.hardware.fakeworld`): the pose it
+        reaches differs from what its encoders report by Gaussian joint noise of this std, rad (0: exact),
+        a new draw keyed like the motion for every pose reached
     """
 
     name = "fake"
@@ -157,9 +160,10 @@ class FakeRobot(RobotAdapter):
         motion: Motion = Motion(),
         seed: int = 0,
         disconnect_at: float | None = None,
+        repeat_sigma: float = 0.0,
     ):
         self.truth, self.clock, self.operator, self.motion = truth, clock, operator, motion
-        self.seed, self.disconnect_at = seed, disconnect_at
+        self.seed, self.disconnect_at, self.repeat_sigma = seed, disconnect_at, repeat_sigma
         self._attempts: dict = {}
         self._connected = False
         home = np.array(truth.home if truth.home is not None else truth.limits.mean(axis=1), dtype=float)
@@ -168,6 +172,7 @@ class FakeRobot(RobotAdapter):
         self._noise = np.random.default_rng([seed])
         self._grid = None
         self._suggested = None
+        self._delta = np.zeros_like(home)  # the reached pose minus the reported one, rad
 
     # ------------------------------------------------------------ motion model
 
@@ -186,6 +191,12 @@ class FakeRobot(RobotAdapter):
         self._noise = rng
         self._q0, self._q1, self._t0, self._mode = q_now, q, self.clock.now(), mode
         self._grid = None
+        self._delta = self._repeat(key, q.shape)
+
+    def _repeat(self, key: tuple, shape) -> np.ndarray:
+        """The reached minus the reported pose of the transit ``key``, rad (its own stream: switching
+        repeatability on leaves every other draw as it was)."""
+        return np.random.default_rng([self.seed, *key, 0x4E9]).normal(0.0, self.repeat_sigma, shape)
 
     def _kinematics(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Noise-free q (rad) and dq (rad/s) at time t."""
@@ -224,13 +235,16 @@ class FakeRobot(RobotAdapter):
         self._connected = False
 
     def move_to(self, q: np.ndarray) -> None:
-        """Move to q like a position-controlled arm; returns on arrival (the jiggle follows)."""
+        """Move to q like a position-controlled arm; returns on arrival (the jiggle follows; with
+        ``repeat_sigma`` none: the arm holds the pose it reached, the repeatability's draw off q)."""
         self._attempts["move"] = self._attempts.get("move", 0) + 1
         q_now, _ = self._kinematics(self.clock.now())
         duration = max(
             1.875 * np.abs(np.asarray(q) - q_now).max() / self.motion.speed, 0.5
         )  # 1.875: min-jerk peak/mean speed
         self._start(q, "Move", (0x30FE, self._attempts["move"]), duration)
+        if self.repeat_sigma:  # an honest arm: position control holds the pose, off by its repeatability only
+            self._v0 = np.zeros_like(self._v0)
         self.clock.sleep(self._T)
 
     def prompt_point(self, name: str, xyz: np.ndarray, index: int) -> None:
@@ -240,7 +254,9 @@ class FakeRobot(RobotAdapter):
         self._attempts[(name, index)] = attempt + 1
         q = self.operator.configuration(name, index, attempt, self._suggested)
         self._suggested = None
-        self._start(q, "Guiding", (self.operator.key(name), index, attempt))
+        key = (self.operator.key(name), index, attempt)
+        # the operator aims the true beam: the encoders report that pose off by the repeatability's delta
+        self._start(q - self._repeat(key, q.shape), "Guiding", key)
 
     def suggest_pose(self, q: np.ndarray) -> None:
         """The simulated operator starts the next hand-guiding from q (rad)."""
@@ -251,8 +267,11 @@ class FakeRobot(RobotAdapter):
         self._start(q, "Guiding", (0x6D1E, self._attempts["guide"]))
 
     # ------------------------------------------------------------ truth, for the fake camera and rangefinder
+    def true_q(self) -> np.ndarray:
+        """The configuration the arm truly is in now (the reported one plus the repeatability's), rad."""
+        return self._kinematics(self.clock.now())[0] + self._delta
+
     def true_spot(self, z: float) -> tuple[np.ndarray, float]:
         """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""
-        q, _ = self._kinematics(self.clock.now())
-        spot, length = predict_spots(self.truth, q[None], z)
+        spot, length = predict_spots(self.truth, self.true_q()[None], z)
         return spot[0], float(length[0])

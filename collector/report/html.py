@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.collector.report.plots import diagnosis_plots, pyplot, save
-from lasercal.collector.report.text import format_diagnosis
+from lasercal.collector.report.text import format_diagnosis, noise_by_kind_line
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
@@ -422,7 +422,21 @@ def residual_plots(session: Session, ident: Identification, path: Path) -> Path:
         ):
             ax = axs[row][j]
             ok = sel & (used if row else np.ones_like(used))
-            ax.scatter(r[ok, 0], r[ok, 1], s=9, c="tab:red" if row == 0 else "tab:blue")
+            if session.measured.any():  # a camera session: measured and aimed captures apart
+                for kind, marker, colour in ((True, "o", "tab:blue"), (False, "^", "tab:orange")):
+                    k = ok & (session.measured == kind)
+                    ax.scatter(
+                        r[k, 0],
+                        r[k, 1],
+                        s=9 if kind else 16,
+                        marker=marker,
+                        c="tab:red" if row == 0 else colour,
+                        label=("measured by the camera" if kind else "aimed at the cross") if row else None,
+                    )
+                if row:
+                    ax.legend(fontsize=7)
+            else:
+                ax.scatter(r[ok, 0], r[ok, 1], s=9, c="tab:red" if row == 0 else "tab:blue")
             if row and np.any(sel & ~used):
                 ax.scatter(
                     r[sel & ~used, 0], r[sel & ~used, 1], marker="x", c="k", s=25, label="outliers (left out)"
@@ -616,6 +630,24 @@ def write_report(
         ),
         _img("residuals.png", "residuals per reference point"),
     ]
+    if session.measured.any():  # a camera session: every capture's residual, and what it was fitted to
+        kind = np.where(session.measured, "measured", "aimed")
+        sig = np.where(session.measured, session.spot_sigma, np.nan)
+        crows = [
+            [int(session.lines[i]), session.point[i], kind[i]]
+            + [f"{v:.3f}" for v in (*ident.residuals[i], np.hypot(*ident.residuals[i]))]
+            + ["" if np.isnan(sig[i]) else f"{sig[i]:.3f}", "left out" if ident.weights[i] == 0 else ""]
+            for i in range(session.m)
+        ]
+        parts += [
+            '<p class="note">Each capture\'s residual (mm): a measured one is fitted to the spot the camera '
+            "measured, with its uncertainty; an aimed one to its cross, with the aiming noise.</p>",
+            _table(
+                "captures",
+                ["line", "point", "kind", "dx", "dy", "|r|", "uncertainty", "outlier"],
+                crows,
+            ),
+        ]
 
     irows = [
         ["parameters", idf["parameters"]],
@@ -628,6 +660,7 @@ def write_report(
         ["condition number", f"{idf['condition']:.1f}"],
         ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
         ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
+        *([["noise by kind", noise_by_kind_line(rep["noise_by_kind"])]] if rep.get("noise_by_kind") else []),
         ["outliers", ", ".join(f"line {o['line']} ({o['point']})" for o in rep["outliers"]) or "none"],
     ]
     det = rep.get("determined_by")

@@ -112,6 +112,19 @@ def format_true_sheet(found, true, laid, G) -> str:
     )
 
 
+def noise_by_kind_line(k: dict) -> str:
+    """One line: the noise found for measured and aimed captures (mm per axis)."""
+    aimed = (
+        f"{k['aimed']} aimed at their crosses, aiming noise {k['aimed_mm']:.3f} mm"
+        if k["aimed"]
+        else "none aimed"
+    )
+    return (
+        f"noise by kind: {k['measured']} measured by the camera, {k['measured_mm']:.3f} mm per axis (camera "
+        f"{k['camera_mm']:.3f}, beyond what it sees {k['unseen_mm']:.3f}); {aimed}"
+    )
+
+
 def format_solve(rep: dict) -> str:
     """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
     lines = []
@@ -126,6 +139,9 @@ def format_solve(rep: dict) -> str:
         f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, {noise} noise estimate "
         f"{rep['sigma_mm']:.3f} mm per axis\n"
     )
+    kinds = rep.get("noise_by_kind")
+    if kinds:  # a camera session: each kind of capture with its own noise
+        w(noise_by_kind_line(kinds) + "\n")
     w(
         f"{identifiable_text(idf['rank'], idf['parameters'], idf.get('possible'))}, condition number "
         f"{idf['condition']:.3g}\n"

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import datetime
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -279,7 +279,14 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
     return lines
 
 
-def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nominal, rangefinder):
+# a camera session's columns (docs/formats.md)
+CAMERA_NOISE_MM = 0.1  # per axis: what camera sessions' measured captures show (0.07-0.10 mm, issue 38)
+SPOT_COLUMNS = ("photo", "camera_x", "camera_y", "camera_sx", "camera_sy", "camera_note")
+
+
+def new_session(
+    folder, cfg: dict, layout: Layout, layout_path: Path, robot, nominal, rangefinder, camera=None, world=None
+):
     """Create a capture session folder whose session.yaml holds everything a resume needs.
 
     Parameters
@@ -290,12 +297,15 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
     robot : RobotAdapter, its extra columns are logged (the fake robot's truth is named as simulated)
     nominal : RobotModel, the robot the session names
     rangefinder : the rangefinder or None (then no ``laser_length_measured`` column)
+    camera : the camera or None (then no :data:`SPOT_COLUMNS`)
+    world : fakeworld.World or None, the simulated world's effects (fake backend)
 
     Returns
     -------
     CaptureStore, open for appending
     """
     columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
+    columns += list(SPOT_COLUMNS) if camera is not None else []
     fake = cfg["backend"] == "fake"
     aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if fake else None)
     if aperture is not None:  # refused now, not when the finished session is loaded
@@ -315,9 +325,67 @@ def new_session(folder, cfg: dict, layout: Layout, layout_path: Path, robot, nom
             "aim_noise_mm": cfg["aim_noise"],
             "seed": cfg["seed"],
         }
+        if world is not None and world.effects:
+            extra["simulated"]["world"] = world.as_dict()
+    if camera is not None:  # the operator aims beside each cross: a spot on ink would be biased
+        from lasercal.collector.sessions.spotcam import BESIDE_MM
+
+        extra["aim_offset"] = list(BESIDE_MM)
     return CaptureStore.create(
         folder, session_meta(cfg["robot"], layout, aperture, **extra), nominal.n, columns
     )
+
+
+def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta: dict) -> tuple[dict, str]:
+    """Photograph a capture, keep the photo and measure its spot: the row's :data:`SPOT_COLUMNS` and the
+    line(s) said at once.
+
+    A spot that cannot be measured (hidden by the arm, outside the view, unreadable, two candidates)
+    leaves ``camera_x``..``camera_sy`` empty and its reason in ``camera_note``; the line said then has no
+    newline: the caller says what becomes of the capture.
+
+    Parameters
+    ----------
+    folder : Path, the session folder (photos/ is made in it)
+    camera, measure : see :func:`run_capture`
+    t : float, the capture's session time, s (names the photo: unique across resumes)
+    point : (3,) array, the cross aimed at, base frame at the placement (the message's distance), mm
+    meta : dict, session.yaml (a sheet's placement maps the measured spot to the base frame)
+    """
+    import cv2
+
+    from lasercal.collector.sessions.store import write_atomic_bytes
+    from lasercal.vision.errors import VisionError
+
+    img = camera.photo()
+    name = f"photos/capture_{int(round(t * 1000)):09d}.png"
+    ok, png = cv2.imencode(".png", img)
+    if not ok:
+        raise DeviceError(f"cannot encode photo {name}")
+    (folder / "photos").mkdir(exist_ok=True)
+    write_atomic_bytes(folder / name, png.tobytes())  # before the row: a row never names a missing photo
+    try:
+        m = measure(img, name)
+    except VisionError as e:
+        why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
+        return {"photo": name, "camera_note": why}, f"  ! camera: the spot could not be measured ({why})"
+    cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
+    cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
+    layout = session_layout(meta, folder)
+    said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
+    if layout.frame != "sheet" or layout.sheet is not None:  # where the placement puts it: the cross's frame
+        where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
+        said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the cross"
+    return cells, said + "\n"
+
+
+def aimed_layout(layout: Layout, offset) -> Layout:
+    """The layout with its points where the operator aims: ``offset`` (dx, dy) mm beside each (a camera
+    session's ``aim_offset``, in the layout's frame), or the layout itself without one."""
+    if offset is None:
+        return layout
+    shift = np.r_[np.asarray(offset, dtype=float), 0.0]
+    return replace(layout, points={k: v + shift for k, v in layout.points.items()})
 
 
 def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet: bool = False):
@@ -330,7 +398,10 @@ def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg:
     model = (
         nominal if aperture_z is None else nominal.replace(aperture=np.r_[nominal.aperture[:2], aperture_z])
     )
-    tol = robot_tolerances(nominal).with_noise("laser", cfg["aim_noise"])
+    # a camera session's captures are measured: the camera's noise and what it does not see (the noise
+    # camera sessions find, docs/sessions.md), not the aiming noise
+    noise = CAMERA_NOISE_MM if cfg.get("camera") else cfg["aim_noise"]
+    tol = robot_tolerances(nominal).with_noise("laser", noise)
     return Coach(model, layout, cfg["seed"], tol, sheet=sheet)
 
 
@@ -345,6 +416,8 @@ def run_capture(
     resume_hint: str = "",
     coach=None,
     confirm_moves: bool = True,
+    camera=None,
+    measure=None,
 ) -> CaptureResult:
     """Run (or continue) a capture session until every requested point has its captures.
 
@@ -363,6 +436,9 @@ def run_capture(
         ``opts.move`` the arm is moved there), and the stopping rule
     confirm_moves : bool, with ``opts.move``: preview and ask (:func:`collector.sessions.motion.confirm`)
         before the first move; off only for the simulated robot
+    camera : a camera (``photo()``) or None: after standstill each capture is photographed, the photo kept
+        (photos/, written atomically before its row) and the spot measured (:func:`spot_cells`)
+    measure : callable(img, name) -> spotcam.SpotMeasure, raising VisionError when it cannot
 
     A Ctrl-C or a lost link stops the arm (:meth:`RobotAdapter.stop`); every capture taken is on
     disk (appended durably one by one) and ``resume_hint`` continues the session.
@@ -379,8 +455,9 @@ def run_capture(
         ``opts.move`` and the moves were not confirmed: the arm did not move.
     """
     meta = store.meta
-    # base frame: a sheet's points where its stated placement puts them (the check, the coach, the prompt)
-    points = session_layout(meta, store.path).in_base().points
+    # base frame: a sheet's points where its stated placement puts them (the check, the coach, the prompt),
+    # beside the crosses where a camera session aims
+    points = aimed_layout(session_layout(meta, store.path), meta.get("aim_offset")).in_base().points
     requested = list(meta["requested"])
     counts = store.counts(requested)
     w = out.write
@@ -392,14 +469,36 @@ def run_capture(
         safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {store.path}"
         return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
 
+    layout = session_layout(meta, store.path)
+    beside = np.r_[np.asarray(meta.get("aim_offset") or (0.0, 0.0), dtype=float), 0.0]
+
+    def spots_in_base(targets) -> np.ndarray:
+        """Where the captures' spots were (layout frame, a measured spot or the aim), in the base frame at
+        the sheet's placement: the coach fits the camera's measurements, as solve will."""
+        t = np.array(targets, dtype=float).reshape(-1, 3)
+        return layout.sheet.to_base(t[:, :2], layout.plane_z) if layout.frame == "sheet" else t
+
+    def coach_data(k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The first k captures the coach fits, (k, n) rad and (k, 3) mm base frame. In a camera session a
+        capture the camera could not measure enters as spent: its spot where the coach's fit predicts it
+        (an aimed spot's residual, at the aiming noise, would be taken for the camera's noise; left out,
+        the coach would ask for the same hidden pose again)."""
+        q = np.asarray(store.q[:k], dtype=float).reshape(-1, nominal.n)
+        spots = spots_in_base(store.target[:k])
+        spent = ~np.array(store.measured[:k], bool)
+        if camera is not None and spent.any():
+            spots[spent] = predict_spots(coach.post.model, q[spent], spots[spent, 2])[0]
+        return q, spots
+
     def coach_status():
         """Refit the coach on every capture so far and print its status block (the prior's with none)."""
         todo = [nm for nm in requested if counts[nm] < opts.per_point]
         q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
-        aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)
-        if len(q_all):
-            coach.update(q_all, aimed)
-        st = coach.status(q_all, allowed=todo or None, target=aimed)
+        q_fit, spots = coach_data(len(q_all))
+        if len(q_fit):
+            coach.update(q_fit, spots)
+        aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)  # no suggestion where one was taken
+        st = coach.status(q_fit, allowed=todo or None, target=aimed)
         current = q_all[-1] if len(q_all) else robot.read().q
         w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
         return st
@@ -413,11 +512,19 @@ def run_capture(
             confirmed[0] = True
         for step in plan.steps:
             robot.move_to(step)
-        w("  at the suggested pose: refine the aim by hand, then trigger\n")
+        w(
+            "  at the suggested pose: the camera measures where the beam lands\n"
+            if hands_free and not by_hand
+            else "  at the suggested pose: refine the aim by hand, then trigger\n"
+        )
 
+    # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the camera
+    # measures each; a pose whose spot it cannot measure is guided by hand once (then kept as aimed)
+    hands_free = opts.move and camera is not None
+    by_hand = False
     try:
         robot.connect()
-        if robot.guidance:
+        if robot.guidance and not hands_free:
             w(f"{robot.name}: {robot.guidance}\n")
         t_run = robot.clock.now()
         t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
@@ -425,10 +532,10 @@ def run_capture(
         if coach is not None:
             # a resumed session: the coach goes through the fits (each warm-started from the one before)
             # that the uninterrupted session made, so its suggestions are the same to the last bit
-            q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
-            aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)
-            for k in range(1, len(q_all)):
-                coach.update(q_all[:k], aimed[:k])
+            for k in range(1, len(store.q)):
+                q_fit, spots = coach_data(k)
+                if len(q_fit):
+                    coach.update(q_fit, spots)
             status = coach_status()
         while True:
             todo = [nm for nm in requested if counts[nm] < opts.per_point]
@@ -437,17 +544,21 @@ def run_capture(
             name = todo[0]
             if status is not None and status.plan.point[0] in todo:
                 name = str(status.plan.point[0])
-                if opts.move:
+                if opts.move and not by_hand:
                     move_to(status.suggestion)
                 robot.suggest_pose(status.suggestion)
-            robot.prompt_point(name, points[name], counts[name])
             x, y, z = points[name]
             w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
-            w(
-                f"aim at {name} ({x:.1f}, {y:.1f}, {z:.1f}) mm: capture {counts[name] + 1} of "
-                f"{opts.per_point}   [{trigger.hint}]\n"
-            )
-            cmd = trigger.wait()
+            if hands_free and not by_hand:
+                w(f"at {name}: capture {counts[name] + 1} of {opts.per_point}, hands-free  [Ctrl-C stops]\n")
+                cmd = "capture"
+            else:
+                robot.prompt_point(name, points[name], counts[name])
+                w(
+                    f"aim at {name} ({x:.1f}, {y:.1f}, {z:.1f}) mm: capture {counts[name] + 1} of "
+                    f"{opts.per_point}   [{trigger.hint}]\n"
+                )
+                cmd = trigger.wait()
             if cmd == "quit":
                 w(f"stopped: {saved()}\n")
                 return CaptureResult(False, counts, captured, discarded)
@@ -477,10 +588,32 @@ def run_capture(
             extra = dict(state.extra)
             if length is not None:
                 extra["laser_length_measured"] = length
-            store.append({"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, **extra})
+            seen = ""
+            if camera is not None:
+                cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta)
+                extra.update(cells)
+                if "camera_x" in cells:
+                    pass  # measured
+                elif hands_free and not by_hand:  # no aim and no measurement: no data
+                    w(f"{seen}: not kept; this pose is guided by hand once: aim beside the cross, trigger\n")
+                    by_hand = True
+                    continue
+                else:
+                    seen += (
+                        ": kept as an aimed capture, fitted to where it was aimed with the aiming noise "
+                        "(d Enter discards it, to retake it)\n"
+                    )
+            by_hand = False
+            spot = layout.points[name] + beside  # where it was aimed, layout frame (a sheet's: z 0)
+            if "camera_x" in extra:
+                spot = np.r_[extra["camera_x"], extra["camera_y"], spot[2]]
+            if layout.frame == "sheet":
+                spot = np.r_[spot[:2], layout.plane_z]  # as load_session's target: z the plane's height
+            row = {"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, "target": spot}
+            store.append({**row, **extra})
             counts[name] += 1
             captured += 1
-            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n")
+            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n" + seen)
             if check.flag and opts.auto_discard:
                 store.discard_last()
                 counts[name] -= 1

@@ -34,8 +34,19 @@ DEFAULTS = {
     "ros_port": 9090,
 }
 # Settings a resumed session must keep: they decide what its captures mean.
-FIXED = ("backend", "robot", "per_point", "truth", "perturb_seed", "aim_noise", "seed", "rangefinder")
+FIXED = (
+    "backend",
+    "robot",
+    "per_point",
+    "truth",
+    "perturb_seed",
+    "aim_noise",
+    "seed",
+    "rangefinder",
+    "effects",
+)
 SETTINGS = FIXED + (
+    "camera",
     "speed_threshold",
     "hold",
     "trigger",
@@ -137,8 +148,15 @@ def capture_settings(
         ]
         if missing:
             raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
+        cfg = {**DEFAULTS, **given}
+        if cfg["backend"] == "fake":  # the simulated world's effects, as a list (stored: a resume keeps them)
+            from lasercal.collector.hardware.fakeworld import parse_effects
+
+            cfg["effects"] = list(parse_effects(cfg.get("effects"), cfg.get("camera") == "fake"))
+        elif cfg.get("effects") is not None:
+            raise SessionError("--effects switches the simulated world's effects: it needs --backend fake")
         folder = check_output(output, folder=True, instead=f"resume it with --resume {output}")
-        return CaptureSettings({**DEFAULTS, **given}, load_layout(layout), Path(layout), folder, False)
+        return CaptureSettings(cfg, load_layout(layout), Path(layout), folder, False)
     if output or layout:
         raise SessionError("--resume SESSION continues that folder with its own layout: drop --layout and -o")
     folder = Path(resume)

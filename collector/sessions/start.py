@@ -9,20 +9,24 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lasercal.collector.hardware import make_rangefinder, make_robot
 from lasercal.collector.hardware.base import RobotAdapter
+from lasercal.collector.hardware.fakeworld import World, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
 from lasercal.collector.sessions.capture import (
     CaptureOptions,
     CaptureResult,
+    aimed_layout,
     new_session,
     run_capture,
     session_coach,
 )
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
+from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.collector.sessions.world import (
     SimulatedWorld,
@@ -77,6 +81,7 @@ class StartedCapture:
     opts : CaptureOptions
     hint : str, the command that resumes the session
     coach : bool, run the capture coach
+    camera : the camera that photographs each capture, or None; measure : how its photos are measured
     """
 
     settings: CaptureSettings
@@ -88,6 +93,8 @@ class StartedCapture:
     opts: CaptureOptions
     hint: str
     coach: bool
+    camera: object = None
+    measure: object = None
 
     def run(self, out=sys.stdout) -> CaptureResult:
         """Run the session (:func:`run_capture`) on screen ``out``; close the store and devices after.
@@ -106,7 +113,9 @@ class StartedCapture:
             coach = None
             if self.coach:
                 sheet = layout.frame == "sheet"
-                coach = session_coach(self.store, self.nominal, layout.in_base(), cfg, sheet)
+                # where the operator aims: beside the crosses in a camera session
+                aimed = aimed_layout(layout, self.store.meta.get("aim_offset")).in_base()
+                coach = session_coach(self.store, self.nominal, aimed, cfg, sheet)
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
             self.store.close()
             if not self.settings.resume and not self.store.point:
@@ -125,9 +134,13 @@ class StartedCapture:
                 self.hint,
                 coach,
                 real,
+                self.camera,
+                self.measure,
             )
         finally:
             self.store.close()
+            if self.camera is not None:
+                self.camera.close()
             self.trigger.close()
             if self.rangefinder is not None:
                 self.rangefinder.close()
@@ -156,8 +169,23 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     if guide.auto and cfg["backend"] != "fake":
         raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
     nominal = load_model(cfg["robot"])
-    # a sheet's points where its placement says: the simulated operator's table, the coach's aim
-    robot = make_robot(cfg, nominal, layout.in_base(), cfg["per_point"])
+    world = World.draw(cfg.get("effects") or (), cfg["seed"])
+    camera_spec = cfg.get("camera")
+    # a sheet's points where its placement says: the simulated operator's table (as printed, on the sheet's
+    # true surface; beside the crosses with a camera), the coach's aim
+    robot = make_robot(
+        cfg,
+        nominal,
+        layout.in_base(),
+        cfg["per_point"],
+        points=table_points(layout, world, BESIDE_MM if camera_spec else (0.0, 0.0)),
+        repeat_sigma=world.repeat_sigma,
+    )
+    layout_file = settings.layout_path
+    if settings.resume:  # the layout file the session was started with, relative to its folder
+        layout_file = Path(str(cfg["layout"]))
+        layout_file = layout_file if layout_file.is_absolute() else settings.folder / layout_file
+    camera, measure = capture_camera(camera_spec, cfg, robot, layout, layout_file, world)
     rangefinder = make_rangefinder(cfg, robot, layout.plane_z)
     trigger = AutoTrigger(guide.auto_pace) if guide.auto else make_trigger(cfg["trigger"], robot)
     if guide.move:  # refused before the session folder exists
@@ -172,7 +200,9 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     if settings.resume:
         store = CaptureStore.open(settings.folder)
     else:
-        store = new_session(settings.folder, cfg, layout, settings.layout_path, robot, nominal, rangefinder)
+        store = new_session(
+            settings.folder, cfg, layout, settings.layout_path, robot, nominal, rangefinder, camera, world
+        )
     opts = CaptureOptions(
         cfg["per_point"],
         cfg["speed_threshold"],
@@ -188,7 +218,9 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         + (" --auto" if guide.auto else "")
         + (" --guide move" if guide.move else "")
     )
-    return StartedCapture(settings, store, robot, trigger, rangefinder, nominal, opts, hint, guide.coach)
+    return StartedCapture(
+        settings, store, robot, trigger, rangefinder, nominal, opts, hint, guide.coach, camera, measure
+    )
 
 
 @dataclass(frozen=True)
@@ -295,9 +327,12 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     if sheet is not None:  # a printed sheet: its points where a calibration found the sheet (eq. S1)
         layout = layout.in_base(sheet)
     nominal = load_model(cfg["robot"])
-    robot = make_robot(cfg, nominal, layout, truth=world and world.truth)
+    effects = world.effects if world is not None else World()
+    robot = make_robot(cfg, nominal, layout, truth=world and world.truth, repeat_sigma=effects.repeat_sigma)
     placed = world and world.sheet
-    camera, measure = make_camera(run["camera"], cfg, robot, layout, point, layout.path, sheet, placed)
+    camera, measure = make_camera(
+        run["camera"], cfg, robot, layout, point, layout.path, sheet, placed, effects.sheet_dz
+    )
     trigger = None
     if run["guide"] or not robot.can_move:
         trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)

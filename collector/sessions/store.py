@@ -216,6 +216,9 @@ class CaptureStore:
     point : list of str, the point of each capture on disk
     t : list of float, s
     q : list of (n,) arrays, rad
+    target : list of (3,) arrays or None, where each capture's spot was, layout frame, mm (a camera
+        session's measured spot, else where it was aimed: :func:`solver.session.load_session`'s ``target``)
+    measured : list of bool, a camera measured the capture's spot
     recovered : int, bytes of a torn last line cut off when the session was opened
     """
 
@@ -226,6 +229,8 @@ class CaptureStore:
         self.point = [] if session is None else [str(p) for p in session.point]
         self.t = [] if session is None else [float(t) for t in session.t]
         self.q = [] if session is None else list(session.q)
+        self.target = [] if session is None else list(session.target)
+        self.measured = [] if session is None else list(session.measured)
         self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
 
     @property
@@ -290,7 +295,8 @@ class CaptureStore:
         Parameters
         ----------
         values : dict column -> value: 'point' (str), 't' (s), 'q' (n,) rad, 'dq' (n,) rad/s,
-            'tau' (n,) Nm, and extra columns by name (missing extras are left empty)
+            'tau' (n,) Nm, 'target' (3,) mm (where the spot was, layout frame; kept in memory, not a
+            column), and extra columns by name (missing extras are left empty)
         """
         cells = {"point": values["point"], "t": values["t"]}
         for key in ("q", "dq", "tau"):
@@ -303,6 +309,8 @@ class CaptureStore:
         self.point.append(str(values["point"]))
         self.t.append(float(values["t"]))
         self.q.append(np.asarray(values["q"], dtype=float))
+        self.target.append(values.get("target"))
+        self.measured.append(values.get("camera_x") not in (None, ""))
 
     def discard_last(self) -> str | None:
         """Remove the last capture from the file (durably); returns its point, or None if there is none."""
@@ -314,6 +322,8 @@ class CaptureStore:
         os.fsync(self._fd)
         self.t.pop()
         self.q.pop()
+        self.target.pop()
+        self.measured.pop()
         return self.point.pop()
 
     def remove_empty(self) -> None:

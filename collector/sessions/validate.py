@@ -24,6 +24,7 @@ import numpy as np
 
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
 from lasercal.collector.hardware.base import RobotAdapter
+from lasercal.collector.sessions.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import wait_still
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
@@ -38,56 +39,6 @@ from lasercal.vision.exposure import exposure_advice
 from lasercal.vision.render import LaserSpot, Photo, View, look_down, render
 
 VALIDATION_FORMAT = "lasercal-validation/1"
-
-
-def _absent(device) -> bool:
-    """A camera that surely is not there: a Linux device index without /dev/videoN, or a frame-file
-    pattern (frames/%04d.png) with none of its first files."""
-    if isinstance(device, int):
-        return sys.platform.startswith("linux") and not Path(f"/dev/video{device}").exists()
-    if "%" not in device or "://" in device:
-        return False
-    try:
-        return not any(Path(device % i).exists() for i in range(5))  # OpenCV starts at 0 .. 4
-    except (TypeError, ValueError):  # not a printf pattern: let OpenCV judge
-        return False
-
-
-class OpenCVCamera:
-    """A camera through ``cv2.VideoCapture``.
-
-    Parameters
-    ----------
-    device : int or str, device index, stream URL or image-sequence pattern
-    flush : int, frames grabbed and dropped before each photo (drivers buffer old frames)
-    """
-
-    name = "opencv"
-
-    def __init__(self, device, flush: int = 3):
-        self.device, self.flush = device, flush
-        if _absent(device):  # checked here: OpenCV would print lines of its own before failing
-            raise DeviceError(
-                f"camera: cannot open {device!r}: no such device or frame files (a device index such as 0, a "
-                "stream URL, or frames/%04d.png)"
-            )
-        self._cap = cv2.VideoCapture(device)
-        if not self._cap.isOpened():
-            raise DeviceError(
-                f"camera: cannot open {device!r} (a device index such as 0, a stream URL, or frames/%04d.png)"
-            )
-
-    def photo(self) -> np.ndarray:
-        """One fresh frame, (h, w, 3) BGR uint8."""
-        for _ in range(self.flush):
-            self._cap.grab()
-        ok, img = self._cap.read()
-        if not ok:
-            raise DeviceError(f"camera {self.device!r}: no frame")
-        return img
-
-    def close(self) -> None:
-        self._cap.release()
 
 
 def fake_view(centre_xy, plane_z: float, size=(1600, 1200), mm_per_px: float = 0.1) -> View:
@@ -169,7 +120,15 @@ def measure_with_markers(img: np.ndarray, name: str, markers, sheet=None) -> tup
 
 
 def make_camera(
-    spec: str | None, cfg: dict, robot, layout: Layout, point: str, layout_path, sheet=None, placed=None
+    spec: str | None,
+    cfg: dict,
+    robot,
+    layout: Layout,
+    point: str,
+    layout_path,
+    sheet=None,
+    placed=None,
+    sheet_dz: float = 0.0,
 ):
     """The camera a validation photographs with, and how its photos are measured.
 
@@ -184,6 +143,7 @@ def make_camera(
     sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
     placed : SheetPose or None, where the simulated table holds that sheet (the fake camera's spots,
         in the simulated robot's frame, go to the sheet through it and to the model's frame through ``sheet``)
+    sheet_dz : float, the simulated sheet's height above the layout's plane, mm (the true beam meets it there)
 
     Returns
     -------
@@ -202,7 +162,7 @@ def make_camera(
                 xy = sheet.to_base(placed.from_base(xy[None]), layout.plane_z)[0, :2]
             return xy, advice
 
-        return FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"]), measure
+        return FakeCamera(robot, view, layout.plane_z + sheet_dz, seed=cfg["seed"]), measure
     if spec is None:
         raise SessionError(
             "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"

@@ -16,12 +16,13 @@ meets the sheet where it truly lies. That world is, in order:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from lasercal.collector.hardware import fake_truth
+from lasercal.collector.hardware.fakeworld import World
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model, load_yaml, sheet_pose
 from lasercal.solver.kinematics.frames import moved, own_frame
@@ -40,19 +41,25 @@ class SimulatedWorld:
     truth : RobotModel, the true robot (in the frame the sheet's pose is given in)
     sheet : SheetPose or None, where the sheet truly lies in the truth's base frame (None: no sheet)
     source : str, where both come from (one line, for the operator and validation.yaml)
+    effects : World, what a real table, camera and arm add (:mod:`collector.hardware.fakeworld`): the
+        session's, so that the arm is as repeatable and the sheet as high in validation as in capture
     """
 
     truth: RobotModel
     sheet: SheetPose | None
     source: str
+    effects: World = field(default_factory=World)
 
     def as_dict(self) -> dict:
         """``{truth, sheet, from}``: what validation.yaml records of the world (the truth by name)."""
-        return {
+        out = {
             "truth": self.truth.name,
             "sheet": None if self.sheet is None else self.sheet.as_dict(),
             "from": self.source,
         }
+        if self.effects.effects:
+            out["effects"] = self.effects.as_dict()
+        return out
 
 
 def session_world(folder) -> SimulatedWorld | None:
@@ -98,7 +105,10 @@ def session_world(folder) -> SimulatedWorld | None:
         return None
     if placed is None:
         return None
-    return SimulatedWorld(truth, placed, f"session {folder.name!r}: simulated, the sheet at its placement")
+    effects = World.from_dict(sim.get("world"))
+    return SimulatedWorld(
+        truth, placed, f"session {folder.name!r}: simulated, the sheet at its placement", effects
+    )
 
 
 def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tuple[SheetPose, np.ndarray]:

@@ -293,13 +293,19 @@ class Tester:
         Jc = ident.extra.get("constraint_span", np.zeros((0, ident.extra["span"].shape[2])))
         self.U = _orthonormal(np.vstack([ident.extra["span"][used].reshape(d * used.sum(), -1), Jc]))
         self.n_capture_rows = d * used.sum()
-        self.res = np.r_[ident.residuals[used].ravel(), ident.extra.get("constraint_residuals", np.zeros(0))]
+        # a camera session's fit weighs each capture by its own noise (eq. K1): tested on the same scale
+        scale = ident.extra.get("scale", np.ones(len(used)))[:, None]
+        self.res = np.r_[
+            (ident.residuals / scale)[used].ravel(), ident.extra.get("constraint_residuals", np.zeros(0))
+        ]
         self.exts, self.Q, self.C, self.unseen = [], [], [], {}
         tol = session.tolerances
         for e in exts:
             C = np.vstack(
                 [
-                    _candidate_columns(e, session, Jq, tau)[used].reshape(self.n_capture_rows, -1),
+                    (_candidate_columns(e, session, Jq, tau) / scale[..., None])[used].reshape(
+                        self.n_capture_rows, -1
+                    ),
                     np.zeros((len(Jc), e.size)),
                 ]
             )
@@ -489,8 +495,9 @@ def bootstrap(
         if point:
             qb = polish_point(ident.model, s.q, target + rng.normal(0, ident.sigma_mm, target.shape))
         else:
+            each = ident.sigma_mm * ident.extra.get("scale", np.ones(len(used)))[used]  # eq. K1: own noise
             qb = polish(
-                ident.model, s.q, target + np.c_[rng.normal(0, ident.sigma_mm, (s.m, 2)), np.zeros(s.m)]
+                ident.model, s.q, target + np.c_[rng.normal(0, 1.0, (s.m, 2)) * each[:, None], np.zeros(s.m)]
             )
         rms.append(fit(replace(s, q=qb), nominal=ident.model, robust=False).rms_mm)
     return {

@@ -366,6 +366,11 @@ def one_point_warning(point: str, det) -> str:
     )
 
 
+def kind_noise(noise: dict) -> dict:
+    """A camera session's noise per kind of capture (:func:`solver.identify.spot.fit_kinds`), rounded."""
+    return {k: (None if v is None else round(v, 6) if isinstance(v, float) else v) for k, v in noise.items()}
+
+
 def solve_report(session: Session, ident: Identification, cv: CrossValidation | None = None) -> dict:
     """The statistics ``lasercal solve`` prints, as a JSON-ready mapping.
 
@@ -384,6 +389,7 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
         "captures": session.m,
         "fit_rms_mm": round(ident.rms_mm, 6),
         "sigma_mm": round(ident.sigma_mm, 6),
+        **({"noise_by_kind": kind_noise(ident.extra["noise"])} if "noise" in ident.extra else {}),
         "outliers": [
             {"index": i, "line": int(session.lines[i]), "point": str(session.point[i])}
             for i in ident.outliers

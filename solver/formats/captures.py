@@ -67,6 +67,9 @@ class Session:
         ``target`` holds their x, y there with z the plane's height in the base frame; the sheet's pose
         is identified with the robot (:mod:`solver.kinematics.sheet`)
     sheet : SheetPose or None, a sheet session's stated rough placement (the prior's mean), if any
+    spot_sigma : (m,) array or None, a camera session's (``camera_x``.. columns): the measured spot's
+        1-sigma uncertainty per axis, mm (RMS of its two axes), NaN for a capture whose spot was not
+        measured (an aimed one); a measured capture's ``target`` holds the measured spot, not its cross
     robot_source : (str, Path or None) or None, how the robot was named and the folder a relative path is
         relative to: ``(meta['robot'], path)``, or a ``load_session(robot=...)`` override's ``(robot, None)``
         (relative to the working folder); a calibrated model names its nominal from it
@@ -95,6 +98,12 @@ class Session:
     frame: str = "base"
     sheet: SheetPose | None = None
     robot_source: tuple | None = None
+    spot_sigma: np.ndarray | None = None
+
+    @property
+    def measured(self) -> np.ndarray:
+        """(m,) bool: captures whose spot a camera measured (the others were aimed at their cross)."""
+        return np.zeros(self.m, bool) if self.spot_sigma is None else np.isfinite(self.spot_sigma)
 
     def __post_init__(self):
         if isinstance(self.tolerances, str):  # "robot": the nominal's tolerances (a frozen field, set once)
@@ -142,7 +151,64 @@ class Session:
             self.frame,
             self.sheet,
             self.robot_source,
+            pick(self.spot_sigma),
         )
+
+
+# a camera session's measured spot and its 1-sigma, mm
+SPOT_XY = ("camera_x", "camera_y", "camera_sx", "camera_sy")
+SPOT_SIGMA_MAX_MM = 50.0  # a stated uncertainty beyond this is no measurement (a unit or column mistake)
+
+
+def measured_spots(path, rows, header) -> tuple[np.ndarray, np.ndarray] | None:
+    """A camera session's measured spots: (m, 2) positions and (m,) 1-sigma (RMS of the axes), mm, NaN
+    where a capture's spot was not measured (all four cells empty); None without the columns.
+
+    Raises
+    ------
+    FormatError
+        Naming line and column: some of the four cells empty, a value not a finite number, an
+        uncertainty not in (0, 50] mm.
+    """
+    if "camera_x" not in header:
+        return None
+    missing = [c for c in SPOT_XY if c not in header]
+    if missing:
+        raise FormatError(
+            path, f"camera_x without {', '.join(missing)} in the header", line=1, field=missing[0]
+        )
+    idx = [header.index(c) for c in SPOT_XY]
+    xy, sig = np.full((len(rows), 2), np.nan), np.full(len(rows), np.nan)
+    for r, (ln, row) in enumerate(rows):
+        if len(row) != len(header):
+            raise FormatError(path, f"expected {len(header)} values, found {len(row)}", line=ln)
+        cells = [row[j].strip() for j in idx]
+        if not any(cells):
+            continue  # not measured: an aimed capture
+        v = []
+        for c, text in zip(SPOT_XY, cells):
+            try:
+                x = float(text)
+            except ValueError:
+                x = math.nan
+            if not math.isfinite(x):
+                what = (
+                    "missing value (a measured spot fills all four of camera_x..camera_sy)"
+                    if not text
+                    else (f"not a finite number: {text!r}")
+                )
+                raise FormatError(path, what, line=ln, field=c)
+            v.append(x)
+        for c, x in zip(SPOT_XY[2:], v[2:]):
+            if not 0 < x <= SPOT_SIGMA_MAX_MM:
+                raise FormatError(
+                    path,
+                    f"uncertainty {x:g} (expected a 1-sigma in (0, {SPOT_SIGMA_MAX_MM:g}] mm)",
+                    line=ln,
+                    field=c,
+                )
+        xy[r], sig[r] = v[:2], math.sqrt((v[2] ** 2 + v[3] ** 2) / 2)
+    return xy, sig
 
 
 def _joint_columns(prefix: str, n: int) -> list[str]:

@@ -27,6 +27,7 @@ import numpy as np
 from lasercal.solver.errors import AimingError, FormatError
 from lasercal.solver.formats.captures import (
     SESSION_FORMAT,
+    SPOT_XY,
     UNITS,
     Session,
     _joint_columns,
@@ -35,6 +36,7 @@ from lasercal.solver.formats.captures import (
     check_limits,
     check_repeats,
     format_row,
+    measured_spots,
 )
 from lasercal.solver.formats.checks import METRES_BELOW_MM, Range, metres_hint
 from lasercal.solver.formats.data import resolve
@@ -52,6 +54,7 @@ DISTANCE = Range(0.0, 1e5, "mm", lo_open=True)  # a known distance between two p
 SAME_POINT_MM = 1.0  # reference points closer than this are one point
 APERTURE_TOL_MM = 100.0  # a measured aperture height further than this from the nominal model's is a mistake
 FRAMES = ("base", "sheet")  # the frame of a layout's points: the robot's base, or a printed sheet's own
+SPOT_FAR_MM = 60.0  # a measured spot farther than this from its point is a unit or column mistake
 AIMING = {"tilt_deg": Range(0.0, 90.0, "deg"), "length": Range(0.0, 5000.0, "mm", lo_open=True)}
 
 
@@ -492,7 +495,9 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     lines = np.array([ln for ln, _ in rows], dtype=int)
     check_limits(cpath, robot, q, lines)
     check_repeats(cpath, names, q, lines)
+    spots = measured_spots(cpath, rows, header)
     known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
+    known |= set(SPOT_XY) if spots is not None else set()
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
     }
@@ -507,6 +512,33 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     if frame == "sheet":
         check_layout_geometry(ypath, points, 0.0, tuple(points), frame)
         target[:, 2] = plane_z  # x, y on the sheet; z the plane's height in the base frame
+    offset = meta.get("aim_offset")
+    if offset is not None:  # a camera session: the operator aims beside each cross, on white paper
+        try:
+            offset = np.array(offset, dtype=float).reshape(2)
+        except (TypeError, ValueError):
+            offset = np.full(2, np.nan)
+        if not np.all(np.abs(offset) <= SPOT_FAR_MM):
+            raise FormatError(
+                ypath, f"aim_offset must be [dx, dy] within {SPOT_FAR_MM:g} mm", field="aim_offset"
+            )
+        target[:, :2] += offset
+    spot_sigma = None
+    if spots is not None:  # a measured spot is where the beam was: the fit's target, with its uncertainty
+        ok = np.isfinite(spots[1])
+        far = ok & (np.linalg.norm(spots[0] - target[:, :2], axis=1) > SPOT_FAR_MM)
+        if far.any():
+            i = int(np.flatnonzero(far)[0])
+            raise FormatError(
+                cpath,
+                f"the measured spot lies {np.linalg.norm(spots[0][i] - target[i, :2]):.0f} mm from "
+                f"{names[i]} "
+                f"(expected within {SPOT_FAR_MM:g} mm of the point aimed at, mm in the layout's frame)",
+                line=int(lines[i]),
+                field="camera_x",
+            )
+        target[ok, :2] = spots[0][ok]
+        spot_sigma = spots[1]
     return Session(
         folder,
         meta,
@@ -528,6 +560,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         clock=clock,
         frame=frame,
         sheet=sheet,
+        spot_sigma=spot_sigma,
     )
 
 

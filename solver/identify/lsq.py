@@ -219,6 +219,8 @@ class SubspaceFit:
     constraint_residuals : (c,) array
     prior : Prior or None, the prior of a MAP fit
     dof : float, residual degrees of freedom d m_used - tr H (eq. P3; without a prior, d m_used - rank)
+    leverage : (m,) array, each capture's share of tr H (the diagonal of the hat matrix summed over its d
+        rows, constraints and prior included; 0 for a flagged capture): E|r_i|^2 = (d - h_i) sigma_i^2
     """
 
     v: np.ndarray
@@ -235,6 +237,7 @@ class SubspaceFit:
     constraint_residuals: np.ndarray
     prior: Prior | None = None
     dof: float = 0.0
+    leverage: np.ndarray | None = None
 
 
 _SIGMA_RTOL = 1e-2  # the noise fixed point (eq. P3) is reached when sigma changes less than this
@@ -382,7 +385,11 @@ def fit_subspace(
                 f"{used.sum()} usable captures cannot identify {r} parameter combinations"
             )
         sigma = float(np.sqrt(np.sum(rows(v, sw) ** 2) / dof))
-    cov = basis @ covariance(jrows(v, sw) @ basis, sigma) @ basis.T
+    A = jrows(v, sw) @ basis
+    cov = basis @ covariance(A, sigma) @ basis.T
+    U, sv, _ = np.linalg.svd(A, full_matrices=False)
+    keep = sv > sv.max(initial=0.0) * 1e-12
+    leverage = np.sum(U[: m * d, keep] ** 2, axis=1).reshape(m, d).sum(axis=1)
     rc, Jc = constraints(v) if constraints is not None else (np.zeros(0), np.zeros((0, p)))
     return SubspaceFit(
         v,
@@ -399,4 +406,5 @@ def fit_subspace(
         rc,
         prior,
         float(dof),
+        leverage,
     )

@@ -232,6 +232,86 @@ def in_base_frame(session: Session, pose: SheetPose) -> Session:
     return replace(session, points=points, target=placed_targets(session, pose), frame="base", sheet=None)
 
 
+KIND_PASSES = 8  # at most this many refits for the noise of each kind (eq. K2; 3-4 usually)
+KIND_RTOL = 0.02  # ... until each kind's noise changes less than this (relative)
+
+
+def fit_kinds(session: Session, residual, jacobian, v0, names, prior_at, robust, w, suspects):
+    """A camera session's fit: a measured capture to its spot with its own uncertainty, an aimed one to its
+    cross with the aiming noise, each kind's noise found from its residuals (eqs. K1, K2).
+
+    Eq. K1: capture i's residual is divided by c_i = s_i / s_ref, where s_i^2 = u_i^2 + s_m^2 for a
+    measured capture (u_i its stated uncertainty, s_m the noise the camera does not see: the arm's
+    repeatability, what the model lacks) and s_i = s_a (the aiming noise) for an aimed one; s_ref is s_a
+    when the session has aimed captures, else the RMS of the measured s_i, and the prior's noise
+    (:mod:`solver.identify.prior`, eq. P3) is s_ref. Eq. K2: from capture i's residual r_i and its
+    leverage h_i (E|r_i|^2 = (d - h_i) s_i^2): s_a^2 = sum |r_i|^2 / sum (d - h_i) over the aimed, and
+    s_m^2 = max(0, sum (|r_i|^2 - (d - h_i) u_i^2) / sum (d - h_i)) over the measured; refit until both
+    settle.
+
+    Parameters
+    ----------
+    session : Session, with ``spot_sigma``
+    residual, jacobian : the fit's functions of the free parameters (mm; (m, 2) and (m, 2, p))
+    v0 : (p,) array, the start
+    names : list of str
+    prior_at : callable s_ref (mm) -> Prior or None
+    robust, w, suspects : as :func:`solver.identify.lsq.fit_subspace`
+
+    Returns
+    -------
+    fit : SubspaceFit, on the scaled residuals (its ``sigma``: s_ref's estimate)
+    scale : (m,) array, c_i
+    noise : dict, ``aimed_mm`` (s_a; None without aimed captures), ``measured_mm`` (RMS of the measured
+        s_i), ``camera_mm`` (RMS of u_i), ``unseen_mm`` (s_m), ``measured``, ``aimed`` (counts)
+    """
+    meas = session.measured
+    aimed = ~meas
+    u = np.where(meas, session.spot_sigma, 0.0)
+    prior0 = prior_at(1.0)
+    s_a = prior0.noise if prior0 is not None else 1.0  # the prior's nominal aiming noise to start
+    s_m = float(np.sqrt(np.mean(u[meas] ** 2)))  # the camera's own, to start
+    d = 2
+    for _ in range(KIND_PASSES):
+        tot = np.sqrt(u**2 + s_m**2)
+        ref = s_a if aimed.any() else float(np.sqrt(np.mean(tot[meas] ** 2)))
+        scale = np.where(meas, tot / ref, 1.0)
+        fit = fit_subspace(
+            lambda v, c=scale: residual(v) / c[:, None],
+            lambda v, c=scale: jacobian(v) / c[:, None, None],
+            v0,
+            names,
+            robust,
+            w,
+            suspects=suspects,
+            prior=prior_at(ref),
+        )
+        r2 = np.sum((fit.residuals * scale[:, None]) ** 2, axis=1)
+        free_rows = d - fit.leverage  # E|r_i|^2 = (d - h_i) s_i^2
+        used = fit.weights > 0
+        a, g = used & aimed, used & meas
+        new_a = float(np.sqrt(r2[a].sum() / max(free_rows[a].sum(), 1e-9))) if a.any() else s_a
+        new_m = s_m
+        if g.any():  # (every measured capture flagged: nothing to learn their noise from)
+            unseen = max((r2[g] - free_rows[g] * u[g] ** 2).sum(), 0.0) / max(free_rows[g].sum(), 1e-9)
+            new_m = float(np.sqrt(unseen))
+        typical = np.sqrt(s_m**2 + np.mean(u[meas] ** 2))
+        done = abs(new_a / s_a - 1) < KIND_RTOL and abs(new_m - s_m) < KIND_RTOL * typical
+        s_a, s_m, v0 = new_a, new_m, fit.v
+        if done:
+            break
+    tot = np.sqrt(u**2 + s_m**2)
+    noise = {
+        "aimed_mm": float(s_a) if aimed.any() else None,
+        "measured_mm": float(np.sqrt(np.mean(tot[meas] ** 2))),
+        "camera_mm": float(np.sqrt(np.mean(u[meas] ** 2))),
+        "unseen_mm": float(s_m),
+        "measured": int(meas.sum()),
+        "aimed": int(aimed.sum()),
+    }
+    return fit, scale, noise
+
+
 def identify_lm(
     session: Session,
     nominal: RobotModel | None = None,
@@ -376,7 +456,23 @@ def identify_lm(
     # the stage-1 solution (MAP with the session's prior, eqs. P2-P4 of solver.identify.prior).
     v1 = u0.copy()
     v1[geo] += B1 @ first.x
-    fit = fit_subspace(residual, jacobian, v1[free], names, robust, w, suspects=suspects, prior=prior)
+    scale, noise = np.ones(m), None
+    if session.measured.any():  # a camera session: each capture with its own noise (eq. K1)
+        fit, scale, noise = fit_kinds(
+            session,
+            residual,
+            jacobian,
+            v1[free],
+            names,
+            lambda ref: laser_prior(
+                P, tol and tol.with_noise("laser", ref), kinds_all[p:], u0[p:], names_all[p:], free
+            ),
+            robust,
+            w,
+            suspects,
+        )
+    else:
+        fit = fit_subspace(residual, jacobian, v1[free], names, robust, w, suspects=suspects, prior=prior)
     iterations += fit.iterations
     history += fit.history
     cov_all = np.zeros((len(u0), len(u0)))
@@ -412,11 +508,13 @@ def identify_lm(
             "constraint_residuals": fit.constraint_residuals,
             "held": held,
             "counted": counted.describe(),
+            **({} if noise is None else {"scale": scale, "noise": noise}),
         },
         fitted,
         iterations=iterations,
         history=tuple(history),
         estimate=v,
+        residuals=fit.residuals * scale[:, None],
     )
 
 

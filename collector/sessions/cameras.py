@@ -1,0 +1,61 @@
+"""Real cameras through OpenCV (``--camera N|URL|frames/%04d.png``), for validation and capture photos."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from lasercal.collector.errors import DeviceError
+
+
+def _absent(device) -> bool:
+    """A camera that surely is not there: a Linux device index without /dev/videoN, or a frame-file
+    pattern (frames/%04d.png) with none of its first files."""
+    if isinstance(device, int):
+        return sys.platform.startswith("linux") and not Path(f"/dev/video{device}").exists()
+    if "%" not in device or "://" in device:
+        return False
+    try:
+        return not any(Path(device % i).exists() for i in range(5))  # OpenCV starts at 0 .. 4
+    except (TypeError, ValueError):  # not a printf pattern: let OpenCV judge
+        return False
+
+
+class OpenCVCamera:
+    """A camera through ``cv2.VideoCapture``.
+
+    Parameters
+    ----------
+    device : int or str, device index, stream URL or image-sequence pattern
+    flush : int, frames grabbed and dropped before each photo (drivers buffer old frames)
+    """
+
+    name = "opencv"
+
+    def __init__(self, device, flush: int = 3):
+        self.device, self.flush = device, flush
+        if _absent(device):  # checked here: OpenCV would print lines of its own before failing
+            raise DeviceError(
+                f"camera: cannot open {device!r}: no such device or frame files (a device index such as 0, a "
+                "stream URL, or frames/%04d.png)"
+            )
+        self._cap = cv2.VideoCapture(device)
+        if not self._cap.isOpened():
+            raise DeviceError(
+                f"camera: cannot open {device!r} (a device index such as 0, a stream URL, or frames/%04d.png)"
+            )
+
+    def photo(self) -> np.ndarray:
+        """One fresh frame, (h, w, 3) BGR uint8."""
+        for _ in range(self.flush):
+            self._cap.grab()
+        ok, img = self._cap.read()
+        if not ok:
+            raise DeviceError(f"camera {self.device!r}: no frame")
+        return img
+
+    def close(self) -> None:
+        self._cap.release()

@@ -1,0 +1,178 @@
+"""Issue 38: the camera measures every capture -- the fake camera's spots against the simulated truth, a
+spot the camera cannot see, and a session mixing measured and aimed captures fitted with a noise each."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from lasercal.collector.hardware import make_robot
+from lasercal.collector.hardware.fakeworld import EFFECTS, World, table_points
+from lasercal.collector.sessions.settings import capture_settings
+from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
+from lasercal.collector.sessions.start import CaptureGuide, start_capture
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
+from lasercal.solver.identify.spot import identify_lm, predict_spots
+from lasercal.solver.kinematics.aim import aim, polish
+from lasercal.vision.errors import VisionError
+from lasercal.vision.sheet import design_sheet, write_layout
+
+PLACE = {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0}
+
+
+@pytest.fixture(scope="module")
+def sheet(tmp_path_factory):
+    """An A4 sheet's layout.yaml (markers, crosses), placed at 450, 0, 0 as `lasercal sheet --place` does."""
+    path = tmp_path_factory.mktemp("sheet") / "layout.yaml"
+    write_layout(path, design_sheet("A4"), -8.0, PLACE)
+    return path
+
+
+def test_measured_spots_lie_within_their_stated_uncertainty(sheet):
+    """Monte Carlo over the fake camera's photos with every effect on (a world seed whose printer and sheet
+    height draws are not small): each measured spot against where the true beam met the printed sheet, in
+    the layout's frame, divided by its stated 1-sigma. A z-score RMS near 1 means the uncertainty says
+    what the measurement does; far above 1 it would promise too much, far below it would waste the data."""
+    layout = load_layout(sheet)
+    world = World.draw(EFFECTS, 3)
+    assert np.abs(world.print_scale - 1).max() > 5e-4 and abs(world.sheet_dz) > 0.1  # the effects bite
+    cfg = {"backend": "fake", "truth": "panda_thesis_identified", "aim_noise": 3.0, "seed": 3}
+    points = table_points(layout, world, BESIDE_MM)
+    robot = make_robot(
+        cfg, load_model("panda"), layout.in_base(), 3, points=points, repeat_sigma=world.repeat_sigma
+    )
+    camera, measure = capture_camera("fake", cfg, robot, layout, sheet, world)
+    robot.connect()
+    z, lost = [], 0
+    for k in range(3):
+        for name in layout.calibration:
+            robot.prompt_point(name, None, k)
+            robot.clock.sleep(10.0)  # transit and release jiggle over
+            img = camera.photo()
+            spot = robot.true_spot(layout.plane_z + world.sheet_dz)[0]
+            true = layout.sheet.from_base(spot[None])[0] / world.print_scale  # as the printed sheet says
+            try:
+                m = measure(img, f"{name}-{k}")
+            except VisionError:
+                lost += 1  # hidden by the arm: the next test's case
+                continue
+            z.append((m.xy - true) / m.sigma)
+    z = np.array(z)
+    assert len(z) >= 11, lost
+    rms = np.sqrt(np.mean(z**2, axis=0))
+    print("z-score RMS per axis", rms, "max", np.abs(z).max(), "lost", lost)
+    assert np.all(rms > 0.3) and np.all(rms < 1.5), rms
+    assert np.abs(z).max() < 4.5, z
+
+
+def test_a_hidden_spot_is_said_at_once_and_kept_as_an_aimed_capture(sheet, tmp_path, monkeypatch):
+    """docs/sessions.md: a spot the camera cannot measure is said at once, with why; the capture keeps its
+    photo and is kept as an aimed one (--auto's rule), fitted to where the operator aimed; --resume
+    continues the camera session from its folder alone."""
+    import lasercal.collector.sessions.spotcam as spotcam
+
+    monkeypatch.setattr(spotcam, "hidden", lambda *a, **k: True)  # the arm over every line of sight
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 1}
+    folder = tmp_path / "s"
+    out = io.StringIO()
+    start_capture(capture_settings(given, str(sheet), str(folder)), CaptureGuide(auto=True, coach=False)).run(
+        out
+    )
+    said = out.getvalue()
+    assert said.count("the spot could not be measured (no red or green laser spot found") == 5, said
+    assert "kept as an aimed capture" in said
+    session = load_session(folder)
+    assert session.m == 5 and not session.measured.any()
+    assert all((folder / p).is_file() for p in session.extra["photo"])
+    assert all(n for n in session.extra["camera_note"])
+    layout = load_layout(sheet)
+    cross = np.array([layout.points[p][:2] for p in session.point])
+    np.testing.assert_allclose(session.target[:, :2], cross + BESIDE_MM)  # where the operator aimed
+    resumed = start_capture(capture_settings({}, resume=str(folder)), CaptureGuide(auto=True, coach=False))
+    assert resumed.camera is not None
+    out = io.StringIO()
+    assert resumed.run(out).complete
+    assert load_session(folder).m == 5
+
+
+def test_a_mixed_session_finds_the_noise_of_each_kind(tmp_path):
+    """Half the captures measured (stated uncertainty 0.02-0.06 mm plus 0.05 mm the camera does not see,
+    the arm's repeatability), half aimed at their crosses with 1 mm of aiming noise: the fit finds each
+    kind's noise (eq. K2), within the spread of a noise estimate from ~45 captures' residuals."""
+    truth = load_model("panda_thesis_identified")
+    layout = load_layout("thesis")
+    rng = np.random.default_rng(38)
+    s_a, s_m = 1.0, 0.05
+    names, q, cells = [], [], {k: [] for k in ("camera_x", "camera_y", "camera_sx", "camera_sy")}
+    for name in layout.calibration:
+        p = layout.points[name]
+        for k, q0 in enumerate(aim(truth, p, 30, rng, **layout.aim_kwargs())):
+            measured = k % 2 == 0
+            hit = p + np.r_[rng.normal(0, s_a, 2), 0.0]
+            qi = polish(truth, q0[None], hit)[0]
+            names.append(name)
+            q.append(qi)
+            if measured:
+                u = rng.uniform(0.02, 0.06)
+                spot = predict_spots(truth, qi[None], p[2])[0][0, :2] + rng.normal(0, np.hypot(u, s_m), 2)
+                for key, v in zip(cells, (*spot, u, u)):
+                    cells[key].append(repr(float(v)))
+            else:
+                for key in cells:
+                    cells[key].append("")
+    meta = session_meta("panda", layout, None)
+    t = np.arange(len(q), dtype=float)
+    folder = write_session(tmp_path / "mixed", meta, names, t, np.array(q), extra=cells)
+    session = load_session(folder)
+    assert session.measured.sum() == 45
+    noise = identify_lm(session).extra["noise"]
+    assert noise["measured"] == 45 and noise["aimed"] == 45
+    assert 0.8 < noise["aimed_mm"] / s_a < 1.25, noise
+    truth_measured = np.sqrt(np.mean(session.spot_sigma[session.measured] ** 2) + s_m**2)
+    assert 0.75 < noise["measured_mm"] / truth_measured < 1.3, noise
+    assert 0.025 < noise["unseen_mm"] < 0.075, noise
+
+
+def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tmp_path):
+    """--guide move with a camera: no hand -- the fake arm moves (at its bounded speed, on the simulated
+    clock) to each of the coach's poses, aimed beside the crosses, and the camera measures every capture."""
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 2}
+    out = io.StringIO()
+    guide = CaptureGuide(auto=True, move=True, yes=True)
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), guide).run(out)
+    said = out.getvalue()
+    assert said.count("hands-free") >= 5 and "the camera measures where the beam lands" in said
+    session = load_session(tmp_path / "s")
+    assert session.m == 5
+    measured = session.measured
+    assert measured.sum() >= 4, said  # a pose the camera cannot see is guided by hand once (then aimed)
+    assert set(session.extra["robot_mode"][measured]) == {"Move"}  # nobody guided these
+    layout = load_layout(sheet)
+    cross = np.array([layout.points[p][:2] for p in session.point])
+    off = np.linalg.norm(session.target[measured, :2] - cross[measured], axis=1)
+    assert np.all(off < 40.0)  # on the sheet, near the crosses the coach planned for
+
+
+def test_a_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet, tmp_path):
+    """Crash-safe as an aimed session: a lost link keeps every capture and photo on disk, and --resume ends
+    where an uninterrupted session ends, measured spots included (the photos' noise is keyed by the pose)."""
+    from lasercal.collector.errors import RobotConnectionError
+
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 4}
+    guide = CaptureGuide(auto=True, coach=False)
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "ref")), guide).run(io.StringIO())
+    ref = load_session(tmp_path / "ref")
+    cut = start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), guide)
+    cut.robot.disconnect_at = ref.t[1] + 1.0
+    with pytest.raises(RobotConnectionError):
+        cut.run(io.StringIO())
+    assert load_session(tmp_path / "s").m == 2
+    start_capture(capture_settings({}, resume=str(tmp_path / "s")), guide).run(io.StringIO())
+    s = load_session(tmp_path / "s")
+    np.testing.assert_array_equal(s.q, ref.q)
+    np.testing.assert_array_equal(s.target, ref.target)  # the camera measured the same spots
+    np.testing.assert_array_equal(s.spot_sigma, ref.spot_sigma)
+    assert len(list((tmp_path / "s" / "photos").iterdir())) == 5
