@@ -137,13 +137,13 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
     if ev.colour is None:  # a grey photo: brightness is all there is
         return replace(ev, rule="grey", confidence=rule.probability(ev.lit, ev.clipped_px > 0))
     shift = ev.rim_shift or 0.0
-    if ev.ring is not None and ev.ring >= RING_MIN:
-        # A clipped core inside a laser-coloured ring: the ring's colour over its threshold is the margin.
-        return replace(ev, rule="ring", confidence=rule.probability(np.log(ev.ring / RING_MIN), True))
     if shift >= rule.shift_min:
         name = "rim"
     elif has_core(ev) and shift >= rule.core_shift_min:
         name = "core"
+    elif ev.ring is not None and ev.ring >= RING_MIN:
+        # A clipped core inside a laser-coloured ring: the ring's colour over its threshold is the margin.
+        return replace(ev, rule="ring", confidence=rule.probability(np.log(ev.ring / RING_MIN), True))
     elif ev.white_px and (ev.surround or 0.0) >= MONO:
         return replace(ev, rule="view", confidence=0.75)
     else:
@@ -219,12 +219,12 @@ def measure_spot(
     if not rings:
         return r
     ring = rings[0]
-    # The precise fit, where it lands on the core, is the better centre; the ring's evidence decides.
+    # The precise fit, where it lands on the core, is the better centre; the ring adds to its evidence.
     if isinstance(r, Spot) and np.hypot(r.u - ring.u, r.v - ring.v) <= max(
         1.0, 0.25 * np.sqrt(ring.area / np.pi)
     ):
         flux = max(ring.evidence.flux, r.evidence.flux)
-        return replace(r, evidence=replace(ring.evidence, flux=flux, cut=r.evidence.cut))
+        return replace(r, evidence=judge(replace(r.evidence, ring=ring.evidence.ring, flux=flux), rule))
     return ring
 
 

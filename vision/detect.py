@@ -389,7 +389,7 @@ def _ring_first(spots: list[Spot]) -> list[Spot]:
     rules' blobs around it hold its halo with whatever is near (a grey disc, a glint), and their
     centres are pulled off: spots within three core radii (+ 6 px) of a ringed core are its own, and
     so is their light."""
-    rings = [s for s in spots if s.evidence is not None and s.evidence.rule == "ring"]
+    rings = [s for s in spots if s.evidence is not None and (s.evidence.ring or 0.0) >= RING_MIN]
     if not rings:
         return spots
 
