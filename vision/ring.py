@@ -30,7 +30,7 @@ SECTORS = 8  # angular sectors of the ring about the core's centre
 
 # DN (8-bit scale) a sector's colour must reach over the surface's. Hand-set with the shared photos
 # and the renderer in view, not fitted: held out nowhere (docs/vision.md names it).
-RING_MIN = 12.0
+RING_MIN = 15.0
 
 # DN: a red laser's ring may be magenta (blue up to this much above red, Pi camera) but not bluer.
 BLUE_SLACK = 40.0
@@ -49,6 +49,9 @@ CORE_MAX = 60
 # (twice its radius and more: a red-clipped ring 2-4 px wide around a core of 5 px, or a core that
 # low exposure and weak cross-talk leave small).
 PLATEAU_MAX = 16.0
+
+# A ring band's neighbour channel rises over the surface by at most this fraction of its headroom.
+RISE_MAX = 0.3
 
 # DN: a ring band darker than the surface by more than this in the laser's channel is ink or an
 # object's edge, not added light.
@@ -90,6 +93,10 @@ def ringed_cores(plain: np.ndarray, base: np.ndarray, ch: int, full: float) -> l
         blue = (plain[..., 0] - plain[..., 2] - np.maximum(base[..., 0] - base[..., 2], 0)) * scale
         colour = np.minimum(colour, BLUE_SLACK - blue + RING_MIN)
     lit = (plain[..., ch] - base[..., ch]) * scale
+    # Laser light lifts the neighbour channel only by cross-talk; light of a warm (or greenish)
+    # lamp lifts it by its own share, most where the laser's channel has just clipped.
+    nb_base = _neighbours(base, ch)
+    rise = (nb - nb_base) / np.maximum(full - nb_base, 0.02 * full)
     brighter = (plain - base) @ LUMA * scale
     plateau = plain[..., ch] >= CLIP * full
     _, plateaus, p_stats, _ = cv2.connectedComponentsWithStats(plateau.astype(np.uint8), connectivity=8)
@@ -99,13 +106,13 @@ def ringed_cores(plain: np.ndarray, base: np.ndarray, ch: int, full: float) -> l
         # larger plateau is a speckle grain of a spot hundreds of px wide, or clipped paper.
         if p_stats[plateaus[core].max(), 4] > PLATEAU_MAX * core.sum():
             continue
-        second = _ring_colour(core, colour, lit)
+        second = _ring_colour(core, colour, lit, rise)
         if second >= RING_MIN:
             out.append((core, second))
     for core in _cores(plateau):
         if any((core & c).any() for c, _ in out) or brighter[core].mean() < LIT_SLACK:
             continue
-        second = _ring_colour(core, colour, lit)
+        second = _ring_colour(core, colour, lit, rise)
         if second >= RING_MIN:
             out.append((core, second))
     return out
@@ -119,14 +126,16 @@ def _cores(mask: np.ndarray) -> list[np.ndarray]:
     return [_filled(labels == i) for i in keep]
 
 
-def _ring_colour(core: np.ndarray, colour: np.ndarray, lit: np.ndarray) -> float:
+def _ring_colour(core: np.ndarray, colour: np.ndarray, lit: np.ndarray, rise: np.ndarray) -> float:
     """The colour of the ring around a core, DN: its second-weakest sector's (-inf when the ring is
     not lit all around).
 
     The ring (out to :func:`ring_width`) is cut into :data:`SECTORS` about the core's centre and bands
     2 px wide; a band's colour is its mean, where it is lit (not darker than the surface: ink, a
-    wire); a sector's colour is its most coloured band's. The ring must be balanced: its
-    second-weakest sector holds :data:`RING_BALANCE` of its second-strongest's colour.
+    wire) and its neighbour channel has risen by at most :data:`RISE_MAX` of its headroom over the
+    surface (a warm lamp's fringe lifts it far more); a sector's colour is its most coloured band's.
+    The ring must be balanced: its second-weakest sector holds :data:`RING_BALANCE` of its
+    second-strongest's colour.
     """
     h, w = core.shape
     r_core = float(np.sqrt(core.sum() / np.pi))
@@ -142,7 +151,8 @@ def _ring_colour(core: np.ndarray, colour: np.ndarray, lit: np.ndarray) -> float
     count = np.bincount(key, minlength=SECTORS * nbands)
     mean_c = np.bincount(key, colour[ring], SECTORS * nbands) / np.maximum(count, 1)
     mean_l = np.bincount(key, lit[ring], SECTORS * nbands) / np.maximum(count, 1)
-    ok = (count >= 3) & (mean_l >= -LIT_SLACK)
+    mean_r = np.bincount(key, rise[ring], SECTORS * nbands) / np.maximum(count, 1)
+    ok = (count >= 3) & (mean_l >= -LIT_SLACK) & (mean_r <= RISE_MAX)
     per = np.where(ok, mean_c, -np.inf).reshape(SECTORS, nbands).max(axis=1)
     seen = count.reshape(SECTORS, nbands).sum(axis=1) >= 3
     if seen.sum() < SECTORS - 2 or not np.isfinite(per[seen]).all():
