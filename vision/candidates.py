@@ -34,11 +34,14 @@ class Candidate:
     ----------
     box : (x0, y0, x1, y1) ints, px, half-open, full resolution
     u, v : float, rough centre, px
+    ring_only : bool, a core clipped in the laser's channel and its neighbour but not white (yellow
+        paper): a spot only if a laser-coloured ring surrounds it (:mod:`vision.ring`)
     """
 
     box: tuple[int, int, int, int]
     u: float
     v: float
+    ring_only: bool = False
 
 
 def _channels(img: np.ndarray, ch: int) -> tuple[np.ndarray, np.ndarray]:
@@ -123,7 +126,9 @@ def find_candidates(
         coarse = _candidates_at(tiny, big // f * f, (h, w), colour, _median_pass, headroom, 3)
     white = _white_candidates(small, f, (h, w)) if src.ndim == 3 and reference is None else []
     white = [c for c in white if not any(_inside(c, o) for o in fine)]  # a core already found
-    found = coarse + white + fine  # the few large ones first: fine ones abound
+    cores = _core_candidates(small, f, (h, w), CHANNEL[colour]) if src.ndim == 3 and reference is None else []
+    cores = [c for c in cores if not any(_inside(c, o) for o in white + fine)]
+    found = coarse + white + fine + cores  # the few large ones first: fine ones abound
     if search is not None:
         poly = np.asarray(search, np.float32).reshape(-1, 1, 2)
         found = [c for c in found if cv2.pointPolygonTest(poly, (c.u, c.v), False) >= 0]
@@ -212,6 +217,16 @@ def _white_candidates(small: np.ndarray, f: int, shape: tuple[int, int]) -> list
     wide or too faint to stand out from the paper (its rim decides, in :func:`measure_spot`)."""
     white = (small >= LUMA_CLIP * full_scale(small)).all(axis=2)
     return _boxes(white, white.astype(np.float32), f, shape, 2)
+
+
+def _core_candidates(small: np.ndarray, f: int, shape: tuple[int, int], ch: int) -> list[Candidate]:
+    """Cores clipped in the laser's channel and its neighbour but not white: a spot on yellow paper,
+    whose blue the laser hardly lifts. Judged by their ring only (:mod:`vision.ring`)."""
+    top = LUMA_CLIP * full_scale(small)
+    nb = small[..., 1] if ch == 2 else np.maximum(small[..., 0], small[..., 2])
+    core = (small[..., ch] >= top) & (nb >= top) & ~(small >= top).all(axis=2)
+    found = _boxes(core, core.astype(np.float32), f, shape, 2)
+    return [Candidate(c.box, c.u, c.v, ring_only=True) for c in found]
 
 
 def _boxes(

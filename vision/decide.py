@@ -41,6 +41,7 @@ from lasercal.vision.refine import (
     _laser_plane,
     _weighted_centroid,
 )
+from lasercal.vision.ring import RING_MIN, core_centre, ring_width, ringed_cores
 from lasercal.vision.spot import CHANNEL, Evidence, Spot
 
 MEASURE_SIDE = 160  # px: a candidate's box wider than this is measured on a shrunk copy
@@ -140,6 +141,9 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
         name = "rim"
     elif has_core(ev) and shift >= rule.core_shift_min:
         name = "core"
+    elif ev.ring is not None and ev.ring >= RING_MIN:
+        # A clipped core inside a laser-coloured ring: the ring's colour over its threshold is the margin.
+        return replace(ev, rule="ring", confidence=rule.probability(np.log(ev.ring / RING_MIN), True))
     elif ev.white_px and (ev.surround or 0.0) >= MONO:
         return replace(ev, rule="view", confidence=0.75)
     else:
@@ -210,6 +214,33 @@ def measure_spot(
     -------
     Spot, or Rejection when the candidate is not laser light.
     """
+    rings: list[Spot] = []
+    r = _measure_spot(img, cand, colour, reference, others, gamma, luma, rule, rings)
+    if not rings:
+        return r
+    ring = rings[0]
+    # The precise fit, where it lands on the core, is the better centre; the ring adds to its evidence.
+    if isinstance(r, Spot) and np.hypot(r.u - ring.u, r.v - ring.v) <= max(
+        1.0, 0.25 * np.sqrt(ring.area / np.pi)
+    ):
+        flux = max(ring.evidence.flux, r.evidence.flux)
+        return replace(r, evidence=judge(replace(r.evidence, ring=ring.evidence.ring, flux=flux), rule))
+    return ring
+
+
+def _measure_spot(
+    img: np.ndarray,
+    cand: Candidate,
+    colour: str,
+    reference: np.ndarray | None,
+    others: list[Candidate],
+    gamma: float,
+    luma: bool,
+    rule: DecisionRule,
+    ring_out: list,
+) -> Spot | Rejection:
+    """:func:`measure_spot` by the rules but the ring's; a ringed core found in the box is appended
+    to ``ring_out`` (see :func:`_ringed_spot`)."""
     h, w = img.shape[:2]
     ch = CHANNEL[colour] if img.ndim == 3 else 0
     full = full_scale(img)
@@ -238,6 +269,16 @@ def measure_spot(
     base = plain - delta  # what the photo would show without the laser (paper, or reference + paper)
     if img.ndim == 3 and _surround(base, ch, full, gamma) >= MONO:
         return _core_in_halo(plain, delta, cand, (x0, y0), ch, full, noise, peak_d, colour, gamma)
+    if img.ndim == 3:
+        ringed = _ringed_spot(
+            plain, base, delta, cand, (x0, y0, w, h), ch, full, noise, peak_d, colour, gamma, rule
+        )
+        if ringed is not None:
+            if cand.ring_only:
+                return ringed
+            ring_out.append(ringed)
+    if cand.ring_only:
+        return Rejection("white", cand.u, cand.v, None)
     need = max(8 * noise[ch], contrast)
     thr = max(4 * noise[ch], 0.15 * peak_d)
     bright = (smooth > thr).astype(np.uint8)
@@ -295,8 +336,7 @@ def measure_spot(
         return Rejection("white", cand.u, cand.v, ev)
     # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
     # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.
-    fill, aspect = _ellipse_fit(blob)
-    if fill < MIN_FILL or aspect > MAX_ASPECT:
+    if not _compact(blob):
         return Rejection("shape", cand.u, cand.v, ev)
     exclude = np.zeros(sig.shape, bool)
     for o in others:
@@ -406,6 +446,64 @@ def _core_in_halo(
     x0, y0 = origin
     raw = plain[..., ch]
     return Spot(u + x0, v + y0, sigma, sigma, float(raw[blob].max()), True, area, evidence=ev)
+
+
+def _ringed_spot(
+    plain: np.ndarray,
+    base: np.ndarray,
+    delta: np.ndarray,
+    cand: Candidate,
+    where: tuple[int, int, int, int],
+    ch: int,
+    full: float,
+    noise: np.ndarray,
+    peak_d: float,
+    colour: str,
+    gamma: float,
+    rule: DecisionRule,
+) -> Spot | None:
+    """The spot of a white clipped core inside a ring of the laser's colour (see :mod:`vision.ring`),
+    the core nearest the candidate's centre; None when the box holds no such core.
+
+    ``where``: the box's origin (x0, y0) and the photo's (w, h), px. The centre is the core's centroid,
+    its sigma the outline's quantisation (:func:`~vision.ring.core_centre`).
+    """
+    # A beam on a plane makes an elliptical core; a glare between wires or an object's lit face does not.
+    ringed = [(c, dn) for c, dn in ringed_cores(plain, base, ch, full) if _compact(c)]
+    if not ringed:
+        return None
+    x0, y0, w, h = where
+    at = (cand.u - x0, cand.v - y0)
+    centres = [core_centre(core) for core, _ in ringed]
+    k = int(np.argmin([np.hypot(u - at[0], v - at[1]) for u, v, _ in centres]))
+    core, colour_dn = ringed[k]
+    u, v, sigma = centres[k]
+    # Its light: the core and the lit pixels of its ring (the strength that ranks it is its flux).
+    reach = 2 * int(ring_width(np.sqrt(core.sum() / np.pi))) + 1
+    near = cv2.dilate(core.astype(np.uint8), np.ones((reach, reach), np.uint8)).astype(bool)
+    light = core | (near & (delta[..., ch] > max(4 * noise[ch], 0.1 * peak_d)))
+    ev = _evidence(plain, delta, light, ch, full, noise, peak_d, peak_d, colour, gamma)
+    ev = judge(replace(ev, ring=colour_dn), rule)
+    bh, bw = core.shape
+    cut = (x0 == 0 and core[:, 0].any()) or (y0 == 0 and core[0].any())
+    cut |= (x0 + bw == w and core[:, -1].any()) or (y0 + bh == h and core[-1].any())
+    raw = plain[..., ch]
+    return Spot(
+        u + x0,
+        v + y0,
+        sigma,
+        sigma,
+        float(raw[core].max()),
+        True,
+        int(core.sum()),
+        evidence=replace(ev, cut=bool(cut)),
+    )
+
+
+def _compact(blob: np.ndarray) -> bool:
+    """Whether a blob is a compact ellipse (see :data:`MIN_FILL` and :data:`MAX_ASPECT`)."""
+    fill, aspect = _ellipse_fit(blob)
+    return fill >= MIN_FILL and aspect <= MAX_ASPECT
 
 
 def _strength(s: Spot) -> float:

@@ -68,6 +68,7 @@ from lasercal.vision.errors import NoSpotError, VisionError
 from lasercal.vision.features import LUMA_CLIP
 from lasercal.vision.imagej import measure as imagej_measure
 from lasercal.vision.images import full_scale
+from lasercal.vision.ring import RING_MIN
 from lasercal.vision.spot import CHANNEL, Evidence, Spot
 
 __all__ = [
@@ -298,6 +299,8 @@ def _colour_margin(s: Spot, rule: DecisionRule) -> float:
     ev = s.evidence
     if ev is None or ev.rule in ("view", "grey"):
         return 0.0
+    if ev.rule == "ring":
+        return float(np.log(ev.ring / RING_MIN))
     thr = rule.core_shift_min if ev.rule == "core" else rule.shift_min
     return float(np.log(max(ev.rim_shift or 0.0, 1e-9) / max(thr, 1e-9)))
 
@@ -378,12 +381,33 @@ def _find(
                 k,
             )
         (rejected if isinstance(r, Rejection) else found).append(r)
-    return found, rejected
+    return _ring_first(found), rejected
+
+
+def _ring_first(spots: list[Spot]) -> list[Spot]:
+    """A white core in a laser-coloured ring is measured by its core (:mod:`vision.ring`); the other
+    rules' blobs around it hold its halo with whatever is near (a grey disc, a glint), and their
+    centres are pulled off: spots within three core radii (+ 6 px) of a ringed core are its own, and
+    so is their light."""
+    rings = [s for s in spots if s.evidence is not None and (s.evidence.ring or 0.0) >= RING_MIN]
+    if not rings:
+        return spots
+
+    def own(s: Spot, c: Spot) -> bool:
+        reach = max(3 * np.sqrt(c.area / np.pi) + 6, np.sqrt(s.area / np.pi))
+        return np.hypot(s.u - c.u, s.v - c.v) <= reach
+
+    # A ringed core's light is its whole spot's: the flux of the blobs it absorbs, when larger.
+    out = []
+    for c in rings:
+        flux = max([c.evidence.flux] + [s.evidence.flux for s in spots if s not in rings and own(s, c)])
+        out.append(replace(c, evidence=replace(c.evidence, flux=flux)))
+    return out + [s for s in spots if s not in rings and not any(own(s, c) for c in rings)]
 
 
 def _shrunk(c: Candidate, k: int) -> Candidate:
     """A candidate in a copy of the photo shrunk by ``k`` (pixel centres: (u + 0.5) / k - 0.5)."""
-    return Candidate(tuple(int(b) // k for b in c.box), (c.u + 0.5) / k - 0.5, (c.v + 0.5) / k - 0.5)
+    return replace(c, box=tuple(int(b) // k for b in c.box), u=(c.u + 0.5) / k - 0.5, v=(c.v + 0.5) / k - 0.5)
 
 
 def _grown(r: Spot | Rejection, k: int) -> Spot | Rejection:

@@ -182,6 +182,10 @@ class LaserSpot:
     grain : float, speckle grain size (correlation length), px
     aspect : float, minor / major sigma
     angle_deg : float, direction of the major axis, degrees from +u towards +v
+    scatter : float, peak of the light the surface scatters under its skin (paper, matte plastic), as a
+        fraction of ``peak``: a broad Gaussian wing, ``scatter_width`` times wider than the beam, that
+        stays in the laser's channel when the beam itself clips (a phone's red halo)
+    scatter_width : float, that wing's sigma over ``sigma``
     """
 
     u: float
@@ -192,6 +196,8 @@ class LaserSpot:
     grain: float = 1.5
     aspect: float = 1.0
     angle_deg: float = 0.0
+    scatter: float = 0.0
+    scatter_width: float = 4.0
 
 
 @dataclass(frozen=True)
@@ -222,6 +228,10 @@ def tilted_spot(
     return LaserSpot(u, v, sigma / c, peak * c, aspect=c, angle_deg=azimuth_deg, **kw)
 
 
+# Sensor level (after white balance) from which a phone's processing starts to desaturate highlights.
+HIGHLIGHT_KNEE = 0.8
+
+
 # A phone sensor's colour-correction matrix (camera RGB -> sRGB, rows sum to 1), in BGR order. Its
 # negative terms are what turn a clipped red core with bloomed green/blue neighbours pink, not red.
 PHONE_CCM = np.array([[1.55, -0.50, -0.05], [-0.30, 1.55, -0.25], [-0.05, -0.60, 1.65]], np.float32)
@@ -242,6 +252,12 @@ class PhoneCamera:
     ae_target : float or None, auto exposure meters the scene: its median (green) is brought to
         this fraction of the clipping level; None: no metering (the light as given)
     ae_stops : float, and misses by 2**U(-ae_stops, ae_stops), a new draw for each photo
+    highlight : float in [0, 1], highlight desaturation: a pixel whose brightest sensor channel nears
+        clipping (over :data:`HIGHLIGHT_KNEE`) is blended towards white by up to this fraction, as
+        phones' processing does where it can no longer know the colour; 0 for none. It widens the
+        white core of a clipped spot and thins its coloured ring
+    chroma_blur : float, px, sigma of the chroma noise reduction (a blur of Cr and Cb) before the JPEG;
+        0 for none. It fades a thin coloured ring further
     """
 
     bloom: float = 0.4
@@ -251,6 +267,8 @@ class PhoneCamera:
     jpeg: int | None = 88
     ae_target: float | None = 0.45
     ae_stops: float = 0.5
+    highlight: float = 0.0
+    chroma_blur: float = 0.0
 
     def gain(self, seed: int) -> float:
         """The auto exposure's miss for the photo rendered with ``seed`` (multiplies all light)."""
@@ -279,6 +297,9 @@ class Photo:
     jpeg: int | None = None  # JPEG quality, None for lossless
     camera: PhoneCamera | None = None  # a phone's pipeline; replaces bloom, bloom_sigma, gamma and jpeg
     background: np.ndarray | None = None  # (h, w, 3) reflectance, prints already pasted (:func:`reflectance`)
+    response: tuple | None = None  # (B, G, R) response to the laser (cross-talk); None: LASER_RESPONSE
+    # the paper's reflectance (B, G, R) relative to white, e.g. (0.25, 0.9, 0.95) yellow
+    surface: tuple = (1.0, 1.0, 1.0)
 
     def truth(self) -> np.ndarray:
         """(n, 2) array of the spots' true centres, px."""
@@ -377,7 +398,11 @@ def scene_light(photo: Photo, rng) -> np.ndarray:
     auto exposure and clipping: the mean the camera then samples (as :func:`render` does).
     """
     w, h = photo.view.size
-    refl = np.ones((h, w, 3), np.float32) if photo.background is None else photo.background.copy()
+    refl = (
+        np.ones((h, w, 3), np.float32) * np.float32(photo.surface)
+        if photo.background is None
+        else photo.background * np.float32(photo.surface)
+    )
     for item in photo.prints:
         _paste(refl, photo.view, item, np.hypot(photo.psf, np.sqrt(1 / 12)))  # PSF and pixel aperture
     xs = np.linspace(-0.5, 0.5, w, dtype=np.float32)
@@ -386,16 +411,22 @@ def scene_light(photo: Photo, rng) -> np.ndarray:
         1 - photo.vignetting * 2 * (xs[None, :] ** 2 + ys[:, None] ** 2)
     )
     img = refl * (FULL * photo.paper * light)[..., None] * np.float32(photo.tint)
-    response = LASER_RESPONSE[photo.colour].astype(np.float32)
+    response = np.float32(LASER_RESPONSE[photo.colour] if photo.response is None else photo.response)
     for spot in photo.spots:
-        # Out to where the tail falls below 1e-3 DN.
-        r = spot.sigma * np.sqrt(2 * np.log(max(spot.peak * FULL, 2) / 1e-3)) + 2
+        # Out to where the tail (the scatter wing's, when there is one) falls below 1e-3 DN.
+        reach = spot.sigma * (spot.scatter_width if spot.scatter > 0 else 1.0)
+        r = reach * np.sqrt(2 * np.log(max(spot.peak * FULL, 2) / 1e-3)) + 2
         x0, y0, x1, y1 = _spot_box(spot.u, spot.v, r, w, h)
         if x1 <= x0 or y1 <= y0:
             continue
         g = _gaussian(spot, x0, y0, x1 - x0, y1 - y0) * (FULL * spot.peak)
         if spot.speckle > 0:
             g *= _speckle(g.shape, spot.grain, spot.speckle, rng)
+        if spot.scatter > 0:  # light scattered under the surface: smooth (speckle averages out)
+            wing = LaserSpot(
+                spot.u, spot.v, spot.sigma * spot.scatter_width, 1.0, 0, 1.5, spot.aspect, spot.angle_deg
+            )
+            g += _gaussian(wing, x0, y0, x1 - x0, y1 - y0, 1) * (FULL * spot.peak * spot.scatter)
         # Laser light is reflected by the sheet like room light: ink under the spot absorbs it.
         img[y0:y1, x0:x1] += g[..., None] * response * refl[y0:y1, x0:x1]
     for gl in photo.glares:
@@ -469,8 +500,16 @@ def _phone(img: np.ndarray, photo: Photo, cam: PhoneCamera, rng, seed: int) -> n
     # the sensor stays clipped (white) instead of turning a tint.
     wb = 1 / np.float32(photo.tint)
     rgb = np.minimum(rgb * (wb / wb.min()), 1.0)
+    top = rgb.max(axis=2, keepdims=True)
     rgb = np.clip(rgb @ np.asarray(cam.ccm, np.float32).T, 0, 1)
+    if cam.highlight > 0:
+        near = np.clip((top - HIGHLIGHT_KNEE) / (1 - HIGHLIGHT_KNEE), 0, 1) ** 2 * np.float32(cam.highlight)
+        rgb += near * (rgb.max(axis=2, keepdims=True) - rgb)
     out = np.round(255 * _tone(rgb, cam.contrast)).astype(np.uint8)
+    if cam.chroma_blur > 0:
+        ycc = cv2.cvtColor(out, cv2.COLOR_BGR2YCrCb)
+        ycc[..., 1:] = cv2.GaussianBlur(ycc[..., 1:], (0, 0), cam.chroma_blur)
+        out = cv2.cvtColor(ycc, cv2.COLOR_YCrCb2BGR)
     if cam.jpeg is not None:
         params = [
             cv2.IMWRITE_JPEG_QUALITY,

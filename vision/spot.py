@@ -40,7 +40,8 @@ class Evidence:
     rule : str or None, which rule took the candidate for laser light: "rim" (its rim shifts towards
         the laser's hue), "core" (a compact clipped white core with a laser-ward fringe: a spot
         exposed far past clipping), "view" (a clipped core in a surround of nearly monochromatic
-        laser light: the spot's own halo fills the view), "grey" (a grey photo: brightness only);
+        laser light: the spot's own halo fills the view), "ring" (a white core of any size inside a
+        ring of the laser's colour, see :mod:`vision.ring`), "grey" (a grey photo: brightness only);
         None when none did
     flux : float, light the spot adds in the laser's channel, summed over its blob, linear, DN px
         (of the full photo); one laser adds about the same wherever it lands
@@ -49,6 +50,9 @@ class Evidence:
         (linear): >= 20 only where the laser's own halo fills the view
     lit : float, how far the spot clears the brightness it needs: the smaller of log(excess / need)
         and log(luma rise / its need)
+    ring : float or None, DN (8-bit scale): for a white clipped core, how laser-coloured the ring
+        around it is, in its second-weakest angular sector (see :mod:`vision.ring`); None when the
+        candidate has no core of that size
     """
 
     colour: str | None
@@ -69,6 +73,7 @@ class Evidence:
     cut: bool = False
     surround: float | None = None
     lit: float = 0.0
+    ring: float | None = None
 
     @property
     def strength(self) -> float:
@@ -103,6 +108,7 @@ class Evidence:
             "cut": self.cut,
             "surround": None if self.surround is None else round(self.surround, 2),
             "lit": round(self.lit, 3),
+            "ring": None if self.ring is None else round(self.ring, 1),
         }
 
     def describe(self) -> str:
