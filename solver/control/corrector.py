@@ -274,7 +274,10 @@ class Corrector:
         self._lo = [float(v) + opts.margin for v in model.limits[:, 0]]
         self._hi = [float(v) - opts.margin for v in model.limits[:, 1]]
         self._M = robot.tool_frame(self.tool)
-        self._cal = _Chain(model.screws, self._M, _bodies(model, robot.extension))
+        self._cal = _Chain(model.screws, self._M)
+        # the effects' torques from the fit's gravity model (Robot.gravity: the nominal's links), as correct's
+        grav = robot.gravity
+        self._grav = _Chain(grav.screws, self._M, _bodies(grav, robot.extension))
         self._nom = _Chain(robot.nominal.screws, robot.tool_frame(self.tool, nominal=True))
         self._effect = _linear_effect(model, robot.extension)
         self._check(model)
@@ -377,7 +380,7 @@ class Corrector:
 
     def _effect_dq(self, q: list) -> list:
         kc, ka, kb = self._effect
-        tau = self._cal.torques(q) if any(kc) else [0.0] * len(q)
+        tau = self._grav.torques(q) if any(kc) else [0.0] * len(q)
         return [c * t + a * math.sin(v) + b * math.cos(v) for c, t, a, b, v in zip(kc, tau, ka, kb, q)]
 
     def _check(self, model) -> None:
@@ -393,7 +396,7 @@ class Corrector:
             ):
                 raise ModelError(f"{model.name!r}: the corrector's chain does not reproduce the model")
             if self._effect:
-                want = true_angles(model, self.robot.extension, q[None])[0] - q
+                want = true_angles(model, self.robot.extension, q[None], self.robot.gravity)[0] - q
                 if np.abs(np.array(self._effect_dq(list(q))) - want).max() > _CHECK_TOL:
                     raise ModelError(
                         f"{model.name!r}: the corrector applies a compliance and an eccentricity; the "
