@@ -395,8 +395,7 @@ def _measure_spot(
     if not _label_at(near, u, v):
         return Rejection("stray", cand.u, cand.v, ev)
     # A blob cut by the photo's edge shows only part of its light, and its centre is extrapolated.
-    cut = (x0 == 0 and blob[:, 0].any()) or (y0 == 0 and blob[0].any())
-    cut |= (x0 + blob.shape[1] == w and blob[:, -1].any()) or (y0 + blob.shape[0] == h and blob[-1].any())
+    cut = _cut_by_edge(blob, x0, y0, w, h)
     return Spot(
         u + x0,
         v + y0,
@@ -484,9 +483,7 @@ def _ringed_spot(
     light = core | (near & (delta[..., ch] > max(4 * noise[ch], 0.1 * peak_d)))
     ev = _evidence(plain, delta, light, ch, full, noise, peak_d, peak_d, colour, gamma)
     ev = judge(replace(ev, ring=colour_dn), rule)
-    bh, bw = core.shape
-    cut = (x0 == 0 and core[:, 0].any()) or (y0 == 0 and core[0].any())
-    cut |= (x0 + bw == w and core[:, -1].any()) or (y0 + bh == h and core[-1].any())
+    cut = _cut_by_edge(core, x0, y0, w, h)
     raw = plain[..., ch]
     return Spot(
         u + x0,
@@ -578,3 +575,10 @@ def _dominant(spots: list[Spot], dominance: float, rank=_strength) -> tuple[list
         f"left out {len(rest)} candidate{'s' * (len(rest) > 1)} far weaker than the strongest spot "
         f"(below {dominance:.2g} of its strength): {others}; a laser-off photo (--reference) would tell"
     )
+
+
+def _cut_by_edge(mask: np.ndarray, x0: int, y0: int, w: int, h: int) -> bool:
+    """Whether a blob (mask (bh, bw) bool, its corner at x0, y0 px) touches the photo's (w, h) edge."""
+    bh, bw = mask.shape
+    cut = (x0 == 0 and mask[:, 0].any()) or (y0 == 0 and mask[0].any())
+    return bool(cut or (x0 + bw == w and mask[:, -1].any()) or (y0 + bh == h and mask[-1].any()))
