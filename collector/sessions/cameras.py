@@ -34,6 +34,7 @@ class OpenCVCamera:
     """
 
     name = "opencv"
+    exposure_control = True  # the tool sets its exposure at a session's start (sessions.exposure)
 
     def __init__(self, device, flush: int = 3):
         self.device, self.flush = device, flush
@@ -56,6 +57,14 @@ class OpenCVCamera:
         if not ok:
             raise DeviceError(f"camera {self.device!r}: no frame")
         return img
+
+    def get(self, prop) -> float:
+        """An OpenCV property's value (``cv2.CAP_PROP_*``; 0 when the device has none)."""
+        return float(self._cap.get(prop))
+
+    def set(self, prop, value) -> bool:
+        """Ask for an OpenCV property's value; False when the device refuses (it may also ignore it)."""
+        return bool(self._cap.set(prop, value))
 
     def close(self) -> None:
         self._cap.release()

@@ -24,6 +24,7 @@ from lasercal.collector.errors import DeviceError, RobotConnectionError
 from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.report.text import identifiable_text
+from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
@@ -336,7 +337,9 @@ def new_session(
     )
 
 
-def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta: dict) -> tuple[dict, str]:
+def spot_cells(
+    folder: Path, camera, measure, t: float, point: np.ndarray, meta: dict, img=None
+) -> tuple[dict, str]:
     """Photograph a capture, keep the photo and measure its spot: the row's :data:`SPOT_COLUMNS` and the
     line(s) said at once.
 
@@ -351,13 +354,14 @@ def spot_cells(folder: Path, camera, measure, t: float, point: np.ndarray, meta:
     t : float, the capture's session time, s (names the photo: unique across resumes)
     point : (3,) array, the cross aimed at, base frame at the placement (the message's distance), mm
     meta : dict, session.yaml (a sheet's placement maps the measured spot to the base frame)
+    img : (h, w, 3) array or None, the photo if already taken (None: taken here)
     """
     import cv2
 
     from lasercal.collector.sessions.store import write_atomic_bytes
     from lasercal.vision.errors import VisionError
 
-    img = camera.photo()
+    img = camera.photo() if img is None else img
     name = f"photos/capture_{int(round(t * 1000)):09d}.png"
     ok, png = cv2.imencode(".png", img)
     if not ok:
@@ -521,6 +525,7 @@ def run_capture(
     # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the camera
     # measures each; a pose whose spot it cannot measure is guided by hand once (then kept as aimed)
     hands_free = opts.move and camera is not None
+    settled = False  # the camera's exposure, set on the first photo (sessions.exposure)
     by_hand = False
     try:
         robot.connect()
@@ -590,7 +595,10 @@ def run_capture(
                 extra["laser_length_measured"] = length
             seen = ""
             if camera is not None:
-                cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta)
+                # the exposure is settled on the session's first photo, with the laser on a point
+                first = None if settled else settle_exposure(camera, readable_by(measure))
+                settled = True
+                cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta, first)
                 extra.update(cells)
                 if "camera_x" in cells:
                     pass  # measured

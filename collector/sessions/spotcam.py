@@ -18,6 +18,7 @@ import numpy as np
 from lasercal.collector.errors import SessionError
 from lasercal.collector.hardware import fakeworld
 from lasercal.collector.hardware.fakeworld import World, arm_capsules, camera_pose, hidden
+from lasercal.collector.sessions.exposure import FakeExposure
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.sheet import SheetPose
@@ -65,7 +66,7 @@ class SpotMeasure:
     note: str = ""
 
 
-class SheetCamera:
+class SheetCamera(FakeExposure):
     """Photos of the fake robot's true spot on the printed sheet, from the camera's stated pose.
 
     Parameters
@@ -77,15 +78,27 @@ class SheetCamera:
     plane_z : float, the sheet's stated height, mm
     world : World, the effects on
     seed : int, seed of the image noise
+    exposure : float or None, a gain on all the light, set through OpenCV's properties
+        (:class:`~collector.sessions.exposure.FakeExposure`); None: fixed at 1, as a device that refuses
     """
 
     name = "fake"
 
-    def __init__(self, robot, markers, crosses, pose: SheetPose, plane_z: float, world: World, seed: int = 0):
+    def __init__(
+        self,
+        robot,
+        markers,
+        crosses,
+        pose: SheetPose,
+        plane_z: float,
+        world: World,
+        seed: int = 0,
+        exposure: float | None = None,
+    ):
         from lasercal.vision.camera import Camera
         from lasercal.vision.render import aruco_print, pose_view, reflectance
 
-        self.robot, self.pose, self.world, self.seed = robot, pose, world, seed
+        self.robot, self.pose, self.world, self.seed, self.exposure = robot, pose, world, seed, exposure
         self.z = plane_z + world.sheet_dz  # the sheet's true surface
         centre = pose.to_base(np.zeros((1, 2)), self.z)[0]
         R, t = camera_pose(centre, np.radians(pose.yaw_deg))
@@ -117,7 +130,17 @@ class SheetCamera:
         spots = ()
         if d[2] < 0 and not (self.world.has("occlusion") and hidden(arm_capsules(truth, q), self.eye, spot)):
             spots = (self._spot(spot[:2], d),)
-        photo = Photo(self.view, (), spots, psf=PSF_PX, gamma=2.2, background=self.background)
+        g = self.gain
+        photo = Photo(
+            self.view,
+            (),
+            spots,
+            paper=Photo.paper * g,
+            psf=PSF_PX,
+            gamma=2.2,
+            background=self.background,
+            camera=self.sensor,
+        )
         # the image noise keyed by the pose (itself keyed by the capture): a resumed session repeats itself
         return render(photo, seed=self.seed * 1_000_003 + zlib.crc32(q.tobytes()))
 
@@ -141,7 +164,7 @@ class SheetCamera:
         val, vec = np.linalg.eigh(C)
         major = np.sqrt(val[1])
         angle = np.degrees(np.arctan2(vec[1, 1], vec[0, 1]))
-        irradiance = SPOT_PEAK * fakeworld.BEAM_SIGMA_MM**2 / np.sqrt(np.linalg.det(cov))
+        irradiance = self.gain * SPOT_PEAK * fakeworld.BEAM_SIGMA_MM**2 / np.sqrt(np.linalg.det(cov))
         aspect = np.sqrt(val[0]) / major
         return LaserSpot(uv[0], uv[1], major, irradiance, 0.2, aspect=aspect, angle_deg=angle)
 

@@ -26,6 +26,7 @@ from lasercal.collector.errors import DeviceError, RobotConnectionError, Session
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.sessions.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import wait_still
+from lasercal.collector.sessions.exposure import FakeExposure, readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
@@ -51,6 +52,7 @@ def fake_view(centre_xy, plane_z: float, size=(1600, 1200), mm_per_px: float = 0
 # of 0.1 mm/px, which made rendering, measuring and storing the photos 80 % of a run's time.
 FAKE_VIEW_PX = (800, 600)
 FAKE_MM_PER_PX = 0.2
+PAPER = Photo.paper  # the blank sheet's brightness at exposure 1, of full scale
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,7 @@ class SpotLook:
     speckle: float = 0.2
 
 
-class FakeCamera:
+class FakeCamera(FakeExposure):
     """Photos of the spot the fake robot's true beam makes on a blank sheet.
 
     No reference marks are printed: ink under the spot would bias its centroid, and the
@@ -75,23 +77,33 @@ class FakeCamera:
     plane_z : float, mm
     seed : int, seed of the image noise
     look : SpotLook
+    exposure : float or None, a gain on all the light, set through OpenCV's properties
+        (:class:`~collector.sessions.exposure.FakeExposure`); None: fixed at 1, as a device that refuses
     """
 
     name = "fake"
 
-    def __init__(self, robot, view: View, plane_z: float, seed: int = 0, look: SpotLook = SpotLook()):
+    def __init__(
+        self,
+        robot,
+        view: View,
+        plane_z: float,
+        seed: int = 0,
+        look: SpotLook = SpotLook(),
+        exposure: float | None = None,
+    ):
         self.robot, self.view, self.plane_z, self.seed, self.look = robot, view, plane_z, seed, look
+        self.exposure = exposure
         self._count = 0
 
     def photo(self) -> np.ndarray:
         spot, _ = self.robot.true_spot(self.plane_z)
         u, v = self.view.project(spot[:2])[0]
         self._count += 1
-        lk = self.look
-        return render(
-            Photo(self.view, (), (LaserSpot(u, v, lk.sigma, lk.peak, lk.speckle),)),
-            seed=self.seed + self._count,
-        )
+        lk, g = self.look, self.gain
+        spot = LaserSpot(u, v, lk.sigma, lk.peak * g, lk.speckle)
+        photo = Photo(self.view, (), (spot,), paper=PAPER * g, camera=self.sensor)
+        return render(photo, seed=self.seed + self._count)
 
     def close(self) -> None:
         """Nothing to release."""
@@ -411,7 +423,7 @@ def run_validation(
         resume=resume,
     )
     w = out.write
-    photos, spots, failed = 0, [], 0
+    photos, spots, failed, settled = 0, [], 0, False
     if resume:
         w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
     try:
@@ -442,7 +454,9 @@ def run_validation(
                     "skipped\n"
                 )
                 continue
-            img = camera.photo()
+            # the exposure is settled on the first photo, with the laser on the point
+            img = camera.photo() if settled else settle_exposure(camera, readable_by(measure))
+            settled = True
             name = f"photos/{i:04d}.png" if opts.keep_photos is None or i < opts.keep_photos else ""
             if name:
                 ok, png = cv2.imencode(".png", img)
