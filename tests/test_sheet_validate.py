@@ -190,7 +190,9 @@ def test_the_docs_recipe_runs_as_written_on_the_simulated_robot(tmp_path, monkey
             args += ["--bootstrap", "0", "--refits", "0"]
         assert main(args) == 0, line
         ran.append(args[0])
-    assert ran == ["sheet", "capture", "solve", "validate", "validate", "report", "export", "correct"]
+    steps = ["sheet", "capture", "solve", "validate", "validate", "report", "export", "export", "correct"]
+    assert ran == steps
+    assert (tmp_path / "kinematics.yaml").is_file()  # the franka_description file (docs/use.md)
     v = _paragraph((tmp_path / "report" / "index.html").read_text(), "verdict")
     before, after = map(float, re.match(r"calibrated: ([\d.]+) → ([\d.]+) mm at P6", v).groups())
     # capture's simulated world (the truth, the sheet at its placement) is validate's: the bounds above
