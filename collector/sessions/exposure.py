@@ -25,15 +25,17 @@ MAX_HALVINGS = 8  # 256x darker at most: past that the paper is black
 
 
 def clipped_px(img: np.ndarray) -> int | None:
-    """Pixels of the photo's spot clipped in the laser's channel (the most clipped spot), or None when
-    no spot is found (vision's detector, :class:`vision.spot.Evidence`)."""
+    """Pixels of the photo's spot clipped in the laser's channel (the most clipped spot,
+    :func:`vision.exposure.exposure_advice`), or None when no spot is found."""
     from lasercal.vision.detect import detect_spots
+    from lasercal.vision.exposure import exposure_advice
 
     try:
         spots, _ = detect_spots(img, "exposure")
     except VisionError:
         return None
-    return max((s.evidence.clipped_px for s in spots if s.evidence is not None), default=0)
+    advice = exposure_advice(spots)
+    return 0 if advice is None else advice.clipped_px
 
 
 def readable_by(measure):
