@@ -418,3 +418,47 @@ def write_sheet(folder, design: SheetDesign, plane_z: float, placement: dict | N
         fig.savefig(out["svg"], metadata={"Date": None, "Creator": "lasercal sheet"})
     write_layout(out["layout"], design, plane_z, placement)
     return out
+
+
+def blank_spots(
+    design: SheetDesign, step: float = 10.0, clear: float = 8.0, px_mm: float = 4.0
+) -> np.ndarray:
+    """Where on a sheet a laser spot lands on white paper inside the markers' span: a grid of points at
+    least ``clear`` mm from every ink (markers, crosses, labels, scale bars, arrows, instructions), found
+    on the sheet as :func:`draw_sheet` prints it, so whatever it prints is avoided.
+
+    A camera measures a spot's centre there without ink swallowing part of it; ``clear`` leaves room for
+    the spot itself (a few mm across) and a rough aim.
+
+    Parameters
+    ----------
+    design : SheetDesign
+    step : float, grid spacing, mm
+    clear : float, least distance from any ink, mm
+    px_mm : float, pixels per mm of the rasterised page (4: the 0.35 mm lines are drawn solid; at 2 the
+        rasteriser renders them half grey)
+
+    Returns
+    -------
+    (k, 2) array, sheet frame, mm
+    """
+    import cv2
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    W, H = design.width, design.height
+    fig = draw_sheet(design, 0.0)
+    fig.set_dpi(25.4 * px_mm)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    page = np.asarray(canvas.buffer_rgba())[..., :3].min(axis=2)  # row 0 at the page's top
+    white = (page > 200).astype(np.uint8)  # anti-aliased edges count as ink
+    reach = cv2.distanceTransform(white, cv2.DIST_L2, 5) / px_mm  # mm to the nearest ink
+    corners = np.concatenate(list(design.markers.values()))
+    lo, hi = corners.min(axis=0), corners.max(axis=0)  # the markers' span, sheet frame
+    gx = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
+    gy = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
+    xy = np.array([(x, y) for x in gx for y in gy])
+    uv = sheet_to_page(xy, W, H)
+    col = np.clip(np.round(uv[:, 0] * px_mm - 0.5).astype(int), 0, reach.shape[1] - 1)
+    row = np.clip(np.round((H - uv[:, 1]) * px_mm - 0.5).astype(int), 0, reach.shape[0] - 1)
+    return xy[reach[row, col] >= clear]

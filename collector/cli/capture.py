@@ -76,6 +76,13 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "(--backend fake), or an OpenCV device: index, URL or frames/%%04d.png (the layout needs markers)",
     )
     p.add_argument(
+        "--aim",
+        choices=("anywhere", "cross"),
+        help="with --camera: anywhere (the default with the coach on a sheet lasercal sheet printed): the "
+        "coach plans each spot anywhere on the sheet's white paper, for what the fit lacks; cross: beside "
+        "each cross",
+    )
+    p.add_argument(
         "--effects",
         metavar="LIST",
         help="fake backend: the simulated world's effects, all, none or a comma list of "

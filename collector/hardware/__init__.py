@@ -36,7 +36,9 @@ def fake_truth(cfg: dict, nominal, base=None):
     return load_model(cfg["truth"], base=base)
 
 
-def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None, points=None, repeat_sigma=0.0):
+def make_robot(
+    cfg: dict, nominal, layout, per_point: int = 0, truth=None, points=None, repeat_sigma=0.0, place=None
+):
     """The robot adapter a settings mapping asks for.
 
     Parameters
@@ -50,6 +52,7 @@ def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None, point
     points : dict or None, where the simulated operator aims, name -> (3,) mm in the true robot's frame
         (None: the layout's calibration points; :func:`fakeworld.table_points`)
     repeat_sigma : float, the fake arm's repeatability, rad (:mod:`collector.hardware.fakeworld`)
+    place : callable or None, where the layout's spots truly are on the fake table (:class:`FakeRobot`)
 
     Returns
     -------
@@ -69,7 +72,9 @@ def make_robot(cfg: dict, nominal, layout, per_point: int = 0, truth=None, point
             if per_point
             else None
         )
-        return FakeRobot(truth, FakeClock(), operator, seed=cfg["seed"], repeat_sigma=repeat_sigma)
+        return FakeRobot(
+            truth, FakeClock(), operator, seed=cfg["seed"], repeat_sigma=repeat_sigma, place=place
+        )
     if not cfg.get("host"):
         raise LasercalError(f"--backend {backend} needs --host (the robot's or rosbridge's address)")
     if backend == "franky":

@@ -118,8 +118,10 @@ class RobotAdapter:
         """The robot's pilot buttons as a trigger, or None when the backend offers none."""
         return None
 
-    def prompt_point(self, name: str, xyz: np.ndarray, index: int) -> None:
-        """The operator is asked to aim at point ``name`` for its capture ``index`` (0-based).
+    def prompt_point(self, name: str, xyz: np.ndarray, index: int, spot: np.ndarray | None = None) -> None:
+        """The operator is asked to aim at point ``name`` for its capture ``index`` (0-based): at ``xyz``
+        (base frame, mm), or with ``spot`` (2,) at that spot of the layout's frame, off the point, that the
+        coach planned in its cell (``--aim anywhere``).
 
         Real robots ignore it (the operator reads the screen); the simulated operator acts on it.
         """

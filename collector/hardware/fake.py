@@ -107,16 +107,22 @@ class FakeOperator:
         return self._poses[name]
 
     def configuration(
-        self, name: str, index: int, attempt: int, start: np.ndarray | None = None
+        self,
+        name: str,
+        index: int,
+        attempt: int,
+        start: np.ndarray | None = None,
+        at: np.ndarray | None = None,
     ) -> np.ndarray:
         """Where the operator brings the arm for capture ``index`` at ``name`` (try ``attempt``), (n,) rad.
 
         With ``start`` (the coach's suggested pose, rad) the operator hand-guides from it until the
         true beam hits the point up to the aiming noise; otherwise from their own set of diverse poses.
+        With ``at`` (3,) mm in the true robot's frame, they aim there instead of at the point.
         """
         rng = np.random.default_rng([self.seed, self.key(name), index, attempt])
         aimed = self.wrong.get((name, index), name) if attempt == 0 else name
-        hit = self.points[aimed] + np.r_[rng.normal(0.0, self.aim_noise, 2), 0.0]
+        hit = (self.points[aimed] if at is None else at) + np.r_[rng.normal(0.0, self.aim_noise, 2), 0.0]
         if start is not None and aimed == name:
             q = polish(self.truth, np.asarray(start, dtype=float)[None], hit)
             if spot_error(self.truth, q, hit)[0] < 1e-6 and self.truth.within_limits(q)[0]:
@@ -145,6 +151,8 @@ class FakeRobot(RobotAdapter):
     repeat_sigma : float, the arm's repeatability (:mod:`collector.hardware.fakeworld`): the pose it
         reaches differs from what its encoders report by Gaussian joint noise of this std, rad (0: exact),
         a new draw keyed like the motion for every pose reached
+    place : callable (k, 2) -> (k, 3) or None, where spots of the layout's frame truly are on the table
+        (:func:`collector.hardware.fakeworld.on_table`): the simulated operator aims at a planned spot there
     """
 
     name = "fake"
@@ -161,9 +169,11 @@ class FakeRobot(RobotAdapter):
         seed: int = 0,
         disconnect_at: float | None = None,
         repeat_sigma: float = 0.0,
+        place=None,
     ):
         self.truth, self.clock, self.operator, self.motion = truth, clock, operator, motion
         self.seed, self.disconnect_at, self.repeat_sigma = seed, disconnect_at, repeat_sigma
+        self.place = place
         self._attempts: dict = {}
         self._connected = False
         home = np.array(truth.home if truth.home is not None else truth.limits.mean(axis=1), dtype=float)
@@ -247,12 +257,13 @@ class FakeRobot(RobotAdapter):
             self._v0 = np.zeros_like(self._v0)
         self.clock.sleep(self._T)
 
-    def prompt_point(self, name: str, xyz: np.ndarray, index: int) -> None:
+    def prompt_point(self, name: str, xyz: np.ndarray, index: int, spot: np.ndarray | None = None) -> None:
         if self.operator is None:
             return
         attempt = self._attempts.get((name, index), 0)
         self._attempts[(name, index)] = attempt + 1
-        q = self.operator.configuration(name, index, attempt, self._suggested)
+        at = None if spot is None else self.place(np.asarray(spot, dtype=float)[None])[0]
+        q = self.operator.configuration(name, index, attempt, self._suggested, at)
         self._suggested = None
         key = (self.operator.key(name), index, attempt)
         # the operator aims the true beam: the encoders report that pose off by the repeatability's delta

@@ -197,9 +197,16 @@ def table_points(layout, world: World, beside=(0.0, 0.0)) -> dict:
     world : World
     beside : (2,) offset from each cross on the sheet, mm
     """
+    names = list(layout.points)
+    xy = np.array([layout.points[k][:2] for k in names]) + beside
+    return dict(zip(names, on_table(layout, world, xy)))
+
+
+def on_table(layout, world: World, xy: np.ndarray) -> np.ndarray:
+    """Where spots of the layout's frame (k, 2) mm truly are: as printed (scaled by the printer), on the
+    sheet's true surface, in the true robot's frame (a sheet at its placement), (k, 3) mm."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     z = layout.plane_z + world.sheet_dz
     if layout.frame != "sheet":
-        return {k: np.r_[v[:2] + beside, z] for k, v in layout.points.items()}
-    names = list(layout.points)
-    xy = (np.array([layout.points[k][:2] for k in names]) + beside) * world.print_scale
-    return dict(zip(names, layout.sheet.to_base(xy, z)))
+        return np.c_[xy, np.full(len(xy), z)]
+    return layout.sheet.to_base(xy * world.print_scale, z)

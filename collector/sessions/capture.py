@@ -28,6 +28,7 @@ from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
+from lasercal.solver.formats.captures import AIM_XY
 from lasercal.solver.formats.data import reference
 from lasercal.solver.formats.session import Layout, check_aperture, session_layout, session_meta
 from lasercal.solver.identify.spot import predict_spots
@@ -307,6 +308,7 @@ def new_session(
     """
     columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
     columns += list(SPOT_COLUMNS) if camera is not None else []
+    columns += list(AIM_XY) if cfg.get("aim") == "anywhere" else []
     fake = cfg["backend"] == "fake"
     aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if fake else None)
     if aperture is not None:  # refused now, not when the finished session is loaded
@@ -328,7 +330,7 @@ def new_session(
         }
         if world is not None and world.effects:
             extra["simulated"]["world"] = world.as_dict()
-    if camera is not None:  # the operator aims beside each cross: a spot on ink would be biased
+    if camera is not None and cfg.get("aim") != "anywhere":  # beside each cross: a spot on ink is biased
         from lasercal.collector.sessions.spotcam import BESIDE_MM
 
         extra["aim_offset"] = list(BESIDE_MM)
@@ -352,7 +354,7 @@ def spot_cells(
     folder : Path, the session folder (photos/ is made in it)
     camera, measure : see :func:`run_capture`
     t : float, the capture's session time, s (names the photo: unique across resumes)
-    point : (3,) array, the cross aimed at, base frame at the placement (the message's distance), mm
+    point : (3,) array, where the spot was aimed, base frame at the placement (the message's distance), mm
     meta : dict, session.yaml (a sheet's placement maps the measured spot to the base frame)
     img : (h, w, 3) array or None, the photo if already taken (None: taken here)
     """
@@ -379,7 +381,7 @@ def spot_cells(
     said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
     if layout.frame != "sheet" or layout.sheet is not None:  # where the placement puts it: the cross's frame
         where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
-        said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the cross"
+        said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the aim"
     return cells, said + "\n"
 
 
@@ -392,9 +394,12 @@ def aimed_layout(layout: Layout, offset) -> Layout:
     return replace(layout, points={k: v + shift for k, v in layout.points.items()})
 
 
-def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet: bool = False):
+def session_coach(
+    store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet: bool = False, anywhere=None
+):
     """The capture coach of a session: the nominal model with the session's measured aperture height;
-    ``layout`` in the base frame, ``sheet``: its points lie on a sheet whose pose ``solve`` identifies."""
+    ``layout`` in the base frame, ``sheet``: its points lie on a sheet whose pose ``solve`` identifies,
+    ``anywhere``: name -> (k, 3) spots in each point's cell, base frame, mm (:mod:`sessions.anywhere`)."""
     from lasercal.solver.analysis.design import Coach
     from lasercal.solver.formats.tolerances import robot_tolerances
 
@@ -406,7 +411,7 @@ def session_coach(store: CaptureStore, nominal: RobotModel, layout: Layout, cfg:
     # camera sessions find, docs/sessions.md), not the aiming noise
     noise = CAMERA_NOISE_MM if cfg.get("camera") else cfg["aim_noise"]
     tol = robot_tolerances(nominal).with_noise("laser", noise)
-    return Coach(model, layout, cfg["seed"], tol, sheet=sheet)
+    return Coach(model, layout, cfg["seed"], tol, sheet=sheet, anywhere=anywhere)
 
 
 def run_capture(
@@ -475,6 +480,8 @@ def run_capture(
 
     layout = session_layout(meta, store.path)
     beside = np.r_[np.asarray(meta.get("aim_offset") or (0.0, 0.0), dtype=float), 0.0]
+    # --aim anywhere: the coach plans each spot in its point's cell; the operator aims there (aim_x, aim_y)
+    anywhere = meta.get("collector", {}).get("aim") == "anywhere"
 
     def spots_in_base(targets) -> np.ndarray:
         """Where the captures' spots were (layout frame, a measured spot or the aim), in the base frame at
@@ -547,8 +554,12 @@ def run_capture(
             if not todo:
                 break
             name = todo[0]
+            aim = None  # the spot the coach planned off the point: layout frame (2,), base frame (3,), mm
             if status is not None and status.plan.point[0] in todo:
                 name = str(status.plan.point[0])
+                if anywhere:
+                    base = status.plan.target[0]
+                    aim = (layout.sheet.from_base(base[None])[0], base)
                 if opts.move and not by_hand:
                     move_to(status.suggestion)
                 robot.suggest_pose(status.suggestion)
@@ -558,11 +569,14 @@ def run_capture(
                 w(f"at {name}: capture {counts[name] + 1} of {opts.per_point}, hands-free  [Ctrl-C stops]\n")
                 cmd = "capture"
             else:
-                robot.prompt_point(name, points[name], counts[name])
-                w(
-                    f"aim at {name} ({x:.1f}, {y:.1f}, {z:.1f}) mm: capture {counts[name] + 1} of "
-                    f"{opts.per_point}   [{trigger.hint}]\n"
-                )
+                if aim is None:
+                    robot.prompt_point(name, points[name], counts[name])
+                    where = f"{name} ({x:.1f}, {y:.1f}, {z:.1f}) mm"
+                else:
+                    robot.prompt_point(name, aim[1], counts[name], spot=aim[0])
+                    (sx, sy), (dx, dy) = aim[0], aim[0] - layout.points[name][:2]
+                    where = f"({sx:.0f}, {sy:.0f}) mm on the sheet ({dx:+.0f}, {dy:+.0f} mm off {name})"
+                w(f"aim at {where}: capture {counts[name] + 1} of {opts.per_point}   [{trigger.hint}]\n")
                 cmd = trigger.wait()
             if cmd == "quit":
                 w(f"stopped: {saved()}\n")
@@ -588,7 +602,9 @@ def run_capture(
             earlier = np.array([q for p, q in zip(store.point, store.q) if p == name]).reshape(
                 -1, len(state.q)
             )
-            check = check_capture(nominal, points, name, state.q, earlier, opts)
+            check = check_capture(
+                nominal, points if aim is None else {**points, name: aim[1]}, name, state.q, earlier, opts
+            )
             t = t_offset + (state.t - t_run)
             extra = dict(state.extra)
             if length is not None:
@@ -598,7 +614,8 @@ def run_capture(
                 # the exposure is settled on the session's first photo, with the laser on a point
                 first = None if settled else settle_exposure(camera, readable_by(measure))
                 settled = True
-                cells, seen = spot_cells(store.folder, camera, measure, t, points[name], meta, first)
+                aimed_at = points[name] if aim is None else aim[1]
+                cells, seen = spot_cells(store.folder, camera, measure, t, aimed_at, meta, first)
                 extra.update(cells)
                 if "camera_x" in cells:
                     pass  # measured
@@ -613,6 +630,9 @@ def run_capture(
                     )
             by_hand = False
             spot = layout.points[name] + beside  # where it was aimed, layout frame (a sheet's: z 0)
+            if aim is not None:
+                extra.update(aim_x=aim[0][0], aim_y=aim[0][1])
+                spot = np.r_[aim[0], spot[2]]
             if "camera_x" in extra:
                 spot = np.r_[extra["camera_x"], extra["camera_y"], spot[2]]
             if layout.frame == "sheet":

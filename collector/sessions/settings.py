@@ -44,6 +44,7 @@ FIXED = (
     "seed",
     "rangefinder",
     "effects",
+    "aim",
 )
 SETTINGS = FIXED + (
     "camera",

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from lasercal.collector.hardware import make_rangefinder, make_robot
 from lasercal.collector.hardware.base import RobotAdapter
-from lasercal.collector.hardware.fakeworld import World, table_points
+from lasercal.collector.hardware.fakeworld import World, on_table, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
 from lasercal.collector.sessions.capture import (
     CaptureOptions,
@@ -82,6 +82,8 @@ class StartedCapture:
     hint : str, the command that resumes the session
     coach : bool, run the capture coach
     camera : the camera that photographs each capture, or None; measure : how its photos are measured
+    spots : dict name -> (k, 3) array or None, ``--aim anywhere``: the spots of each point's cell the
+        coach may plan, layout frame, mm (:func:`aim_cells`)
     """
 
     settings: CaptureSettings
@@ -95,6 +97,7 @@ class StartedCapture:
     coach: bool
     camera: object = None
     measure: object = None
+    spots: dict | None = None
 
     def run(self, out=sys.stdout) -> CaptureResult:
         """Run the session (:func:`run_capture`) on screen ``out``; close the store and devices after.
@@ -113,9 +116,12 @@ class StartedCapture:
             coach = None
             if self.coach:
                 sheet = layout.frame == "sheet"
-                # where the operator aims: beside the crosses in a camera session
+                # where the operator aims: beside the crosses in a camera session, or anywhere in their cells
                 aimed = aimed_layout(layout, self.store.meta.get("aim_offset")).in_base()
-                coach = session_coach(self.store, self.nominal, aimed, cfg, sheet)
+                anywhere = None
+                if self.spots is not None:
+                    anywhere = {k: layout.sheet.to_base(v, layout.plane_z) for k, v in self.spots.items()}
+                coach = session_coach(self.store, self.nominal, aimed, cfg, sheet, anywhere)
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
             self.store.close()
             if not self.settings.resume and not self.store.point:
@@ -171,20 +177,23 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     nominal = load_model(cfg["robot"])
     world = World.draw(cfg.get("effects") or (), cfg["seed"])
     camera_spec = cfg.get("camera")
+    layout_file = settings.layout_path
+    if settings.resume:  # the layout file the session was started with, relative to its folder
+        layout_file = Path(str(cfg["layout"]))
+        layout_file = layout_file if layout_file.is_absolute() else settings.folder / layout_file
+    spots = aim_cells(cfg, guide, layout, layout_file, settings.resume)
+    beside = BESIDE_MM if camera_spec and spots is None else (0.0, 0.0)
     # a sheet's points where its placement says: the simulated operator's table (as printed, on the sheet's
-    # true surface; beside the crosses with a camera), the coach's aim
+    # true surface; beside the crosses with a camera that aims at them), the coach's aim
     robot = make_robot(
         cfg,
         nominal,
         layout.in_base(),
         cfg["per_point"],
-        points=table_points(layout, world, BESIDE_MM if camera_spec else (0.0, 0.0)),
+        points=table_points(layout, world, beside),
         repeat_sigma=world.repeat_sigma,
+        place=lambda xy: on_table(layout, world, xy),
     )
-    layout_file = settings.layout_path
-    if settings.resume:  # the layout file the session was started with, relative to its folder
-        layout_file = Path(str(cfg["layout"]))
-        layout_file = layout_file if layout_file.is_absolute() else settings.folder / layout_file
     camera, measure = capture_camera(camera_spec, cfg, robot, layout, layout_file, world)
     rangefinder = make_rangefinder(cfg, robot, layout.plane_z)
     trigger = AutoTrigger(guide.auto_pace) if guide.auto else make_trigger(cfg["trigger"], robot)
@@ -219,8 +228,42 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         + (" --guide move" if guide.move else "")
     )
     return StartedCapture(
-        settings, store, robot, trigger, rangefinder, nominal, opts, hint, guide.coach, camera, measure
+        settings, store, robot, trigger, rangefinder, nominal, opts, hint, guide.coach, camera, measure, spots
     )
+
+
+def aim_cells(cfg: dict, guide: CaptureGuide, layout, layout_file, resume: bool) -> dict | None:
+    """Where a session's coach may plan its spots: ``cfg['aim']`` 'anywhere' (the default of a new camera
+    session with the coach on a sheet ``lasercal sheet`` printed) gives each point's cell of measurable
+    spots (:func:`sessions.anywhere.cells`), 'cross' None: on (or beside) the points. A new session without
+    ``aim`` gets it here (it is stored: a resume keeps it).
+
+    Raises
+    ------
+    LasercalError
+        'anywhere' without a camera or the coach, or on a layout that is no printed sheet.
+    """
+    from lasercal.collector.errors import SessionError
+    from lasercal.collector.sessions.anywhere import cells
+
+    camera = cfg.get("camera")
+    if not resume and cfg.get("aim") is None:  # a measured spot need not be on its cross
+        cfg["aim"] = "cross"
+        if camera and guide.coach:
+            try:
+                spots = cells(layout, layout_file)
+            except SessionError:  # no printed sheet: its blank paper is unknown
+                return None
+            cfg["aim"] = "anywhere"
+            return spots
+    if cfg.get("aim") != "anywhere":
+        return None
+    if not (camera and guide.coach):
+        raise LasercalError(
+            "--aim anywhere: the coach plans each spot and the camera measures where it lands: it needs "
+            "--camera and the coach (drop --no-coach), or use --aim cross"
+        )
+    return cells(layout, layout_file)
 
 
 @dataclass(frozen=True)

@@ -201,18 +201,21 @@ def use_region(
 
 @dataclass(frozen=True)
 class Candidates:
-    """Candidate next captures: aiming-IK configurations at the calibration points.
+    """Candidate next captures: aiming-IK configurations at the calibration points, or at spots anywhere
+    in their cells (a camera session, :func:`candidates` ``anywhere``).
 
     Attributes
     ----------
     q : (N, n) array, rad
-    point : (N,) array of str, the point each aims at
-    target : (N, 3) array, mm
+    point : (N,) array of str, the point each aims at (or whose cell its spot lies in)
+    target : (N, 3) array, where its beam meets the plane, mm
+    anchor : (N, 3) array, the point itself, mm (= target at the points)
     """
 
     q: np.ndarray
     point: np.ndarray
     target: np.ndarray
+    anchor: np.ndarray
 
     def available(self, allowed=None, taken=None) -> np.ndarray:
         """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one), apart from the
@@ -222,14 +225,14 @@ class Candidates:
         ----------
         allowed : iterable of point names, or None
         taken : ((m, n) array rad, (m, 3) array mm) or None, the captures so far and their points: a
-            candidate within :data:`APART_RAD` of a capture at its point is not available (the design would
-            otherwise replicate an informative pose -- the same pose again, with a new aiming error --
-            which the capture check then calls similar)
+            candidate within :data:`APART_RAD` of a capture at its point (its cell's) is not available (the
+            design would otherwise replicate an informative pose -- the same pose again, with a new aiming
+            error -- which the capture check then calls similar)
         """
         ok = np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
         if taken is not None and len(taken[0]):
             q, target = (np.asarray(a, dtype=float) for a in taken)
-            same = np.linalg.norm(self.target[:, None, :] - target[None, :, :], axis=2) < 1e-6  # (N, m)
+            same = np.linalg.norm(self.anchor[:, None, :] - target[None, :, :], axis=2) < 1e-6  # (N, m)
             near = np.linalg.norm(self.q[:, None, :] - q[None, :, :], axis=2) < APART_RAD
             ok &= ~np.any(same & near, axis=1)
         return ok
@@ -243,8 +246,10 @@ def candidates(
     constraints: Constraints | None = None,
     points=None,
     spread: float = 1.0,
+    anywhere: dict | None = None,
 ) -> Candidates:
-    """Candidate configurations aiming exactly at each calibration point under ``model``.
+    """Candidate configurations aiming exactly at each calibration point under ``model``, or at spots
+    spread over each point's cell.
 
     Parameters
     ----------
@@ -256,25 +261,30 @@ def candidates(
     points : list of point names (default: the layout's calibration points)
     spread : float, std of the aiming IK's random seeds about the home configuration, rad (wider
         than an operator's habits: the design needs the extremes)
+    anywhere : dict name -> (k, 3) array mm, or None: spots in each point's cell where a camera can
+        measure them (:func:`collector.sessions.anywhere.cells`); its ``per_point`` configurations are
+        spread over them, and spots out of reach are passed over
 
     Raises
     ------
     DesignError
-        When a calibration point cannot be aimed at within the constraints (out of reach).
+        When a calibration point (or every spot of its cell) cannot be aimed at within the constraints.
     """
     con = constraints or Constraints.for_layout(layout)
     names = list(points or layout.calibration)
     qs, ns, ts = [], [], []
     for nm in names:
-        q, t = _aim_many(
-            model, [layout.points[nm]], per_point, rng, con, pool=2 * per_point + 40, spread=spread
-        )
+        spots = [layout.points[nm]] if anywhere is None else list(anywhere[nm])
+        each = max(per_point // len(spots), 2)
+        q, t = _aim_many(model, spots, each, rng, con, pool=2 * each + 40, spread=spread)
         if not len(q):
             raise DesignError(layout.unreachable(nm))
         qs.append(q)
         ts.append(t)
         ns += [nm] * len(q)
-    return Candidates(np.concatenate(qs), np.array(ns, dtype=object), np.concatenate(ts))
+    point = np.array(ns, dtype=object)
+    anchor = np.array([layout.points[nm] for nm in ns], dtype=float)
+    return Candidates(np.concatenate(qs), point, np.concatenate(ts), anchor)
 
 
 @dataclass(frozen=True, eq=False)
@@ -796,6 +806,8 @@ class Coach:
         horizon of 10, 26 with 25, where an offline exchange design of the whole session needs 26-28)
     sheet : bool, the session's points lie on a sheet whose pose ``solve`` identifies: the pose is counted
         among the parameters, the base frame's gauge held (:mod:`solver.identify.laser_parameters`)
+    anywhere : dict name -> (k, 3) array mm, or None: a camera session's spots need not be on the points:
+        the candidates aim at these spots of each point's cell (:func:`candidates`)
     """
 
     def __init__(
@@ -812,6 +824,7 @@ class Coach:
         per_point: int = 200,
         horizon: int = 25,
         sheet: bool = False,
+        anywhere: dict | None = None,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
@@ -819,7 +832,7 @@ class Coach:
         self.nominal, self.layout, self.tolerances = nominal, layout, tolerances
         self.lookahead, self.stop_gain, self.horizon = lookahead, stop_gain, horizon
         self.region = use_region(aimer, layout, rng, workspace, constraints=con)
-        self.cand = candidates(aimer, layout, rng, per_point, con)
+        self.cand = candidates(aimer, layout, rng, per_point, con, anywhere=anywhere)
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), tolerances)
         self.jacobians = SpotJacobians(self.post.params)
         self.counted = counted_parameters(self.post.params, sheet)

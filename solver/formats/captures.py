@@ -211,6 +211,45 @@ def measured_spots(path, rows, header) -> tuple[np.ndarray, np.ndarray] | None:
     return xy, sig
 
 
+# where a camera session's operator aimed, off the point when its coach planned the spot anywhere, mm
+AIM_XY = ("aim_x", "aim_y")
+
+
+def aimed_spots(path, rows, header) -> np.ndarray | None:
+    """Where a camera session's captures were aimed when the coach planned the spot off its point
+    (``--aim anywhere``): (m, 2) mm in the layout's frame, NaN where a row leaves both cells empty (aimed
+    at its point); None without the columns.
+
+    Raises
+    ------
+    FormatError
+        Naming line and column: one of the two cells empty, a value not a finite number.
+    """
+    if "aim_x" not in header:
+        return None
+    if "aim_y" not in header:
+        raise FormatError(path, "aim_x without aim_y in the header", line=1, field="aim_y")
+    idx = [header.index(c) for c in AIM_XY]
+    xy = np.full((len(rows), 2), np.nan)
+    for r, (ln, row) in enumerate(rows):
+        cells = [row[j].strip() for j in idx]
+        if not any(cells):
+            continue
+        for k, (c, text) in enumerate(zip(AIM_XY, cells)):
+            try:
+                xy[r, k] = float(text)
+            except ValueError:
+                xy[r, k] = math.nan
+            if not math.isfinite(xy[r, k]):
+                what = (
+                    "missing value (an aim off the point fills both aim_x and aim_y)"
+                    if not text
+                    else (f"not a finite number: {text!r}")
+                )
+                raise FormatError(path, what, line=ln, field=c)
+    return xy
+
+
 def _joint_columns(prefix: str, n: int) -> list[str]:
     return [f"{prefix}{i}" for i in range(1, n + 1)]
 

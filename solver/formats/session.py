@@ -26,12 +26,14 @@ import numpy as np
 
 from lasercal.solver.errors import AimingError, FormatError
 from lasercal.solver.formats.captures import (
+    AIM_XY,
     SESSION_FORMAT,
     SPOT_XY,
     UNITS,
     Session,
     _joint_columns,
     _numeric_block,
+    aimed_spots,
     captures_repair,
     check_limits,
     check_repeats,
@@ -55,6 +57,7 @@ SAME_POINT_MM = 1.0  # reference points closer than this are one point
 APERTURE_TOL_MM = 100.0  # a measured aperture height further than this from the nominal model's is a mistake
 FRAMES = ("base", "sheet")  # the frame of a layout's points: the robot's base, or a printed sheet's own
 SPOT_FAR_MM = 60.0  # a measured spot farther than this from its point is a unit or column mistake
+AIM_FAR_MM = 150.0  # an aim off its point farther than this is out of its cell on any printed sheet
 AIMING = {"tilt_deg": Range(0.0, 90.0, "deg"), "length": Range(0.0, 5000.0, "mm", lo_open=True)}
 
 
@@ -496,8 +499,10 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     check_limits(cpath, robot, q, lines)
     check_repeats(cpath, names, q, lines)
     spots = measured_spots(cpath, rows, header)
+    aims = aimed_spots(cpath, rows, header)
     known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
     known |= set(SPOT_XY) if spots is not None else set()
+    known |= set(AIM_XY) if aims is not None else set()
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
     }
@@ -523,6 +528,19 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
                 ypath, f"aim_offset must be [dx, dy] within {SPOT_FAR_MM:g} mm", field="aim_offset"
             )
         target[:, :2] += offset
+    if aims is not None:  # the coach planned the spot off the point: aimed there (--aim anywhere)
+        off = np.isfinite(aims[:, 0])
+        far = off & (np.linalg.norm(aims - target[:, :2], axis=1) > AIM_FAR_MM)
+        if far.any():
+            i = int(np.flatnonzero(far)[0])
+            raise FormatError(
+                cpath,
+                f"the aim lies {np.linalg.norm(aims[i] - target[i, :2]):.0f} mm from {names[i]} (expected "
+                f"within {AIM_FAR_MM:g} mm, its cell on the sheet; mm in the layout's frame)",
+                line=int(lines[i]),
+                field="aim_x",
+            )
+        target[off, :2] = aims[off]
     spot_sigma = None
     if spots is not None:  # a measured spot is where the beam was: the fit's target, with its uncertainty
         ok = np.isfinite(spots[1])
