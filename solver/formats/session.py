@@ -26,7 +26,6 @@ import numpy as np
 
 from lasercal.solver.errors import AimingError, FormatError
 from lasercal.solver.formats.captures import (
-    AIM_XY,
     SESSION_FORMAT,
     SPOT_XY,
     UNITS,
@@ -502,7 +501,6 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     aims = aimed_spots(cpath, rows, header)
     known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
     known |= set(SPOT_XY) if spots is not None else set()
-    known |= set(AIM_XY) if aims is not None else set()
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
     }
@@ -549,9 +547,9 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
             i = int(np.flatnonzero(far)[0])
             raise FormatError(
                 cpath,
-                f"the measured spot lies {np.linalg.norm(spots[0][i] - target[i, :2]):.0f} mm from "
-                f"{names[i]} "
-                f"(expected within {SPOT_FAR_MM:g} mm of the point aimed at, mm in the layout's frame)",
+                f"the measured spot lies {np.linalg.norm(spots[0][i] - target[i, :2]):.0f} mm from where "
+                f"{names[i]}'s capture was aimed (expected within {SPOT_FAR_MM:g} mm; mm, the layout's "
+                "frame)",
                 line=int(lines[i]),
                 field="camera_x",
             )

@@ -1,0 +1,142 @@
+"""Issue 38 item 3, aim anywhere: with a camera the spot need not be on a cross -- the coach plans it
+anywhere on the sheet's white paper, and the session records where it was aimed."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from lasercal.collector.errors import SessionError
+from lasercal.collector.sessions.anywhere import CLEAR_MM, cells
+from lasercal.collector.sessions.settings import capture_settings
+from lasercal.collector.sessions.start import CaptureGuide, start_capture
+from lasercal.solver.analysis.design import Coach
+from lasercal.solver.errors import FormatError, LasercalError
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout, load_session
+from lasercal.vision.sheet import ARM, LINE, blank_spots, design_sheet, page_to_sheet, write_layout
+
+PLACE = {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0}
+
+
+@pytest.fixture(scope="module")
+def sheet(tmp_path_factory):
+    """An A4 sheet's layout.yaml as `lasercal sheet --place 450 0 0` writes it."""
+    path = tmp_path_factory.mktemp("sheet") / "layout.yaml"
+    write_layout(path, design_sheet("A4"), -8.0, PLACE)
+    return path
+
+
+def _to_boxes(xy: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Distances (k, b) from points (k, 2) to axis-aligned boxes (b, 4: x0, y0, x1, y1), mm."""
+    dx = np.maximum(np.maximum(boxes[None, :, 0] - xy[:, None, 0], xy[:, None, 0] - boxes[None, :, 2]), 0)
+    dy = np.maximum(np.maximum(boxes[None, :, 1] - xy[:, None, 1], xy[:, None, 1] - boxes[None, :, 3]), 0)
+    return np.hypot(dx, dy)
+
+
+@pytest.mark.parametrize("paper", ["A4", "A3", "letter"])
+def test_blank_spots_keep_clear_of_every_mark_the_sheet_prints(paper):
+    """Against the design's own geometry, independent of the raster: no spot nearer than CLEAR_MM (less a
+    raster pixel) to a marker's square or a cross's arms, the scale bars or the instructions' box; all
+    inside the markers' span; and they cover the paper (at least a third of the span's 10 mm grid)."""
+    d = design_sheet(paper)
+    xy = blank_spots(d, 10.0, CLEAR_MM)
+    tol = 0.25 + LINE  # a raster pixel and a line's width
+    corners = np.array(list(d.markers.values()))
+    squares = np.c_[corners.min(axis=1), corners.max(axis=1)]
+    assert _to_boxes(xy, squares).min() >= CLEAR_MM - tol
+    centres = np.array(list(d.points.values()))
+    arm = np.array([[-ARM[1], 0, ARM[1], 0], [0, -ARM[1], 0, ARM[1]]], dtype=float)  # both arms, sheet frame
+    crosses = (np.repeat(centres, 2, axis=0)[:, [0, 1, 0, 1]] + np.tile(arm, (len(centres), 1))).reshape(
+        -1, 4
+    )
+    assert _to_boxes(xy, crosses).min() >= CLEAR_MM - tol
+    u0, v0, u1, v1 = d.text_box
+    text = page_to_sheet([[u0, v0], [u1, v1]], d.width, d.height)
+    inside_text = np.all((xy >= text.min(axis=0)) & (xy <= text.max(axis=0)), axis=1)
+    assert inside_text.sum() <= 0.05 * len(xy)  # the box's blank end of the last line at most
+    lo, hi = corners.reshape(-1, 2).min(axis=0), corners.reshape(-1, 2).max(axis=0)
+    assert np.all((xy >= lo) & (xy <= hi))
+    grid = np.prod(np.floor((hi - lo) / 10.0) + 1)
+    assert len(xy) >= grid / 3, (len(xy), grid)
+
+
+def test_the_coach_plans_spots_anywhere_in_each_points_cell(sheet):
+    """Cells: every spot belongs to its nearest calibration point. The coach's plan then aims at those spots
+    (not at the crosses): each planned target is one of its cell's spots, and most lie well off the cross."""
+    layout = load_layout(sheet)
+    spots = cells(layout, sheet)
+    assert set(spots) == set(layout.calibration)
+    centres = np.array([layout.points[k][:2] for k in layout.calibration])
+    for i, k in enumerate(layout.calibration):
+        near = np.argmin(np.linalg.norm(spots[k][:, None, :2] - centres[None], axis=2), axis=1)
+        assert len(spots[k]) >= 10 and np.all(near == i)
+    base = {k: layout.sheet.to_base(v, layout.plane_z) for k, v in spots.items()}
+    nominal = load_model("panda")
+    coach = Coach(nominal, layout.in_base(), 0, sheet=True, anywhere=base)
+    st = coach.status(np.empty((0, nominal.n)), k=12)
+    for name, target in zip(st.plan.point, st.plan.target):
+        assert np.linalg.norm(base[name] - target, axis=1).min() < 1e-9
+    off = np.linalg.norm(
+        st.plan.target[:, :2] - [layout.in_base().points[p][:2] for p in st.plan.point], axis=1
+    )
+    assert np.sum(off > 20.0) >= 6, off
+
+
+def test_a_camera_session_aims_where_the_coach_planned_and_records_it(sheet, tmp_path):
+    """The default of a camera session with the coach: aim anywhere. The simulated operator aims at each
+    planned spot with 3 mm of noise; the camera measures where it landed: within 4.5 sigma of the aim
+    (the aim's noise; the printer's scale and repeatability add < 0.3 mm). Aimed at a spot, recorded as
+    aim_x, aim_y; solve fits the session."""
+    given = {"backend": "fake", "per_point": 2, "camera": "fake", "aim_noise": 3.0, "seed": 5}
+    out = io.StringIO()
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), CaptureGuide(auto=True)).run(out)
+    session = load_session(tmp_path / "s")
+    assert session.meta["collector"]["aim"] == "anywhere" and "aim_offset" not in session.meta
+    aim = np.c_[session.extra["aim_x"].astype(float), session.extra["aim_y"].astype(float)]
+    layout = load_layout(sheet)
+    cross = np.array([layout.points[p][:2] for p in session.point])
+    assert np.sum(np.linalg.norm(aim - cross, axis=1) > 20.0) >= 4  # off the crosses
+    m = session.measured
+    assert m.sum() >= 7, out.getvalue()
+    miss = np.linalg.norm(session.target[m, :2] - aim[m], axis=1)
+    assert miss.max() < 4.5 * 3.0 * np.sqrt(2), miss
+    np.testing.assert_allclose(session.target[~m, :2], aim[~m])  # an unmeasured one: fitted to its aim
+    assert "mm on the sheet (" in out.getvalue() and "mm off P" in out.getvalue()
+
+
+def test_aim_anywhere_needs_a_camera_the_coach_and_a_printed_sheet(sheet, tmp_path):
+    """Refused before any folder is written: without a camera nothing says where the spot landed; without
+    the coach nobody plans it; on a layout no `lasercal sheet` printed, its white paper is unknown."""
+    base = {"backend": "fake", "per_point": 1, "aim": "anywhere", "seed": 0}
+    with pytest.raises(LasercalError, match="needs --camera and the coach"):
+        start_capture(capture_settings(base, str(sheet), str(tmp_path / "a")), CaptureGuide(auto=True))
+    with pytest.raises(LasercalError, match="needs --camera and the coach"):
+        given = {**base, "camera": "fake"}
+        start_capture(capture_settings(given, str(sheet), str(tmp_path / "b")), CaptureGuide(coach=False))
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("\n".join(ln for ln in sheet.read_text().splitlines() if not ln.startswith("paper:")))
+    with pytest.raises(SessionError, match="has no paper section"):
+        cells(load_layout(plain), plain)
+    assert not any((tmp_path / k).exists() for k in ("a", "b"))
+
+
+def test_an_aim_cell_left_half_empty_names_its_line_and_column(sheet, tmp_path):
+    """A torn or hand-edited aim: aim_x filled, aim_y empty is an error naming file, line and column."""
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 6}
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), CaptureGuide(auto=True)).run(
+        io.StringIO()
+    )
+    import csv
+
+    path = tmp_path / "s" / "captures.csv"
+    rows = list(csv.reader(path.read_text().splitlines()))
+    head = next(i for i, r in enumerate(rows) if r and not r[0].startswith("#"))
+    rows[head + 1][rows[head].index("aim_y")] = ""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    path.write_text(buf.getvalue())
+    with pytest.raises(FormatError, match=rf"line {head + 2}.*aim_y|aim_y.*line {head + 2}"):
+        load_session(tmp_path / "s")
