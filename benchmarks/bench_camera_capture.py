@@ -4,7 +4,7 @@ As the outside check runs it: ``lasercal sheet --place 450 0 0``, ``capture --ba
 --per-point 9`` with ``--aim-noise 0.5`` (eye) and with ``--aim-noise 3 --camera fake`` (camera), each
 ``solve --extend auto``, then ``validate --backend fake -n 30 --point P6``; the figure is validate's
 ``error mean``. The floor: the true robot itself (the thesis's identified Panda, at the sheet's true pose)
-validated in the same simulated world.
+validated in the same simulated world (the sheet where it was laid, as the printer scaled it).
 
     python benchmarks/bench_camera_capture.py [RUN ...]
 
@@ -56,9 +56,9 @@ def run(options: str, where: Path) -> tuple[float, float, float]:
     val = ["--layout", "sheet/layout.yaml", "--backend", "fake", "-n", "30", "--point", "P6"]
     err = error_mean(lasercal("validate", "m.yaml", *val, "-o", "val", cwd=where))
     truth = load_model("panda_thesis_identified")  # at the sheet's placement: capture --backend fake's world
-    truth.replace(sheet=SheetPose(450.0, 0.0, 0.0), identification={"session": "s"}, plane_z=-8.0).save(
-        where / "truth.yaml"
-    )
+    world = load_session(where / "s").meta["simulated"].get("world", {})
+    printed = SheetPose(450.0, 0.0, 0.0, *world.get("print_scale", (1.0, 1.0)))  # as the printer scaled it
+    truth.replace(sheet=printed, identification={"session": "s"}, plane_z=-8.0).save(where / "truth.yaml")
     floor = error_mean(lasercal("validate", "truth.yaml", *val, "-o", "valtruth", cwd=where))
     return err, floor, float(load_session(where / "s").t[-1])
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lasercal.solver.kinematics.sheet import SheetPose
+
 
 def format_diagnosis(d) -> str:
     """A person's summary of a Diagnosis."""
@@ -90,22 +92,40 @@ def identifiable_text(rank: int, parameters: int, possible: int | None = None) -
     return text + (f" ({possible} possible from spots)" if possible is not None else "")
 
 
+def _print_and_tilt(pose, std=None) -> str:
+    """A sheet's print scale (in percent off exact) and tilt (mrad) along its x, y axes, with their standard
+    deviations (a dict of SheetPose's keys) when given: 'printed at +0.070 ± 0.010, -0.162 ± 0.010 %,
+    tilted 4.78 ± 0.10, -0.30 ± 0.10 mrad along its x, y'."""
+
+    def pm(v, k, f):
+        return f"{v:+.{f}f}" + (
+            "" if std is None else f" ± {abs(std.get(k, 0.0)) * (100 if f == 3 else 1000):.{f}f}"
+        )
+
+    scale = ", ".join(pm(100 * (getattr(pose, k) - 1), k, 3) for k in ("scale_x", "scale_y"))
+    tilt = ", ".join(pm(1000 * getattr(pose, k), k, 2) for k in ("tilt_x_rad", "tilt_y_rad"))
+    return f"printed at {scale} %, tilted {tilt} mrad along its x, y"
+
+
 def format_true_sheet(found, true, laid, G) -> str:
     """A simulated sheet session's check of ``solve``'s sheet pose against the truth (one line).
 
     Parameters
     ----------
-    found : dict x_mm, y_mm, yaw_deg (and ``std``: the same keys), the identified pose
+    found : dict x_mm, y_mm, yaw_deg[, scale_x, scale_y] (and ``std``: the same keys), the identified pose
     true : SheetPose, where the sheet truly lies in the true robot's own base frame
     laid : SheetPose, where it was laid, in the truth file's base frame
     G : (4, 4) array, the truth file's base frame to its own, mm
     """
     turn = np.degrees(np.arctan2(G[1, 0], G[0, 0]))
     tilt = np.degrees(np.arccos(np.clip(G[2, 2], -1.0, 1.0)))
-    z = [(found[k] - getattr(true, k)) / max(found["std"][k], 1e-12) for k in ("x_mm", "y_mm", "yaw_deg")]
+    found = SheetPose(**{k: v for k, v in found.items() if k != "std"}).as_dict() | {"std": found["std"]}
+    keys = [k for k in found["std"] if k in found]
+    z = [(found[k] - getattr(true, k)) / max(found["std"][k], 1e-12) for k in keys]
     return (
         f"simulated: the sheet truly lies at x {true.x_mm:.2f} mm, y {true.y_mm:.2f} mm, yaw "
-        f"{true.yaw_deg:.3f} deg in that frame (found - true: {z[0]:+.1f}, {z[1]:+.1f}, {z[2]:+.1f} sigma); "
+        f"{true.yaw_deg:.3f} deg in that frame, {_print_and_tilt(true)} (found - true: "
+        f"{', '.join(f'{v:+.1f}' for v in z)} sigma); "
         f"it was laid at x {laid.x_mm:.2f}, y {laid.y_mm:.2f} mm, yaw {laid.yaw_deg:.3f} deg in the true "
         f"robot's file frame, which its own frame turns by {turn:.3f} deg about z, tilts by {tilt:.3f} deg "
         f"and shifts by {np.hypot(G[0, 3], G[1, 3]):.2f} mm\n"
@@ -172,7 +192,8 @@ def format_solve(rep: dict) -> str:
         p, sd = sh["pose"], sh["std"]
         w(
             f"the sheet lies at x {p['x_mm']:.2f} ± {sd['x_mm']:.2f} mm, y {p['y_mm']:.2f} ± "
-            f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg (its origin and x axis "
+            f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg, "
+            f"{_print_and_tilt(SheetPose(**p), sd)} (its origin and x axis "
             "in the robot's own base frame: joint 1's axis is the nominal's, joint 2 points as the "
             "nominal's; a robot whose base differs from the nominal's sees a sheet laid at its placement "
             "elsewhere, docs/formats.md)\n"

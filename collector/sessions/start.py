@@ -8,7 +8,7 @@ nothing to clean up; what the session then does is :func:`sessions.capture.run_c
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -372,7 +372,12 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     nominal = load_model(cfg["robot"])
     effects = world.effects if world is not None else World()
     robot = make_robot(cfg, nominal, layout, truth=world and world.truth, repeat_sigma=effects.repeat_sigma)
-    placed = world and world.sheet
+    # where the simulated table holds the sheet, as printed: the markers read the printer's coordinates
+    placed = (
+        world
+        and world.sheet
+        and replace(world.sheet, scale_x=effects.print_scale[0], scale_y=effects.print_scale[1])
+    )
     camera, measure = make_camera(
         run["camera"], cfg, robot, layout, point, layout.path, sheet, placed, effects.sheet_dz
     )

@@ -127,14 +127,23 @@ def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tup
 
     Returns
     -------
-    SheetPose, the sheet in the truth's own frame; (4, 4) array G, the truth's base frame to its own, mm
+    SheetPose, the sheet in the truth's own frame, as printed; (4, 4) array G, the truth's base frame to its
+    own, mm
     """
     G = own_frame(world.truth, nominal)
     yaw = np.radians(world.sheet.yaw_deg)
     origin = G[:3, :3] @ np.r_[world.sheet.x_mm, world.sheet.y_mm, z] + G[:3, 3]
     x_axis = G[:3, :3] @ np.r_[np.cos(yaw), np.sin(yaw), 0.0]
     yaw_deg = float(np.degrees(np.arctan2(x_axis[1], x_axis[0])))
-    return SheetPose(float(origin[0]), float(origin[1]), yaw_deg), G
+    scale = world.effects.print_scale  # the printer's (eq. S3): solve finds it with the pose
+    # the table is level in the truth's file frame: in its own, it rises along the sheet's axes (eq. S3)
+    n = G[:3, 2]
+    rise = -n[:2] / n[2]
+    along = np.array([[np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))], [0.0, 0.0]])
+    along[1] = [-along[0, 1], along[0, 0]]
+    tilt = along @ rise
+    pose = SheetPose(float(origin[0]), float(origin[1]), yaw_deg, *map(float, scale), *map(float, tilt))
+    return pose, G
 
 
 def model_session(model: RobotModel, model_path) -> Path | None:

@@ -306,6 +306,8 @@ class Posterior:
     prior_root : (p, p) array, R = L^-1: the prior covariance is R R^T (eqs. D1, D4)
     target_xy : (m_used, 2) array, the used captures' points in the base frame, mm (what a sheet's pose
         would move: :func:`~lasercal.solver.identify.laser_parameters.counted_rank`)
+    slope : (m_used, 2) array, d spot / d plane height of the used captures' beams (what a sheet's tilt
+        would move)
     """
 
     params: LaserParams
@@ -320,6 +322,7 @@ class Posterior:
     rows: np.ndarray
     prior_root: np.ndarray
     target_xy: np.ndarray
+    slope: np.ndarray
 
     @property
     def prior_std(self) -> np.ndarray:
@@ -439,6 +442,7 @@ def posterior(
         v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
     used_xy = target[w > 0, :2] if m else np.zeros((0, 2))
     C = _posterior_cov(J, R, sigma)
+    d = P.beam(v, q[w > 0]).direction if m else np.zeros((0, 3))
     return Posterior(
         P,
         v,
@@ -452,6 +456,7 @@ def posterior(
         J,
         R,
         used_xy,
+        d[:, :2] / d[:, 2:],
     )
 
 
@@ -746,8 +751,10 @@ def identifiable(
     :func:`candidate_jacobian`, computed when not given)."""
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
     rows = post.rows.reshape(-1, 2, post.params.size)
-    return counted_rank(rows, post.target_xy, counted), counted_rank(
-        np.concatenate([rows, Jc]), np.vstack([post.target_xy, cand.target[:, :2]]), counted
+    d = post.params.beam(post.estimate, cand.q).direction
+    slope = np.vstack([post.slope, d[:, :2] / d[:, 2:]])
+    return counted_rank(rows, post.target_xy, counted, post.slope), counted_rank(
+        np.concatenate([rows, Jc]), np.vstack([post.target_xy, cand.target[:, :2]]), counted, slope
     )
 
 

@@ -25,7 +25,7 @@ from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
-from lasercal.solver.kinematics.sheet import SheetPose
+from lasercal.solver.kinematics.sheet import SCALE_KEYS, SheetPose
 
 PLANE_Z = Range(-5000.0, 5000.0, "mm")
 MASS = Range(0.0, 1000.0, "kg")
@@ -59,18 +59,26 @@ def _checked_screw(w, v, path, where: str, notes: list) -> np.ndarray:
     return S
 
 
-def sheet_values(d: dict, key: str, path, partial: bool = False) -> list | None:
-    """A mapping ``d[key]`` {x_mm, y_mm, yaw_deg} (a sheet's pose or its standard deviations) as three
-    finite numbers (None if absent; a key left out is 0 when ``partial``)."""
+def sheet_values(d: dict, key: str, path, partial: bool = False, scale: float = 1.0) -> list | None:
+    """A mapping ``d[key]`` {x_mm, y_mm, yaw_deg[, scale_x, scale_y]} (a sheet's pose or its standard
+    deviations) as five finite numbers (None if absent; a pose key left out is 0 when ``partial``, a scale
+    left out is ``scale``: 1 for a pose, an exact print; 0 for its standard deviation)."""
     m = d.get(key)
     if m is None:
         return None
-    if not isinstance(m, dict) or set(m) - set(SHEET_KEYS) or (not partial and set(m) != set(SHEET_KEYS)):
-        raise FormatError(path, f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg}}", field=key)
+    keys = SHEET_KEYS + SCALE_KEYS
+    if not isinstance(m, dict) or set(m) - set(keys) or (not partial and set(SHEET_KEYS) - set(m)):
+        raise FormatError(
+            path, f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg[, scale_x, scale_y]}}", field=key
+        )
     vals = []
-    for k in SHEET_KEYS:
+    for k in keys:
         try:
-            v = float(m.get(k, 0.0)) if not isinstance(m.get(k), bool) else math.nan
+            v = (
+                float(m.get(k, scale if k in SCALE_KEYS else 0.0))
+                if not isinstance(m.get(k), bool)
+                else math.nan
+            )
         except (TypeError, ValueError):
             v = math.nan
         if not math.isfinite(v):
@@ -88,9 +96,14 @@ def sheet_pose(d: dict, key: str, path, placement: bool = False) -> SheetPose | 
     vals = sheet_values(d, key, path, partial=placement)
     if vals is None:
         return None
-    bad = sheet_pose_problem(vals, absolute=placement)
+    bad = sheet_pose_problem(vals[:3], absolute=placement)
     if bad:
         raise FormatError(path, bad[1], field=key if bad[0] is None else f"{key}.{SHEET_KEYS[bad[0]]}")
+    for k, v in zip(SCALE_KEYS, vals[3:]):
+        if not 0.9 < v < 1.1:  # a printer scales by a few 0.1 %: a percentage or a ppm figure written here
+            raise FormatError(
+                path, f"{v:g} (expected a printer's scale factor, 1 for an exact print)", field=f"{key}.{k}"
+            )
     hint = radians_hint(vals[2]) if placement else None
     if hint:
         warn(f"{path}, field '{key}.yaw_deg': {hint}")
@@ -231,13 +244,13 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
     prior = d.get("prior") or {}
     DEFAULTS.updated(prior, path)  # validated here too
-    sheet, sheet_std = sheet_pose(d, "sheet", path), sheet_values(d, "sheet_std", path)
+    sheet, sheet_std = sheet_pose(d, "sheet", path), sheet_values(d, "sheet_std", path, scale=0.0)
     if sheet_std is not None and sheet is None:
         raise FormatError(
             path, "'sheet_std' needs 'sheet' (the pose it is the uncertainty of)", field="sheet_std"
         )
     if sheet_std is not None and min(sheet_std) < 0:
-        k = SHEET_KEYS[int(np.argmin(sheet_std))]
+        k = (SHEET_KEYS + SCALE_KEYS)[int(np.argmin(sheet_std))]
         raise FormatError(
             path, f"{min(sheet_std):g} (expected a standard deviation >= 0)", field=f"sheet_std.{k}"
         )
@@ -264,7 +277,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         extensions=dict(d.get("extensions", {}) or {}),
         prior=dict(prior),
         sheet=sheet,
-        sheet_std=None if sheet_std is None else dict(zip(SHEET_KEYS, sheet_std)),
+        sheet_std=None if sheet_std is None else dict(zip(SHEET_KEYS + SCALE_KEYS, sheet_std)),
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
         nominal=nominal,

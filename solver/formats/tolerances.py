@@ -34,6 +34,8 @@ KINDS = {
     "sensor_pos": "sensor_mm",  # the 3-D sensor's frame, translation
     "sheet_pos": "sheet_mm",  # a printed sheet's position on the table
     "sheet_yaw": "sheet_rad",  # a printed sheet's rotation on the table
+    "sheet_scale": "print_scale",  # a printer's scale along a sheet's axis, minus 1
+    "sheet_tilt": "table_tilt_rad",  # a sheet's rise per mm along its axis (the table against joint 1)
     "joint_compliance": "compliance_rad_per_nm",
     "lateral_compliance": "compliance_rad_per_nm",  # a link bending across its joint (same tolerance)
     "encoder_eccentricity": "eccentricity_rad",
@@ -61,6 +63,10 @@ class Tolerances:
     point_mm : float, a reference point identified with the robot (per axis)
     sensor_rad, sensor_mm : float, the 3-D sensor's frame (inf: anywhere)
     sheet_mm, sheet_rad : float, a printed sheet's placement on the table about its stated placement
+    print_scale : float, a printer's scale error along each of a sheet's axes (dimensionless; 0.002 =
+        0.2 %: office printers at 100 % scale within a few 0.1 %, and the sheet's bars catch more)
+    table_tilt_rad : float, the table's (the sheet's) tilt from the plane normal to joint 1's axis, per
+        axis (0.01: a robot bolted down a few mm out of level over its base)
     compliance_rad_per_nm : float, a joint compliance c (q_true = q + c tau)
     eccentricity_rad : float, an encoder eccentricity amplitude (a, b)
     drift_rad_per_s : float, a joint drift rate
@@ -81,6 +87,8 @@ class Tolerances:
     sensor_mm: float = math.inf
     sheet_mm: float = 50.0
     sheet_rad: float = math.radians(15.0)
+    print_scale: float = 0.002
+    table_tilt_rad: float = 0.01
     compliance_rad_per_nm: float = 1e-3
     eccentricity_rad: float = 1e-2
     drift_rad_per_s: float = 1e-5

@@ -6,8 +6,10 @@ A laser fit's parameters (``solve``, the report, ``plan`` and the capture coach 
 * the robot's: per joint its axis direction (wx, wy) and position across it (qx, qy), eq. M1 of
   :mod:`solver.kinematics.minimal`; the beam's direction (laser.vx, vy) and where it starts (M.x, y, z);
 * on a sheet session (``frame: sheet``), the sheet's pose on the table (sheet.x, sheet.y, sheet.yaw, eq. S1),
-  less the parameters held to fix the robot's own base frame (:func:`sheet_gauge`): spots on a sheet
-  cannot tell a motion of the base in the table's plane from the sheet's;
+  the printer's scale along its axes (sheet.ex, sheet.ey) and its tilt from joint 1's normal plane
+  (sheet.tx, sheet.ty, eq. S3), less the parameters held to fix the robot's own base frame
+  (:func:`sheet_gauge`): spots on a sheet cannot tell a motion of the base in the table's plane from the
+  sheet's;
 * an extension's (``--extend``), when one is fitted.
 
 Of these, spots never see where the beam starts along itself (one combination of M.x, y, z: the height
@@ -27,7 +29,19 @@ from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.minimal import screw_from_eta
 from lasercal.solver.kinematics.poe import ad
 
-SHEET_NAMES = ["sheet.x", "sheet.y", "sheet.yaw"]  # mm, mm, rad: eq. S1's pose, identified with the robot
+# mm, mm, rad, 1, 1, rad, rad: eq. S1's pose and eq. S3's print scale (e = scale - 1) and tilt, identified
+# with the robot
+SHEET_NAMES = ["sheet.x", "sheet.y", "sheet.yaw", "sheet.ex", "sheet.ey", "sheet.tx", "sheet.ty"]
+SHEET_KINDS = [
+    "sheet_pos",
+    "sheet_pos",
+    "sheet_yaw",
+    "sheet_scale",
+    "sheet_scale",
+    "sheet_tilt",
+    "sheet_tilt",
+]
+NSHEET = len(SHEET_NAMES)
 
 
 def sheet_gauge(P: LaserParams) -> list[int]:
@@ -83,8 +97,8 @@ class CountedParameters:
         joints = (self.robot - 5) // 4
         parts = [f"{joints} joints x 4 (axis direction, position)", "beam direction 2", "beam start 3"]
         if self.sheet:
-            parts.append("sheet pose 3")
-        extra = len(self.names) - self.robot - 3 * self.sheet
+            parts.append("sheet pose 3, print scale 2 and tilt 2")
+        extra = len(self.names) - self.robot - NSHEET * self.sheet
         if extra:
             parts.append(f"extension {extra}")
         text = f"{self.count} = " + " + ".join(parts)
@@ -107,15 +121,19 @@ def counted_parameters(P: LaserParams, sheet: bool, extension_names=()) -> Count
     return CountedParameters(names, np.setdiff1d(np.arange(len(names)), held), P.size, sheet)
 
 
-def counted_rank(J: np.ndarray, target_xy: np.ndarray, counted: CountedParameters) -> int:
+def counted_rank(
+    J: np.ndarray, target_xy: np.ndarray, counted: CountedParameters, slope: np.ndarray | None = None
+) -> int:
     """The SVD rank of the captures' spot Jacobian over the counted parameters (no prior).
 
     Parameters
     ----------
     J : (m, 2, p) array, d spot / d robot parameters (P's order)
     target_xy : (m, 2) array, the captures' points in the base frame, mm (a sheet's pose moves them:
-        d point / d(x, y, yaw) = [e_x, e_y, e_z x point], eq. S1; where the turn is about does not change
-        the rank)
+        d point / d(x, y, yaw, ex, ey) = [e_x, e_y, e_z x point, x e_x, y e_y], eqs. S1, S3; where the turn
+        and the scale are about, and the sheet's small yaw, do not change the rank)
+    slope : (m, 2) array, d spot / d plane height of each capture's beam (d_xy / d_z): a sheet's tilt moves
+        the plane under the spot by point . (tx, ty) (eq. S3), points about their mean
     counted : CountedParameters of the robot (and sheet), without an extension
 
     Returns
@@ -126,9 +144,11 @@ def counted_rank(J: np.ndarray, target_xy: np.ndarray, counted: CountedParameter
         return 0
     cols = [J]
     if counted.sheet:
-        S = np.zeros((len(J), 2, 3))
+        S = np.zeros((len(J), 2, NSHEET))
         S[:, 0, 0] = S[:, 1, 1] = -1.0  # residual = spot - point
         S[:, 0, 2], S[:, 1, 2] = target_xy[:, 1], -target_xy[:, 0]
+        S[:, 0, 3], S[:, 1, 4] = -target_xy[:, 0], -target_xy[:, 1]
+        S[:, :, 5:] = slope[:, :, None] * (target_xy - target_xy.mean(axis=0))[:, None, :]
         cols.append(S)
     A = np.concatenate(cols, axis=2)[:, :, counted.free]
     return identifiability(A.reshape(-1, counted.count), [counted.names[i] for i in counted.free])[0].rank

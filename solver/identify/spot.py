@@ -30,7 +30,7 @@ from scipy import optimize
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.tolerances import Tolerances
-from lasercal.solver.identify.laser_parameters import counted_parameters
+from lasercal.solver.identify.laser_parameters import NSHEET, SHEET_KINDS, counted_parameters
 from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_outliers, identifiability
 from lasercal.solver.identify.prior import Prior, make_prior
 from lasercal.solver.kinematics.effects import Extension, require
@@ -38,7 +38,7 @@ from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_
 from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
-from lasercal.solver.kinematics.sheet import SheetPose, sheet_to_base
+from lasercal.solver.kinematics.sheet import SCALE_KEYS, TILT_KEYS, SheetPose, sheet_to_base
 
 
 @dataclass(frozen=True, eq=False)
@@ -350,18 +350,14 @@ def identify_lm(
     if extension:
         require(extension, t, tau)
     sheet = session.frame == "sheet"
-    nsh = 3 if sheet else 0
+    nsh = NSHEET if sheet else 0
     if 2 * m <= 8:
         raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
     pose0 = (session.sheet or sheet_start(session, start)) if sheet else None
     u0 = np.r_[P.x0(), pose0.vector if sheet else [], np.zeros(k)]
     counted = counted_parameters(P, sheet, extension.names if extension else ())
     held, free, names_all = counted.held, counted.free, list(counted.names)
-    kinds_all = (
-        P.kinds
-        + (["sheet_pos", "sheet_pos", "sheet_yaw"] if sheet else [])
-        + (extension.kinds if extension else [])
-    )
+    kinds_all = P.kinds + (SHEET_KINDS if sheet else []) + (extension.kinds if extension else [])
     names = [names_all[i] for i in free]
     tol = session.tolerances
     if tol is not None and sheet and session.sheet is None:  # no stated placement: no prior on the pose
@@ -373,33 +369,37 @@ def identify_lm(
         return u
 
     def model_inputs(u):
-        """True configurations and in-plane base-frame targets under parameters u = [x, pose, theta]."""
-        tg = sheet_to_base(u[p : p + 3], target[:, :2], target[:, 2])[0][:, :2] if sheet else target[:, :2]
+        """True configurations, in-plane base-frame targets and the plane's height at each (eqs. S1, S3)
+        under parameters u = [x, pose, theta]."""
+        placed = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[0] if sheet else target
+        tg, z = placed[:, :2], placed[:, 2]
         if not extension:
-            return q, tg
+            return q, tg, z
         e = extension.with_params(u[p + nsh :])
-        return e.true_q(q, t, tau), tg + e.target_offset(session.point)
+        return e.true_q(q, t, tau), tg + e.target_offset(session.point), z
 
     def residual(v):
         u = embed(v)
-        qt, tg = model_inputs(u)
-        spot, _ = P.spots(u[:p], qt, target[:, 2])
+        qt, tg, z = model_inputs(u)
+        spot, _ = P.spots(u[:p], qt, z)
         return spot[:, :2] - tg
 
     def jacobian(v):
         u = embed(v)
-        qt, _ = model_inputs(u)
-        _, _, J = P.spot_jacobian(u[:p], qt, target[:, 2])
+        qt, _, z = model_inputs(u)
+        _, _, J = P.spot_jacobian(u[:p], qt, z)
         cols = [J]
-        if sheet:
-            cols.append(-sheet_to_base(u[p : p + 3], target[:, :2], target[:, 2])[1][:, :2])
+        if sheet:  # the target moves in the plane; the plane's height moves the spot along the beam
+            Js = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[1]
+            d = P.beam(u[:p], qt).direction
+            cols.append(-Js[:, :2] + (d[:, :2] / d[:, 2:])[:, :, None] * Js[:, 2:3])
         if extension and extension.effect == "reference_point_offset":
             Je = np.zeros((m, 2, 2))
             Je[session.point == extension.point] = -np.eye(2)
             cols.append(Je)
         elif extension:
             idx, G = extension.regressors(q, t, tau)
-            _, Jq = spot_joint_jacobian(P.to_model(u[:p]), qt, target[:, 2])
+            _, Jq = spot_joint_jacobian(P.to_model(u[:p]), qt, z)
             cols.append(Jq[:, :, idx] * G[:, None, :])
         return np.concatenate(cols, axis=2)[:, :, free]
 
@@ -491,8 +491,9 @@ def identify_lm(
     extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
     model = P.to_model(u[:p], identification=meta, extensions=extensions)
     if sheet:
-        std = se_all[p : p + 3] * [1, 1, 180 / np.pi]
-        model = model.replace(sheet=SheetPose.from_vector(u[p : p + 3]), sheet_std=dict(zip(SHEET_KEYS, std)))
+        std = se_all[p : p + nsh] * [1, 1, 180 / np.pi, 1, 1, 1, 1]
+        pose = SheetPose.from_vector(u[p : p + nsh])
+        model = model.replace(sheet=pose, sheet_std=dict(zip(SHEET_KEYS + SCALE_KEYS + TILT_KEYS, std)))
         nominal = nominal.replace(sheet=sheet_start(session, start))  # the nominal's best pose ("before")
     return Identification.from_fit(
         nominal,

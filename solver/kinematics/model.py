@@ -21,8 +21,8 @@ File format ``lasercal-robot/1`` (mm, rad), see README "Robot model":
     links: [...]           # optional: masses (kg) and centres of mass at q = 0 (mm)
     extensions: {}         # optional: non-geometric parameters (see solver.effects)
     prior: {}              # optional: manufacturing tolerances, every fit's prior (solver.identify.prior)
-    sheet: {x_mm, y_mm, yaw_deg}      # written by `solve` for a sheet session: the sheet's pose (eq. S1)
-    sheet_std: {x_mm, y_mm, yaw_deg}  # its standard deviations
+    sheet: {x_mm, y_mm, yaw_deg, scale_x, scale_y}  # `solve`, a sheet session: pose, print scale (S1, S3)
+    sheet_std: {x_mm, y_mm, yaw_deg, scale_x, scale_y}  # its standard deviations
     identification: {}     # written by `lasercal solve`: method, statistics, standard errors
 
 A tree (several tips, e.g. a torso with two arms) and coupled joints (solver.kinematics.tree):
@@ -89,7 +89,7 @@ class RobotModel:
     prior : dict, tolerances overriding the defaults of :mod:`solver.identify.prior` (mm, rad)
     sheet : SheetPose or None, the printed sheet's pose in the base frame, identified by ``solve``
         (:mod:`solver.kinematics.sheet`); the plane's height is ``plane_z``
-    sheet_std : dict or None, its standard deviations {x_mm, y_mm, yaw_deg}
+    sheet_std : dict or None, its standard deviations {x_mm, y_mm, yaw_deg, scale_x, scale_y}
     identification : dict, metadata written by an identification
     notes : tuple of str, what was corrected on load (never silent)
     nominal : str or None, the nominal model this one calibrates: a built-in name, or a YAML or URDF path

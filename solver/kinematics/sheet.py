@@ -6,8 +6,17 @@ in-plane pose is three numbers, (x, y, yaw):
 
     p_base = Rz(yaw) p_sheet + [x, y, Z]                                   (eq. S1)
 
-``solve`` identifies (x, y, yaw) with the robot when a layout says ``frame: sheet``. With the sheet's
-pose unknown, the base frame is the robot's own (eq. S2, :mod:`solver.kinematics.frames`).
+A printer scales the page a little along each of its axes (a few 0.1 %, docs/sheet.md), and a table is
+flat but not quite perpendicular to joint 1's axis (a robot bolted down tilted by a few mrad: the
+thesis's Panda's joint 1 leans 4.8 mrad from its table's normal). The sheet's coordinates as printed are
+then s = diag(1 + ex, 1 + ey) p_sheet, and its surface rises by tx, ty per mm along them:
+
+    p_base = [Rz(yaw) s + [x, y],  Z + tx s_x + ty s_y]                   (eq. S3)
+
+``solve`` identifies (x, y, yaw, ex, ey, tx, ty) with the robot when a layout says ``frame: sheet``: on
+a camera session, where spots are measured to a few hundredths of a mm, an unmodelled 0.2 % print or a
+4.8 mrad tilt leaves about 0.1 mm of misfit. With the sheet's pose unknown, the base frame is the robot's
+own (eq. S2, :mod:`solver.kinematics.frames`).
 """
 
 from __future__ import annotations
@@ -18,68 +27,92 @@ from dataclasses import dataclass
 import numpy as np
 
 KEYS = ("x_mm", "y_mm", "yaw_deg")
+SCALE_KEYS = ("scale_x", "scale_y")  # the printer's scale along the sheet's axes (1: exact), eq. S3
+TILT_KEYS = ("tilt_x_rad", "tilt_y_rad")  # the surface's rise along the sheet's axes (0: level), eq. S3
 
 
 @dataclass(frozen=True)
 class SheetPose:
-    """The sheet frame's pose in the base frame (eq. S1).
+    """The sheet frame's pose in the base frame (eqs. S1, S3).
 
     Attributes
     ----------
     x_mm, y_mm : float, the sheet origin's position in the base frame, mm
     yaw_deg : float, the sheet's x axis from the base x axis, about +z, deg
+    scale_x, scale_y : float, the printer's scale along the sheet's x and y axes (1: exact)
+    tilt_x_rad, tilt_y_rad : float, the sheet's rise per mm along its x and y axes, rad (0: level)
     """
 
     x_mm: float = 0.0
     y_mm: float = 0.0
     yaw_deg: float = 0.0
+    scale_x: float = 1.0
+    scale_y: float = 1.0
+    tilt_x_rad: float = 0.0
+    tilt_y_rad: float = 0.0
 
     @property
     def vector(self) -> np.ndarray:
-        """(3,) array [x mm, y mm, yaw rad]: the parameters an identification moves."""
-        return np.array([self.x_mm, self.y_mm, math.radians(self.yaw_deg)])
+        """(7,) array [x mm, y mm, yaw rad, ex, ey, tx rad, ty rad] (e = scale - 1): what a fit moves."""
+        return np.array(
+            [self.x_mm, self.y_mm, math.radians(self.yaw_deg), self.scale_x - 1, self.scale_y - 1]
+            + [self.tilt_x_rad, self.tilt_y_rad]
+        )
 
     @classmethod
     def from_vector(cls, v) -> SheetPose:
-        """The pose of a parameter vector [x mm, y mm, yaw rad]."""
-        return cls(float(v[0]), float(v[1]), math.degrees(float(v[2])))
+        """The pose of a parameter vector [x mm, y mm, yaw rad] or [x, y, yaw, ex, ey, tx, ty]."""
+        x, y, yaw, ex, ey, tx, ty = (list(map(float, v)) + [0.0] * 4)[:7]
+        return cls(x, y, math.degrees(yaw), 1.0 + ex, 1.0 + ey, tx, ty)
 
     def as_dict(self) -> dict:
-        """``{x_mm, y_mm, yaw_deg}``, the model and layout files' ``sheet`` mapping."""
-        return {k: float(round(getattr(self, k), 9)) for k in KEYS}
+        """``{x_mm, y_mm, yaw_deg}``, with ``{scale_x, scale_y, tilt_x_rad, tilt_y_rad}`` when the print is
+        not exact or the sheet not level: the model and layout files' ``sheet`` mapping."""
+        exact = (self.scale_x, self.scale_y, self.tilt_x_rad, self.tilt_y_rad) == (1.0, 1.0, 0.0, 0.0)
+        keys = KEYS + (() if exact else SCALE_KEYS + TILT_KEYS)
+        return {k: float(round(getattr(self, k), 9 if k in KEYS else 12)) for k in keys}
 
     def to_base(self, p_sheet: np.ndarray, z: float) -> np.ndarray:
-        """Sheet points (k, 2) or (k, 3) (z ignored) to the base frame (k, 3), mm (eq. S1)."""
+        """Sheet points (k, 2) or (k, 3) (their z ignored) to the base frame (k, 3), mm, on a sheet whose
+        origin lies at height z (eqs. S1, S3)."""
         return sheet_to_base(self.vector, np.asarray(p_sheet, dtype=float), z)[0]
 
     def from_base(self, p_base: np.ndarray) -> np.ndarray:
-        """Base-frame points (k, 2) or (k, 3) to sheet coordinates (k, 2), mm (eq. S1 inverted)."""
+        """Base-frame points (k, 2) or (k, 3) to sheet coordinates (k, 2), mm (eqs. S1, S3 inverted in the
+        table's plane: a point's height is the sheet's there)."""
         p = np.atleast_2d(np.asarray(p_base, dtype=float))[:, :2] - [self.x_mm, self.y_mm]
         c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
-        return p @ np.array([[c, -s], [s, c]])
+        return p @ np.array([[c, -s], [s, c]]) / [self.scale_x, self.scale_y]
 
 
 def sheet_to_base(v: np.ndarray, p_sheet: np.ndarray, z) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. S1 and its Jacobian with respect to v = [x mm, y mm, yaw rad].
+    """Eqs. S1, S3 and the Jacobian with respect to v = [x mm, y mm, yaw rad, ex, ey, tx rad, ty rad].
 
     Parameters
     ----------
-    v : (3,) array
+    v : (7,) array (or (3,): an exact print on a level sheet)
     p_sheet : (k, 2) or (k, 3) array, sheet coordinates, mm (a third column is ignored)
-    z : float or (k,) array, the sheet's height in the base frame, mm
+    z : float or (k,) array, the sheet's height in the base frame at its origin, mm
 
     Returns
     -------
     p : (k, 3) array, base frame, mm
-    J : (k, 3, 3) array, dp/dv (the z row is zero)
+    J : (k, 3, len(v)) array, dp/dv
     """
-    p = np.atleast_2d(p_sheet)[:, :2]
+    raw = np.atleast_2d(p_sheet)[:, :2]
+    e, tilt = (np.asarray(v[3:5]), np.asarray(v[5:7])) if len(v) > 3 else (np.zeros(2), np.zeros(2))
+    p = raw * (1.0 + e)  # as printed
     c, s = math.cos(v[2]), math.sin(v[2])
     R = np.array([[c, -s], [s, c]])
     out = np.empty((len(p), 3))
     out[:, :2] = p @ R.T + v[:2]
-    out[:, 2] = z
-    J = np.zeros((len(p), 3, 3))
+    out[:, 2] = z + p @ tilt
+    J = np.zeros((len(p), 3, len(v)))
     J[:, 0, 0] = J[:, 1, 1] = 1.0
     J[:, :2, 2] = p @ np.array([[-s, -c], [c, -s]]).T  # dR/dyaw p
+    if len(v) > 3:
+        J[:, :2, 3] = raw[:, :1] * R[:, 0]  # d/d e_i: R's column i times the layout's coordinate
+        J[:, :2, 4] = raw[:, 1:2] * R[:, 1]
+        J[:, 2, 3], J[:, 2, 4] = raw[:, 0] * tilt[0], raw[:, 1] * tilt[1]
+        J[:, 2, 5], J[:, 2, 6] = p[:, 0], p[:, 1]  # d/d t_i: the printed coordinate
     return out, J
