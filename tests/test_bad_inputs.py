@@ -324,7 +324,7 @@ OPTION_VALUES = {
         "--refits": ["-1"],
         "--payload": ["1,2", "-1,0,0,0", "nan,0,0,0", "a,b,c,d"],
     }),
-    "predict": (PREDICT, {"--plane-z": ["nan", "inf"]}),
+    "predict": (PREDICT, {"--plane-z": ["nan", "inf"], "--payload": ["1,2", "0,0,0,0"]}),
     "simulate-fullpose": (SIMFP + ["-o", "{o}"], {
         "--configs": ["0", "-1"],
         "--angles": ["0", "2"],
@@ -1221,12 +1221,20 @@ def _replace_first_number(path: Path, text: str) -> None:
 
 # --- lasercal correct: its options, its goals file, its model ----------------------------------------------
 CORRECT = ["correct", "{d}/model.yaml", "{d}/configs.csv", "-o", "{o}"]
-for opt, values in {"--margin": ["-1", "nan", "1"], "--restarts": ["-1", "1.5"], "--tcp": ["nan"]}.items():
+for opt, values in {
+    "--margin": ["-1", "nan", "1"],
+    "--restarts": ["-1", "1.5"],
+    "--tcp": ["nan"],
+    "--payload": ["1,2", "0,0,0,0"],
+}.items():
     for v in values:
         case(f"correct {opt} {v}", CORRECT + [opt] + ([v, "0", "0"] if opt == "--tcp" else [v]), None, opt)
 case("correct: program in degrees", CORRECT, _degrees("configs.csv", Q), "configs.csv")
 case("correct: program value nan", CORRECT, _cell("configs.csv", 0, "q2", "nan"), "configs.csv")
 case("correct: unknown tool", CORRECT + ["--tool", "T9"], None, "--tool")
+case("correct: model payload mass text", CORRECT,
+     _yaml("model.yaml", _set("identification", "payload", {"mass": "heavy", "com": [0, 0, 900]})),
+     "identification.payload")  # fmt: skip
 case(
     "correct: no nominal",
     CORRECT,

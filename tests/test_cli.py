@@ -4,6 +4,9 @@ import csv
 import io
 import json
 import shutil
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -186,3 +189,25 @@ def test_third_party_warnings_never_reach_the_terminal(capsys):
         logging.getLogger("matplotlib.font_manager").warning("Matplotlib is building the font cache")
         warn("a capture saved twice")
     assert capsys.readouterr().err.splitlines() == ["lasercal: warning: a capture saved twice"]
+
+
+def test_stdout_closed_early_ends_quietly_with_141(session_dir, tmp_path):
+    """``lasercal predict ... | head -1``: the reader goes after one line; lasercal stops with 141 (128 +
+    SIGPIPE, as a shell reports) and prints nothing, where it printed ``lasercal: error: Broken pipe``."""
+    rows = list(csv.DictReader(open(session_dir / "captures.csv")))
+    cfg = tmp_path / "configs.csv"
+    with open(cfg, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow([f"q{i}" for i in range(1, 8)])
+        for _ in range(300):  # 300 x 45 rows of ~100 bytes: far more than a pipe holds (64 KiB)
+            w.writerows([r[f"q{i}"] for i in range(1, 8)] for r in rows)
+    child = subprocess.Popen(
+        [sys.executable, "-m", "lasercal.collector.cli.main", "predict", "panda_thesis_identified", str(cfg)],
+        cwd=Path(__file__).resolve().parents[1],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert child.stdout.readline().startswith(b"q1,q2,")
+    child.stdout.close()
+    err = child.stderr.read().decode()
+    assert (child.wait(timeout=120), err) == (141, "")

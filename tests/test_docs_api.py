@@ -1,5 +1,6 @@
 """docs/api.md's walkthrough runs: its ``python`` code blocks, in order, in one namespace, in an empty folder
-(simulate -> calibrate -> report -> plan -> correct; the blocks assert what they show)."""
+(simulate -> calibrate -> report -> plan -> correct -> stream through ``lasercal.Corrector``; the blocks
+assert what they show)."""
 
 from __future__ import annotations
 
@@ -41,9 +42,10 @@ def test_the_walkthrough_runs(tmp_path, monkeypatch, capsys):
         outputs.append(capsys.readouterr().out)
         if code in shown:  # what the doc shows under the block is what it printed, figure for figure
             assert untimed(outputs[-1].rstrip("\n")) == untimed(shown[code].rstrip("\n")), f"block {i + 1}"
-    assert len(shown) >= 5
+    assert len(shown) >= 6
     out = "".join(outputs)
     assert "captures at P1, P2, P3" in out and "5-fold cross-validated prediction error" in out
+    assert "the commands are correct's (within 1e-6 rad): True" in out  # the streaming corrector's block
     assert (tmp_path / "model.yaml").is_file() and (tmp_path / "report" / "index.html").is_file()
     # the model file the walkthrough saved is the one `lasercal solve` writes
     from lasercal.collector.cli.main import main

@@ -208,7 +208,7 @@ def calibrate(
     """
     from dataclasses import replace
 
-    from lasercal.solver.analysis.diagnose import diagnose
+    from lasercal.solver.analysis.diagnose import carried_payload, diagnose
     from lasercal.solver.analysis.stats import cross_validate, solve_report
     from lasercal.solver.errors import IdentificationError
     from lasercal.solver.formats.session import load_session
@@ -266,7 +266,7 @@ def calibrate(
             {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
         ]
     return Calibration(
-        model_file(source, session, ident, rep),
+        model_file(source, session, ident, rep, carried_payload(source, payload) if diagnosis else None),
         ident,
         session,
         rep,
@@ -279,10 +279,13 @@ def calibrate(
     )
 
 
-def model_file(source: Session, session: Session, ident: Identification, rep: dict) -> RobotModel:
+def model_file(
+    source: Session, session: Session, ident: Identification, rep: dict, payload=None
+) -> RobotModel:
     """The model a calibration writes: the identified geometry with its robot effects only, the record of
     its identification (``rep``'s fit statistics, prior, what determined it, cross-validation, diagnosis,
-    partial) and the nominal it calibrates (a built-in name, or an absolute path: found from any folder).
+    partial, the payload its torques carried) and the nominal it calibrates (a built-in name, or an
+    absolute path: found from any folder).
 
     Parameters
     ----------
@@ -290,6 +293,8 @@ def model_file(source: Session, session: Session, ident: Identification, rep: di
     session : Session, as calibrated (its measurement)
     ident : Identification
     rep : dict, the calibration's statistics (:attr:`Calibration.statistics`)
+    payload : (kg, (3,) mm at q = 0) or None, the flange's load in the fit's gravity torques
+        (``identification.payload``: ``predict`` and ``correct`` take the same torques)
 
     Returns
     -------
@@ -311,6 +316,8 @@ def model_file(source: Session, session: Session, ident: Identification, rep: di
     for k in ("unidentifiable_combinations", "prior", "determined_by", "cross_validation", "diagnosis"):
         if k in rep:
             meta[k] = rep[k]
+    if payload is not None:
+        meta["payload"] = {"mass": float(payload[0]), "com": [float(v) for v in payload[1]]}
     # the diagnosis's wall time is printed, not recorded: the file is a function of the data alone
     if "diagnosis" in meta:
         d = meta["diagnosis"]

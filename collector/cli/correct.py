@@ -6,7 +6,17 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lasercal.collector.cli.options import INFILE, ROBOT, count, name, number, output_argument
+from lasercal.collector.cli.options import (
+    INFILE,
+    ROBOT,
+    count,
+    name,
+    number,
+    output_argument,
+    parse_payload,
+    payload_argument,
+    unused,
+)
 
 
 def args_correct(p: argparse.ArgumentParser) -> None:
@@ -56,6 +66,7 @@ def args_correct(p: argparse.ArgumentParser) -> None:
         default=8,
         help="further starts from random configurations for a goal not reached (default 8)",
     )
+    payload_argument(p, recorded=True)
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
@@ -73,7 +84,10 @@ def cmd_correct(args) -> int:
         raise LasercalError(
             f"argument --tcp: {' '.join(f'{v:g}' for v in args.tcp)}: {metres_hint(args.tcp)}"
         )
-    robot = load_model(args.model, IKOptions(margin=args.margin, restarts=args.restarts))
+    options = IKOptions(margin=args.margin, restarts=args.restarts)
+    robot = load_model(args.model, options, payload=parse_payload(args.payload))
+    if robot.extension is None or "tau" not in robot.extension.needs():
+        unused(args, "the model has no compliance", "payload")
     goals = load_goals(args.goals, robot.model)
     try:
         tool = robot.tool(args.tool or args.tcp)

@@ -5,7 +5,8 @@ module of this package. ``lasercal --help`` imports none of them, so it starts f
 :class:`~lasercal.solver.errors.LasercalError` (or ``vision``'s ``VisionError``, or an ``OSError``
 on a file the user named) becomes a one-line message and exit code 2, never a traceback; a
 :class:`~lasercal.solver.errors.LasercalWarning` becomes a line ``lasercal: warning: ...`` and the
-command goes on. Output paths (declared with :func:`options.output_argument`) are checked before
+command goes on. Standard output closed early (``lasercal predict ... | head -1``) ends the command
+quietly, exit code 141. Output paths (declared with :func:`options.output_argument`) are checked before
 the handler runs (:func:`outputs_checked`).
 """
 
@@ -291,21 +292,53 @@ def warnings_as_lines():
         yield
 
 
+def stdout_closed() -> bool:
+    """Whether standard output is a pipe whose reader has gone (``lasercal predict ... | head -1``): the
+    kernel flags its write end with an error (Linux: ``POLLERR``; BSD/macOS: ``POLLHUP``). A broken pipe
+    elsewhere (a robot's or a camera's socket) stays an error the user is told about."""
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # not a file (a test's capture): it cannot break
+        return False
+    poller = select.poll()
+    poller.register(fd, select.POLLOUT)
+    return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poller.poll(0))
+
+
+def quiet_exit_for_closed_stdout() -> int:
+    """Python's recipe for a closed pipe (docs: signal, "Note on SIGPIPE"): standard output goes to
+    ``os.devnull``, so the flush at exit cannot fail again, and nothing is printed. Returns 141
+    (128 + SIGPIPE), what a shell reports for a program a closed pipe ended, as 130 is for Ctrl-C."""
+    import os
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return 141
+
+
 def main(argv=None) -> int:
-    """Run ``lasercal``; returns the exit code (0 ok, 2 bad input or nothing measured)."""
+    """Run ``lasercal``; returns the exit code (0 ok, 2 bad input or nothing measured, 130 interrupted,
+    141 standard output closed early)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = next((a for a in argv if not a.startswith("-")), None)
     try:
         args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
         quiet_libraries()
         with warnings_as_lines():
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a reader gone (``| head -1``) shows here, not at exit as Python's own message
+        return code
     except SystemExit:  # --help: matched first, so the error classes (and numpy) are not imported
         raise
     except _user_errors() as e:
         print(f"lasercal: error: {e}", file=sys.stderr)
         return 2
     except OSError as e:  # a file or folder the user named cannot be read or written (disk full, ...)
+        if isinstance(e, BrokenPipeError) and stdout_closed():
+            return quiet_exit_for_closed_stdout()
         where = f"{e.filename}: " if e.filename else ""
         print(f"lasercal: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2

@@ -397,15 +397,17 @@ PAYLOAD_KG = number(0, 100, "kg", lo_open=True)
 PAYLOAD_MM = number(-5000, 5000, "mm")
 
 
-def payload_argument(p: argparse.ArgumentParser) -> None:
+def payload_argument(p: argparse.ArgumentParser, recorded: bool = False) -> None:
     """``--payload KG,X,Y,Z``: the flange's load for the gravity torques of a session that logs none
-    (``diagnose``, ``solve --extend``)."""
+    (``diagnose``, ``solve --extend``), or of configurations without torques (``predict``, ``correct``:
+    ``recorded``, the model's own by default)."""
     p.add_argument(
         "--payload",
         type=numbers(4, lambda i: PAYLOAD_KG if i == 0 else PAYLOAD_MM, "KG,X,Y,Z"),
         metavar="KG,X,Y,Z",
         help="mass (kg) and centre of mass at q = 0 (mm) carried by the flange, for the gravity model when "
-        "torques are not logged",
+        "torques are not logged"
+        + (" (default: the payload the model's fit took, solve --payload)" if recorded else ""),
     )
 
 

@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 
+from lasercal.collector.cli.options import parse_payload, unused
 from lasercal.solver.control.nominal import gravity_robot
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import header_beside, load_configs
@@ -39,9 +40,11 @@ def cmd_predict_position(model: RobotModel, args) -> int:
         t = None if cfg.t is None else np.repeat(cfg.t, k)
         header = cfg.header + ["target"]
     ext = extension_from_model(model.extensions, args.model, model.n)
+    if ext is None or "tau" not in ext.needs() or tau is not None:
+        unused(args, "no torques are computed: no compliance, or the CSV's", "payload")
     if ext is not None:
-        if "tau" in ext.needs() and tau is None:
-            tau = model_torques(gravity_robot(model, args.model), q)[0]  # the fit's torques
+        if "tau" in ext.needs() and tau is None:  # the fit's torques
+            tau = model_torques(gravity_robot(model, args.model, payload=parse_payload(args.payload)), q)[0]
         if "t" in ext.needs() and t is None:
             raise FormatError(
                 args.configs, f"the {ext.effect} extension needs a 't' column (s)", line=1, field="t"

@@ -75,6 +75,7 @@ def args_predict(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--plane-z", type=number(-5000, 5000, "mm"), help="plane height, mm (default: the model's plane)"
     )
+    payload_argument(p, recorded=True)
     output_argument(p, "-o", "--output", help="CSV to write (default: standard output)")
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
@@ -222,6 +223,7 @@ def _predict(args) -> int:
     if model.identification.get("measurement") == "pose":
         from lasercal.collector.cli.poses import cmd_predict_pose
 
+        unused(args, "a pose model's effects take its robot's own gravity torques", "payload")
         return cmd_predict_pose(model, args)
     if model.identification.get("measurement") == "position":
         from lasercal.collector.cli.position import cmd_predict_position
@@ -236,10 +238,12 @@ def _predict(args) -> int:
         raise FormatError(args.model, "a point model needs a tool point (tool: {point: [...]})", field="tool")
     ext = extension_from_model(model.extensions, args.model, model.n)
     q = cfg.q
+    if ext is None or "tau" not in ext.needs() or cfg.tau is not None:
+        unused(args, "no torques are computed: no compliance, or the CSV's", "payload")
     if ext is not None:
         tau = cfg.tau
-        if "tau" in ext.needs() and tau is None:
-            tau = gravity_torques(gravity_robot(model, args.model), q)  # none logged: the fit's torques
+        if "tau" in ext.needs() and tau is None:  # none logged: the fit's torques (and its payload)
+            tau = gravity_torques(gravity_robot(model, args.model, payload=parse_payload(args.payload)), q)
         if "t" in ext.needs() and cfg.t is None:
             raise FormatError(
                 args.configs, f"the model's {ext.effect} extension needs a 't' column (s)", line=1, field="t"

@@ -214,14 +214,33 @@ class Diagnosis:
 
 
 def session_torques(session: Session, payload=None) -> tuple[np.ndarray | None, str]:
-    """Logged joint torques, or the robot's gravity model at the logged poses, or None."""
+    """Logged joint torques, or the robot's gravity model at the logged poses (with
+    :func:`carried_payload`), or None."""
     if session.tau is not None:
         return session.tau, "logged"
     if session.measurement == "position":  # URDFs of industrial arms often carry no inertias
         return model_torques(session.robot, session.q)
     if session.robot.links:
-        return gravity_torques(session.robot, session.q, payload), "gravity model"
+        return gravity_torques(session.robot, session.q, carried_payload(session, payload)), "gravity model"
     return None, "none"
+
+
+def carried_payload(session: Session, payload=None):
+    """The payload :func:`session_torques` puts in a session's torques: ``payload`` when they come from
+    the gravity model of a serial robot (a laser or point session that logs none), else None (logged
+    torques, a position session's, a tree's, a robot without a gravity model). What ``solve`` records.
+
+    Parameters
+    ----------
+    session : Session
+    payload : (mass kg, (3,) centre of mass at q = 0 in mm), or None
+
+    Returns
+    -------
+    ``payload`` or None
+    """
+    uses = session.tau is None and session.measurement != "position" and session.robot.links
+    return payload if uses and not session.robot.parents else None
 
 
 def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:

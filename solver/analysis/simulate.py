@@ -99,9 +99,7 @@ def simulate_captures(
     )
 
 
-def validation_spots(
-    truth: RobotModel, model: RobotModel, point, n: int, rng: Seed, **aim_kw
-) -> np.ndarray:
+def validation_spots(truth: RobotModel, model: RobotModel, point, n: int, rng: Seed, **aim_kw) -> np.ndarray:
     """The thesis's validation (Section 4.3): ``model`` computes n configurations aiming at the
     point; the true robot's beam lands at the returned spots (n, 3), mm."""
     point = np.asarray(point, dtype=float)

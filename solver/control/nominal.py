@@ -16,9 +16,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model, load_yaml, resolve_robot_path
+from lasercal.solver.kinematics.gravity import with_payload
 from lasercal.solver.kinematics.model import RobotModel
 
 
@@ -90,26 +93,68 @@ def nominal_model(model: RobotModel, path=None) -> RobotModel:
     return nominal
 
 
-def gravity_robot(model: RobotModel, path=None, nominal: RobotModel | None = None) -> RobotModel:
+def recorded_payload(model: RobotModel, path=None) -> tuple[float, np.ndarray] | None:
+    """The flange's load the model's fit put in its gravity torques (``identification.payload``, written
+    by ``lasercal solve --extend ... --payload``), or None.
+
+    Parameters
+    ----------
+    model : RobotModel, a calibrated model
+    path : str or Path, optional, the model's file (named in errors)
+
+    Returns
+    -------
+    (mass kg, (3,) centre of mass at q = 0 in mm), or None when the model records none
+
+    Raises
+    ------
+    FormatError
+        A record that is not ``{mass: KG, com: [X, Y, Z]}`` with a positive mass and finite numbers.
+    """
+    rec = model.identification.get("payload")
+    if rec is None:
+        return None
+    try:
+        mass, com = float(rec["mass"]), np.array(rec["com"], dtype=float)
+        ok = np.isfinite(mass) and mass > 0 and com.shape == (3,) and np.isfinite(com).all()
+    except (TypeError, KeyError, ValueError):
+        ok = False
+    if not ok:
+        raise FormatError(
+            path if path is not None else model.name,
+            f"expected {{mass: KG, com: [X, Y, Z]}} (kg > 0, mm at q = 0), got {rec!r}",
+            field="identification.payload",
+        )
+    return mass, com
+
+
+def gravity_robot(
+    model: RobotModel, path=None, nominal: RobotModel | None = None, payload=None
+) -> RobotModel:
     """The robot whose gravity model gives the joint torques of ``model``'s effects at commanded poses
     when none are logged: its nominal robot, whose torques the fit took (``solve`` takes the session's
     robot's at the logged poses, :func:`solver.analysis.diagnose.session_torques`), so that ``predict``
     and ``correct`` reproduce the fit's figures; ``model`` itself when it names no nominal, or when
-    only it has a gravity model.
+    only it has a gravity model. Its last link carries the payload the fit's torques carried
+    (:func:`recorded_payload`), or the one given.
 
     Parameters
     ----------
     model : RobotModel, a calibrated model
     path : str or Path, optional, the model's file (a relative ``nominal:`` is relative to its folder)
     nominal : RobotModel, optional, its nominal model when already loaded (:func:`nominal_model`)
+    payload : (mass kg, (3,) centre of mass at q = 0 in mm), optional, the flange's load (default: the one
+        the model records; :func:`solver.kinematics.gravity.with_payload`)
 
     Returns
     -------
     RobotModel
     """
+    if payload is None:
+        payload = recorded_payload(model, path)
     if nominal is None:
         try:
             nominal = nominal_model(model, path)
         except FormatError:
-            return model
-    return nominal if nominal.links or not model.links else model
+            return with_payload(model, payload)
+    return with_payload(nominal if nominal.links or not model.links else model, payload)

@@ -82,11 +82,20 @@ class Robot:
     nominal : RobotModel, the model the robot's controller keeps
     options : IKOptions, the inverse kinematics' margin to the joint limits, tolerances and restarts
     path : str or Path, optional, the model's file (named in messages)
+    payload : (mass kg, (3,) centre of mass at q = 0 in mm), optional, the flange's load in the effects'
+        gravity torques (default: the one the model's fit took, ``identification.payload``)
     """
 
-    def __init__(self, model: RobotModel, nominal: RobotModel, options: IKOptions = DEFAULT_IK, path=None):
+    def __init__(
+        self,
+        model: RobotModel,
+        nominal: RobotModel,
+        options: IKOptions = DEFAULT_IK,
+        path=None,
+        payload=None,
+    ):
         self.model, self.nominal, self.options, self.path = model, nominal, options, path
-        self.gravity = gravity_robot(model, path, nominal)  # the effects' torques: the fit's
+        self.gravity = gravity_robot(model, path, nominal, payload)  # the effects' torques: the fit's
         self.extension = extension_from_model(model.extensions, path or model.name, model.n)
         joint_effect(self.extension)
         self.flange = flange(model)
@@ -218,13 +227,15 @@ class Robot:
         return np.broadcast_to(seed, (m, self.n))
 
 
-def load_model(path, options: IKOptions = DEFAULT_IK) -> Robot:
+def load_model(path, options: IKOptions = DEFAULT_IK, payload=None) -> Robot:
     """A calibrated model file (or a built-in robot, or a URDF) as a :class:`Robot`, with its nominal model.
 
     Parameters
     ----------
     path : str or Path, a ``lasercal-robot/1`` YAML (``lasercal solve`` writes one), a built-in name or a URDF
     options : IKOptions, optional
+    payload : (mass kg, (3,) centre of mass at q = 0 in mm), optional, instead of the model's recorded one
+        (:class:`Robot`)
 
     Returns
     -------
@@ -232,4 +243,4 @@ def load_model(path, options: IKOptions = DEFAULT_IK) -> Robot:
     """
     model = load_robot_model(path)
     ref = path if Path(str(path)).is_file() else None
-    return Robot(model, nominal_model(model, ref), options, ref)
+    return Robot(model, nominal_model(model, ref), options, ref, payload)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from lasercal.solver.errors import ModelError
-from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.model import Link, RobotModel
 from lasercal.solver.kinematics.poe import poe_chain, space_jacobian
 from lasercal.solver.kinematics.tree import ancestors, tree_frames
 
@@ -58,6 +58,30 @@ def gravity_torques(
     )  # (m, b, n)
     below = owner[:, None] >= np.arange(model.n)[None, :]  # link i moves with joint j only if i >= j
     return G / 1000.0 * np.einsum("b,mbn->mn", mass, dz * below)
+
+
+def with_payload(model: RobotModel, payload: tuple[float, np.ndarray] | None) -> RobotModel:
+    """``model`` whose gravity torques carry ``payload`` as :func:`gravity_torques`'s ``payload`` does: the
+    last link and the payload become one body (masses added, centres of mass averaged by mass; exact, the
+    torques being linear in mass times centre of mass), so that every user of ``links`` carries it.
+
+    Parameters
+    ----------
+    model : RobotModel
+    payload : (mass kg, (3,) centre of mass at q = 0 in mm) carried by the last link, or None
+
+    Returns
+    -------
+    RobotModel: ``model`` itself without a payload, without a gravity model, or for a tree (whose torques
+    :func:`gravity_torques` takes without one)
+    """
+    if payload is None or not model.links or model.parents:
+        return model
+    last, (kg, com) = model.links[-1], payload
+    mass = last.mass + float(kg)
+    centre = (last.mass * np.asarray(last.com, float) + float(kg) * np.asarray(com, float)) / mass
+    centre.setflags(write=False)
+    return model.replace(links=model.links[:-1] + (Link(mass, centre),))
 
 
 def tree_gravity_torques(model: RobotModel, q: np.ndarray, mass: np.ndarray, com: np.ndarray) -> np.ndarray:
