@@ -562,8 +562,9 @@ def test_hands_free_camera_session_on_franky_sim_measures_the_nominal_fr3s_beam(
     measured = np.array([[float(row["camera_x"]), float(row["camera_y"])] for row in rows])
     sigma = np.array([[float(row["camera_sx"]), float(row["camera_sy"])] for row in rows])
     assert sigma.min() > 0 and sigma.max() < 0.1  # the fake camera's 0.02-0.05 mm per axis
-    # each spot within 4 of its stated sigmas (30 values: a chance of ~2e-3 that an honest sigma fails),
-    # plus twice that chatter bound
+    # each spot within 4 of its stated sigmas plus 0.01 mm: twice that chatter bound, and ~0.4 sigma for
+    # the stated sigmas' ~15 % shortfall in this clean world (the benchmark's 90 z-scores: RMS 1.15); of 30
+    # values one fails by chance ~0.4 % of runs
     assert np.all(np.abs(measured - true) <= 4 * sigma + 0.01), (measured - true) / sigma
     # solve on it: every capture fitted as measured, the sheet found where it was placed (the arm is the
     # nominal FR3, so the robot's own base frame is the nominal's)
