@@ -5,11 +5,13 @@ photo of a layout with markers), in the layout's frame (a sheet's own), with its
 Cameras: an OpenCV device (index, URL or ``frames/%04d.png``, as ``validate`` takes them) or ``fake``
 (:class:`SheetCamera`): the fake robot's true beam on the printed sheet, seen from a stated pose
 (:mod:`collector.hardware.fakeworld`), the sheet's markers and crosses printed, rendered by
-``vision.render``.
+``vision.render``. Off the fake backend (a simulator such as franky-sim) the fake camera photographs a
+stated true robot's beam at the joint angles the robot reports (:class:`StatedTruth`).
 """
 
 from __future__ import annotations
 
+import sys
 import zlib
 from dataclasses import dataclass
 
@@ -19,8 +21,10 @@ from lasercal.collector.errors import SessionError
 from lasercal.collector.hardware import fakeworld
 from lasercal.collector.hardware.fakeworld import World, arm_capsules, camera_pose, hidden
 from lasercal.collector.sessions.exposure import FakeExposure
+from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.kinematics.laser import LaserParams
+from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import SheetPose
 from lasercal.vision.errors import VisionError
 
@@ -66,12 +70,32 @@ class SpotMeasure:
     note: str = ""
 
 
+@dataclass(frozen=True)
+class StatedTruth:
+    """A robot off the fake backend as the fake camera sees it: ``truth`` is stated to be the true robot
+    (its laser included), at exactly the joint angles ``robot`` reports -- as a simulator's arm is its
+    nominal model (franky-sim's is the nominal FR3). No repeatability: the reported pose is the reached one.
+
+    Attributes
+    ----------
+    truth : RobotModel, the stated true robot, in the frame the sheet's placement is given in
+    robot : RobotAdapter, connected while photos are taken
+    """
+
+    truth: RobotModel
+    robot: object
+
+    def true_q(self) -> np.ndarray:
+        """The joint angles the robot reports now, (n,) rad."""
+        return self.robot.read().q
+
+
 class SheetCamera(FakeExposure):
     """Photos of the fake robot's true spot on the printed sheet, from the camera's stated pose.
 
     Parameters
     ----------
-    robot : FakeRobot (``true_q()`` and ``truth``)
+    robot : FakeRobot or StatedTruth (``true_q()`` and ``truth``)
     markers : vision.plane.MarkerLayout, the layout's markers (sheet frame)
     crosses : (k, 2) array, the layout's points on the sheet, mm
     pose : SheetPose, where the sheet truly lies in the true robot's frame
@@ -205,6 +229,10 @@ def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_fi
     layout_file : the layout file, or the session.yaml that copies it: its ``markers`` section
     world : World, the fake world's effects
 
+    A fake camera off the fake backend (a simulator) photographs where the nominal model ``cfg["robot"]``
+    names, laser included, puts the beam at the joint angles the robot reports (:class:`StatedTruth`);
+    one line on stderr says so.
+
     Returns
     -------
     (camera, measure): ``measure(img, name) -> SpotMeasure``
@@ -212,7 +240,7 @@ def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_fi
     Raises
     ------
     SessionError
-        A fake camera off the fake backend; a layout without markers.
+        A fake camera on a layout without a placement; a layout without markers.
     """
     if spec is None:
         return None, None
@@ -225,12 +253,19 @@ def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_fi
             "sheet through its markers (print a sheet with lasercal sheet)"
         )
     if spec == "fake":
-        if cfg["backend"] != "fake":
-            raise SessionError("--camera fake needs --backend fake (it photographs the fake robot's beam)")
         if layout.frame != "sheet" or layout.sheet is None:
             raise SessionError("--camera fake needs a sheet layout with a placement (lasercal sheet --place)")
+        arm = robot
+        if cfg["backend"] != "fake":
+            arm = StatedTruth(load_model(cfg["robot"]), robot)
+            sys.stderr.write(
+                f"--camera fake on --backend {cfg['backend']}: the photos show where the nominal "
+                f"{arm.truth.name}'s laser beam (the stated truth, as a simulator's arm is) meets the sheet "
+                f"at its placement, at the joint angles the robot reports; world effects: "
+                f"{', '.join(world.effects) or 'none'}\n"
+            )
         crosses = np.array([p[:2] for p in layout.points.values()])
-        cam = SheetCamera(robot, markers, crosses, layout.sheet, layout.plane_z, world, cfg["seed"])
+        cam = SheetCamera(arm, markers, crosses, layout.sheet, layout.plane_z, world, cfg["seed"])
         return cam, lambda img, name: measure_spot(img, name, markers, cam.lens)
     from lasercal.collector.sessions.cameras import OpenCVCamera
 
