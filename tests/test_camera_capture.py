@@ -138,7 +138,8 @@ def test_a_mixed_session_finds_the_noise_of_each_kind(tmp_path):
 
 def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tmp_path):
     """--guide move with a camera: no hand -- the fake arm moves (at its bounded speed, on the simulated
-    clock) to each of the coach's poses, aimed beside the crosses, and the camera measures every capture."""
+    clock) to each of the coach's poses, aimed anywhere on the sheet (--aim anywhere, the default), and the
+    camera measures every capture."""
     given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 2}
     out = io.StringIO()
     guide = CaptureGuide(auto=True, move=True, yes=True)
@@ -150,10 +151,11 @@ def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tm
     measured = session.measured
     assert measured.sum() >= 4, said  # a pose the camera cannot see is guided by hand once (then aimed)
     assert set(session.extra["robot_mode"][measured]) == {"Move"}  # nobody guided these
-    layout = load_layout(sheet)
-    cross = np.array([layout.points[p][:2] for p in session.point])
-    off = np.linalg.norm(session.target[measured, :2] - cross[measured], axis=1)
-    assert np.all(off < 40.0)  # on the sheet, near the crosses the coach planned for
+    aim = np.c_[session.extra["aim_x"].astype(float), session.extra["aim_y"].astype(float)]
+    off = np.linalg.norm(session.target[measured, :2] - aim[measured], axis=1)
+    # where the coach planned the spot, up to its current fit's error there (the arm goes where that fit
+    # aims; after 0-4 captures, the thesis Panda against the nominal: 4-25 mm seen over seeds 2-5)
+    assert np.all(off < 35.0) and np.median(off) < 15.0, off
 
 
 def test_a_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet, tmp_path):

@@ -73,7 +73,9 @@ def args_capture(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--camera",
         help="photograph each capture and measure its spot on the sheet through the sheet's markers: fake "
-        "(--backend fake), or an OpenCV device: index, URL or frames/%%04d.png (the layout needs markers)",
+        "(the simulated world; off --backend fake: the nominal model's beam at the angles the robot "
+        "reports), "
+        "or an OpenCV device: index, URL or frames/%%04d.png (the layout needs markers)",
     )
     p.add_argument(
         "--aim",

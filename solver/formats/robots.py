@@ -25,7 +25,7 @@ from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
-from lasercal.solver.kinematics.sheet import SCALE_KEYS, SheetPose
+from lasercal.solver.kinematics.sheet import SCALE_KEYS, TILT_KEYS, SheetPose
 
 PLANE_Z = Range(-5000.0, 5000.0, "mm")
 MASS = Range(0.0, 1000.0, "kg")
@@ -66,10 +66,12 @@ def sheet_values(d: dict, key: str, path, partial: bool = False, scale: float = 
     m = d.get(key)
     if m is None:
         return None
-    keys = SHEET_KEYS + SCALE_KEYS
+    keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS
     if not isinstance(m, dict) or set(m) - set(keys) or (not partial and set(SHEET_KEYS) - set(m)):
         raise FormatError(
-            path, f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg[, scale_x, scale_y]}}", field=key
+            path,
+            f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg[, scale_x, scale_y, tilt_x_rad, tilt_y_rad]}}",
+            field=key,
         )
     vals = []
     for k in keys:
@@ -99,7 +101,10 @@ def sheet_pose(d: dict, key: str, path, placement: bool = False) -> SheetPose | 
     bad = sheet_pose_problem(vals[:3], absolute=placement)
     if bad:
         raise FormatError(path, bad[1], field=key if bad[0] is None else f"{key}.{SHEET_KEYS[bad[0]]}")
-    for k, v in zip(SCALE_KEYS, vals[3:]):
+    for k, v in zip(TILT_KEYS, vals[5:]):
+        if not abs(v) < 0.1:  # a table a few mrad off level: degrees or a slope in percent written here
+            raise FormatError(path, f"{v:g} (expected a tilt in rad, a few 0.001)", field=f"{key}.{k}")
+    for k, v in zip(SCALE_KEYS, vals[3:5]):
         if not 0.9 < v < 1.1:  # a printer scales by a few 0.1 %: a percentage or a ppm figure written here
             raise FormatError(
                 path, f"{v:g} (expected a printer's scale factor, 1 for an exact print)", field=f"{key}.{k}"
@@ -250,7 +255,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             path, "'sheet_std' needs 'sheet' (the pose it is the uncertainty of)", field="sheet_std"
         )
     if sheet_std is not None and min(sheet_std) < 0:
-        k = (SHEET_KEYS + SCALE_KEYS)[int(np.argmin(sheet_std))]
+        k = (SHEET_KEYS + SCALE_KEYS + TILT_KEYS)[int(np.argmin(sheet_std))]
         raise FormatError(
             path, f"{min(sheet_std):g} (expected a standard deviation >= 0)", field=f"sheet_std.{k}"
         )
@@ -277,7 +282,9 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         extensions=dict(d.get("extensions", {}) or {}),
         prior=dict(prior),
         sheet=sheet,
-        sheet_std=None if sheet_std is None else dict(zip(SHEET_KEYS + SCALE_KEYS, sheet_std)),
+        sheet_std=None
+        if sheet_std is None
+        else {k: v for k, v in zip(SHEET_KEYS + SCALE_KEYS + TILT_KEYS, sheet_std) if k in d["sheet_std"]},
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
         nominal=nominal,
