@@ -135,7 +135,7 @@ def format_true_sheet(found, true, laid, G) -> str:
 def noise_by_kind_line(k: dict) -> str:
     """One line: the noise found for measured and aimed captures (mm per axis)."""
     aimed = (
-        f"{k['aimed']} aimed at their crosses, aiming noise {k['aimed_mm']:.3f} mm"
+        f"{k['aimed']} aimed where the camera could not measure them, aiming noise {k['aimed_mm']:.3f} mm"
         if k["aimed"]
         else "none aimed"
     )

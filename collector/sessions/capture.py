@@ -248,10 +248,11 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
     """
     per = ", ".join(f"{k} {v}" for k, v in counts.items())
     # with no captures the prediction is the prior's, which does not depend on the aiming noise
-    spread = f"± {st.uncertainty:.2f} mm" if st.captures else "mm (prior)"
+    f = 3 if st.predicted < 0.1 else 2  # a camera session's hundredths of a mm keep two figures
+    spread = f"± {st.uncertainty:.{f}f} mm" if st.captures else "mm (prior)"
     lines = [
         f"  coach: captures {per}; {identifiable_text(st.rank, st.n_params, st.n_identifiable)}",
-        f"  predicted error at {st.region}: {st.predicted:.2f} {spread}",
+        f"  predicted error at {st.region}: {st.predicted:.{f}f} {spread}",
     ]
     wk = st.weakest
     weak = f"  weakest: {', '.join(wk.params)} ({wk.share * 100:.0f} % of the predicted error)"

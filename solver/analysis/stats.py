@@ -45,15 +45,16 @@ def spot_stats(spots: np.ndarray, point: np.ndarray) -> SpotStats:
     Parameters
     ----------
     spots : (k, 2) or (k, 3) array, mm (only x, y are used)
-    point : (2,) or (3,) array, mm
+    point : (2,) or (3,) array, mm; or (k, 2) or (k, 3): each spot's own target (a camera session's
+        measured spots), the scatter then that of the spots' offsets from their targets
     """
-    xy = np.asarray(spots, dtype=float)[:, :2]
-    radius = np.linalg.norm(xy - xy.mean(axis=0), axis=1)
-    err = np.linalg.norm(xy - np.asarray(point, dtype=float)[:2], axis=1)
+    off = np.asarray(spots, dtype=float)[:, :2] - np.asarray(point, dtype=float)[..., :2]
+    radius = np.linalg.norm(off - off.mean(axis=0), axis=1)
+    err = np.linalg.norm(off, axis=1)
     return SpotStats(
-        len(xy),
+        len(off),
         float(radius.mean()),
-        float(radius.std(ddof=1)) if len(xy) > 1 else 0.0,
+        float(radius.std(ddof=1)) if len(off) > 1 else 0.0,
         float(err.mean()),
         float(err.max()),
         float(np.sqrt(np.mean(err**2))),
@@ -61,13 +62,14 @@ def spot_stats(spots: np.ndarray, point: np.ndarray) -> SpotStats:
 
 
 def per_point(model: RobotModel, session: Session, mask: np.ndarray | None = None) -> dict:
-    """:func:`spot_stats` per reference point of the spots ``model`` predicts for the captures (base frame;
-    a sheet session's points through the model's sheet pose)."""
+    """:func:`spot_stats` per reference point of the spots ``model`` predicts for the captures, each against
+    its own target (the point, or where the camera measured its spot; base frame, a sheet session's through
+    the model's sheet pose)."""
     mask = np.ones(session.m, bool) if mask is None else mask
     target = base_targets(session, model)[mask]
     spots, _ = predict_spots(model, session.q[mask], target[:, 2])
     names = session.point[mask]
-    return {nm: spot_stats(spots[names == nm], target[names == nm][0]) for nm in dict.fromkeys(names)}
+    return {nm: spot_stats(spots[names == nm], target[names == nm]) for nm in dict.fromkeys(names)}
 
 
 MISFIT = 10.0  # a noise estimate this many times the prior's: the data do not fit the model at all
