@@ -162,3 +162,21 @@ def test_a_coached_camera_session_killed_and_resumed_repeats_the_uninterrupted_o
     np.testing.assert_array_equal(s.target, ref.target)
     for k in ("aim_x", "aim_y"):
         np.testing.assert_array_equal(s.extra[k], ref.extra[k])
+
+
+def test_plan_on_a_camera_session_fits_the_camera_noise_and_plans_spots_anywhere(sheet, tmp_path):
+    """`plan` on a camera session fits its measured captures at the camera's noise (its sigma a few
+    hundredths of a mm, where an aimed session's prior says 1 mm) and plans its next spots in the cells,
+    with the aims in its CSV."""
+    from lasercal.collector.api.planning import plan
+
+    given = {"backend": "fake", "per_point": 2, "camera": "fake", "aim_noise": 3.0, "seed": 8}
+    start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), CaptureGuide(auto=True)).run(
+        io.StringIO()
+    )
+    p = plan(tmp_path / "s", next=4)
+    assert p.sigma < 0.3, p.sigma
+    assert p.header[-2:] == ["aim_x", "aim_y"] and len(p.rows) == 4
+    spots = cells(load_layout(sheet), sheet)
+    for nm, xy in zip(p.plan.point, p.aims):
+        assert np.linalg.norm(spots[nm][:, :2] - xy, axis=1).min() < 1e-6  # one of its cell's spots

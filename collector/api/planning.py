@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # annotations only: numpy and the solver load when a plan is made
+    import numpy as np
+
     from lasercal.solver.analysis.design import Plan, Status
 
 MIN_SHEET_CAPTURES = 9  # captures from which a sheet session's own fit places the sheet (else its placement)
@@ -32,6 +34,8 @@ class CapturePlan:
     plan : Plan, the next captures (point, q (K, n) rad, expected error after each, mm)
     sigma : float, the posterior's noise estimate, mm
     n : int, the robot's joints
+    aims : (K, 2) array or None, a camera session planned anywhere (``--aim anywhere``): where each spot
+        should land, the layout's frame, mm
     """
 
     captures: int
@@ -39,18 +43,22 @@ class CapturePlan:
     plan: Plan
     sigma: float
     n: int
+    aims: np.ndarray | None = None
 
     @property
     def header(self) -> list[str]:
-        """The CSV's columns: point, q1..qN (rad), expected_mm."""
-        return ["point"] + [f"q{i}" for i in range(1, self.n + 1)] + ["expected_mm"]
+        """The CSV's columns: point, q1..qN (rad), expected_mm (aim_x, aim_y, mm: when planned anywhere)."""
+        aim = ["aim_x", "aim_y"] if self.aims is not None else []
+        return ["point"] + [f"q{i}" for i in range(1, self.n + 1)] + ["expected_mm"] + aim
 
     @property
     def rows(self) -> list[list[str]]:
-        """The next captures as CSV cells (q to 1e-6 rad, the expected error to 1e-4 mm)."""
+        """The next captures as CSV cells (q to 1e-6 rad, the expected error to 1e-4 mm, aims to 0.1 mm)."""
         p = self.plan
+        aims = [[f"{a:.1f}" for a in xy] for xy in self.aims] if self.aims is not None else [[]] * len(p.q)
         return [
-            [str(nm)] + [f"{a:.6f}" for a in q] + [f"{e:.4f}"] for nm, q, e in zip(p.point, p.q, p.expected)
+            [str(nm)] + [f"{a:.6f}" for a in q] + [f"{e:.4f}"] + xy
+            for nm, q, e, xy in zip(p.point, p.q, p.expected, aims)
         ]
 
     def csv(self) -> str:
@@ -121,6 +129,8 @@ def plan(
     """
     import numpy as np
 
+    from lasercal.collector.sessions.anywhere import cells, session_layout_file
+    from lasercal.collector.sessions.capture import CAMERA_NOISE_MM
     from lasercal.solver.analysis.design import Coach, DesignError, posterior
     from lasercal.solver.formats.session import load_layout, load_session, session_layout
     from lasercal.solver.identify.spot import identify_lm, in_base_frame
@@ -142,12 +152,30 @@ def plan(
     if session.tolerances is None:
         raise DesignError("plan predicts from a prior: --prior none leaves no prediction to make")
     tol = session.tolerances
-    if aim_noise is not None:
-        tol = tol.with_noise("laser", aim_noise)
-    post = posterior(nominal, session.q, session.target, tol)
+    # a camera session: its measured captures at the camera's noise (as capture's coach fits them); one the
+    # camera could not measure is left out of the fit (it still keeps its pose from being suggested again)
+    use = session.measured if session.spot_sigma is not None and session.measured.any() else None
+    if aim_noise is not None or use is not None:
+        tol = tol.with_noise("laser", aim_noise if aim_noise is not None else CAMERA_NOISE_MM)
+    use = np.ones(session.m, bool) if use is None else use
+    post = posterior(nominal, session.q[use], session.target[use], tol)
+    anywhere = None
+    if sheet and (session.meta.get("collector") or {}).get("aim") == "anywhere":  # spots planned anywhere
+        spots = cells(session_layout(session.meta, session.path), session_layout_file(session))
+        anywhere = {k: pose.to_base(v, layout.plane_z) for k, v in spots.items()}
     coach = Coach(
-        nominal, layout, seed, tol, workspace=workspace, model=post.model, lookahead=next, sheet=sheet
+        nominal,
+        layout,
+        seed,
+        tol,
+        workspace=workspace,
+        model=post.model,
+        lookahead=next,
+        sheet=sheet,
+        anywhere=anywhere,
     )
     coach.post = post
-    st = coach.status(session.q, target=session.target)  # no suggestion near a capture at its point
-    return CapturePlan(session.m, st, st.plan, post.sigma, nominal.n)
+    points = np.array([layout.points[p] for p in session.point]).reshape(-1, 3)
+    st = coach.status(session.q, target=points)  # no suggestion near a capture at its point
+    aims = pose.from_base(st.plan.target) if anywhere is not None else None
+    return CapturePlan(session.m, st, st.plan, post.sigma, nominal.n, aims)

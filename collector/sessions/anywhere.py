@@ -64,3 +64,9 @@ def cells(layout: Layout, layout_file) -> dict:
     centres = np.array([layout.points[k][:2] for k in names])
     owner = np.argmin(np.linalg.norm(spots[:, None, :] - centres[None], axis=2), axis=1)
     return {k: np.c_[spots[owner == i], np.zeros(np.sum(owner == i))] for i, k in enumerate(names)}
+
+
+def session_layout_file(session) -> Path:
+    """The layout file a capture session was started with (``collector.layout``, relative to its folder)."""
+    ref = Path(str((session.meta.get("collector") or {}).get("layout", "")))
+    return ref if ref.is_absolute() else Path(session.path) / ref

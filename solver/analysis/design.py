@@ -66,6 +66,7 @@ from lasercal.solver.kinematics.poe import space_jacobian
 # nearer, the capture check calls it similar (collector.sessions.capture), and a pose captured again adds
 # little but a new draw of the aiming noise
 APART_RAD = 0.5
+CELL_SPOTS = 16  # spots of a point's cell the candidates aim at (``anywhere``), drawn at random
 
 
 class DesignError(LasercalError):
@@ -263,7 +264,7 @@ def candidates(
         than an operator's habits: the design needs the extremes)
     anywhere : dict name -> (k, 3) array mm, or None: spots in each point's cell where a camera can
         measure them (:func:`collector.sessions.anywhere.cells`); its ``per_point`` configurations are
-        spread over them, and spots out of reach are passed over
+        spread over :data:`CELL_SPOTS` of them drawn at random, and spots out of reach are passed over
 
     Raises
     ------
@@ -275,6 +276,8 @@ def candidates(
     qs, ns, ts = [], [], []
     for nm in names:
         spots = [layout.points[nm]] if anywhere is None else list(anywhere[nm])
+        if len(spots) > CELL_SPOTS:  # the aiming IK's cost grows with the spots, the design's choice hardly
+            spots = [spots[i] for i in np.sort(rng.choice(len(spots), CELL_SPOTS, replace=False))]
         each = max(per_point // len(spots), 2)
         q, t = _aim_many(model, spots, each, rng, con, pool=2 * each + 40, spread=spread)
         if not len(q):
