@@ -65,7 +65,9 @@ def test_plan_counts_the_parameters_solve_counts_on_a_sheet_session(tmp_path, ca
     planned = json.loads(capsys.readouterr().out)["identifiable"]
     assert main(["solve", str(s), "-o", str(tmp_path / "m.yaml"), "--folds", "0", "--json"]) == 0
     solved = json.loads(capsys.readouterr().out)["identifiability"]
-    # 7 joints x 4 + beam direction 2 + beam start 3 + sheet pose 3 - 5 held for the base frame
-    assert planned["parameters"] == solved["parameters"] == 31
-    assert planned["rank"] == solved["rank"] == planned["of"] == solved["possible"] == 30
-    assert solved["counted"].startswith("31 = 7 joints x 4") and "sheet pose 3 - 5 held" in solved["counted"]
+    # 7 joints x 4 + beam direction 2 + beam start 3 + sheet pose 3, print scale 2, tilt 2 - 5 held for the
+    # base frame
+    assert planned["parameters"] == solved["parameters"] == 35
+    assert planned["rank"] == solved["rank"] == planned["of"] == solved["possible"] == 34
+    assert solved["counted"].startswith("35 = 7 joints x 4")
+    assert "sheet pose 3, print scale 2 and tilt 2 - 5 held" in solved["counted"]

@@ -158,7 +158,7 @@ def plan(
     if aim_noise is not None or use is not None:
         tol = tol.with_noise("laser", aim_noise if aim_noise is not None else CAMERA_NOISE_MM)
     use = np.ones(session.m, bool) if use is None else use
-    post = posterior(nominal, session.q[use], session.target[use], tol)
+    post = posterior(nominal, session.q[use], session.target[use], tol, sheet=pose if sheet else None)
     anywhere = None
     if sheet and (session.meta.get("collector") or {}).get("aim") == "anywhere":  # spots planned anywhere
         spots = cells(session_layout(session.meta, session.path), session_layout_file(session))
@@ -173,6 +173,7 @@ def plan(
         lookahead=next,
         sheet=sheet,
         anywhere=anywhere,
+        pose=pose if sheet else None,
     )
     coach.post = post
     points = np.array([layout.points[p] for p in session.point]).reshape(-1, 3)

@@ -396,11 +396,12 @@ def aimed_layout(layout: Layout, offset) -> Layout:
 
 
 def session_coach(
-    store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet: bool = False, anywhere=None
+    store: CaptureStore, nominal: RobotModel, layout: Layout, cfg: dict, sheet=None, anywhere=None
 ):
     """The capture coach of a session: the nominal model with the session's measured aperture height;
-    ``layout`` in the base frame, ``sheet``: its points lie on a sheet whose pose ``solve`` identifies,
-    ``anywhere``: name -> (k, 3) spots in each point's cell, base frame, mm (:mod:`sessions.anywhere`)."""
+    ``layout`` in the base frame, ``sheet``: the SheetPose (placement) of a sheet its points lie on, whose
+    pose, print and tilt ``solve`` identifies, ``anywhere``: name -> (k, 3) spots in each point's cell,
+    base frame, mm (:mod:`sessions.anywhere`)."""
     from lasercal.solver.analysis.design import Coach
     from lasercal.solver.formats.tolerances import robot_tolerances
 
@@ -412,7 +413,7 @@ def session_coach(
     # camera sessions find, docs/sessions.md), not the aiming noise
     noise = CAMERA_NOISE_MM if cfg.get("camera") else cfg["aim_noise"]
     tol = robot_tolerances(nominal).with_noise("laser", noise)
-    return Coach(model, layout, cfg["seed"], tol, sheet=sheet, anywhere=anywhere)
+    return Coach(model, layout, cfg["seed"], tol, sheet=sheet is not None, anywhere=anywhere, pose=sheet)
 
 
 def run_capture(

@@ -115,7 +115,7 @@ class StartedCapture:
             # Built here, not at start: the coach's design takes a while, after the resume is announced.
             coach = None
             if self.coach:
-                sheet = layout.frame == "sheet"
+                sheet = layout.sheet if layout.frame == "sheet" else None
                 # where the operator aims: beside the crosses in a camera session, or anywhere in their cells
                 aimed = aimed_layout(layout, self.store.meta.get("aim_offset")).in_base()
                 anywhere = None

@@ -54,13 +54,21 @@ import numpy as np
 from lasercal.solver.errors import AimingError, LasercalError
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.formats.tolerances import Tolerances, robot_tolerances
-from lasercal.solver.identify.laser_parameters import CountedParameters, counted_parameters, counted_rank
+from lasercal.solver.identify.laser_parameters import (
+    NSHEET,
+    SHEET_KINDS,
+    SHEET_NAMES,
+    CountedParameters,
+    counted_parameters,
+    counted_rank,
+)
 from lasercal.solver.identify.lsq import fit_subspace
 from lasercal.solver.identify.spot import laser_prior
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams, beam_joint_jacobian, plane_hit
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.poe import space_jacobian
+from lasercal.solver.kinematics.sheet import SheetPose, sheet_to_base
 
 # a suggested capture lies at least this far (joint-space distance, rad) from every capture at its point:
 # nearer, the capture check calls it similar (collector.sessions.capture), and a pose captured again adds
@@ -311,6 +319,9 @@ class Posterior:
         would move: :func:`~lasercal.solver.identify.laser_parameters.counted_rank`)
     slope : (m_used, 2) array, d spot / d plane height of the used captures' beams (what a sheet's tilt
         would move)
+    sheet : SheetPose or None, a sheet session's pose: ``cov``, ``rows`` and ``prior_root`` then also span the
+        sheet's pose, print scale and tilt (eq. S3, after the robot's parameters; :func:`sheet_columns`), and
+        errors are predicted on the sheet, as ``solve`` identifies it with the robot
     """
 
     params: LaserParams
@@ -326,11 +337,34 @@ class Posterior:
     prior_root: np.ndarray
     target_xy: np.ndarray
     slope: np.ndarray
+    sheet: SheetPose | None = None
+
+    @property
+    def names(self) -> list:
+        """The names of the covariance's parameters: the robot's, then a sheet's."""
+        return list(self.params.names) + (SHEET_NAMES if self.sheet is not None else [])
+
+    def jacobian(self, q: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """In-plane spot Jacobians (k, 2, len(names)) of configurations q (k, n) aimed at targets (k, 3) mm
+        at the estimate, a sheet's columns included (:func:`sheet_columns`)."""
+        J = self.params.spot_jacobian(self.estimate, q, target[:, 2])[2]
+        if self.sheet is None:
+            return J
+        d = self.params.beam(self.estimate, q).direction
+        return np.concatenate([J, sheet_columns(self.sheet, target, d[:, :2] / d[:, 2:])], axis=2)
 
     @property
     def prior_std(self) -> np.ndarray:
         """(p,) the prior's marginal standard deviations, sqrt(diag(R R^T))."""
         return np.sqrt(np.sum(self.prior_root**2, axis=1))
+
+
+def sheet_columns(pose: SheetPose, target: np.ndarray, slope: np.ndarray) -> np.ndarray:
+    """d (spot - point) / d sheet parameters (k, 2, 7) of beams aimed at points (k, 3) mm of a sheet at
+    ``pose`` (eq. S3): the point moves in the plane, and the plane's height under it moves the spot along
+    the beam by ``slope`` (k, 2) = d_xy / d_z per mm."""
+    Js = sheet_to_base(pose.vector, pose.from_base(target), target[:, 2])[1]
+    return -Js[:, :2] + slope[:, :, None] * Js[:, 2:3]
 
 
 class SpotJacobians:
@@ -398,6 +432,7 @@ def posterior(
     tolerances: Tolerances | str = "robot",
     start: np.ndarray | None = None,
     jacobians: SpotJacobians | None = None,
+    sheet: SheetPose | None = None,
 ) -> Posterior:
     """The posterior after captures q aimed at target (eqs. D1-D4); none at all is fine.
 
@@ -415,6 +450,9 @@ def posterior(
     start : (p,) array, where the fit starts (e.g. the previous estimate: a warm start)
     jacobians : SpotJacobians of the same nominal model, kept between calls (a session's refits reuse
         the Jacobians of earlier captures at the warm start)
+    sheet : SheetPose or None, the pose of the sheet the targets lie on (a sheet session): the estimate
+        stays the robot's (the sheet where ``sheet`` puts it), its covariance spans the sheet's parameters
+        too, under their prior, once there are captures (with none, the prior speaks of the robot)
 
     Returns
     -------
@@ -422,7 +460,8 @@ def posterior(
     """
     P = LaserParams(nominal)
     x0 = P.x0()
-    prior = laser_prior(P, robot_tolerances(nominal) if isinstance(tolerances, str) else tolerances)
+    tol = robot_tolerances(nominal) if isinstance(tolerances, str) else tolerances
+    prior = laser_prior(P, tol)
     R = np.linalg.inv(prior.whitening)
     q = np.asarray(q, dtype=float).reshape(-1, nominal.n)
     target = np.asarray(target, dtype=float).reshape(-1, 3)
@@ -444,8 +483,13 @@ def posterior(
     else:
         v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
     used_xy = target[w > 0, :2] if m else np.zeros((0, 2))
-    C = _posterior_cov(J, R, sigma)
     d = P.beam(v, q[w > 0]).direction if m else np.zeros((0, 3))
+    sheet = sheet if m else None
+    if sheet is not None:  # the sheet's pose, print and tilt, identified with the robot as solve does
+        R = np.linalg.inv(laser_prior(P, tol, SHEET_KINDS, sheet.vector, SHEET_NAMES).whitening)
+        S = sheet_columns(sheet, target[w > 0], d[:, :2] / d[:, 2:]).reshape(-1, NSHEET)
+        J = np.concatenate([J, S], axis=1)
+    C = _posterior_cov(J, R, sigma)
     return Posterior(
         P,
         v,
@@ -460,12 +504,13 @@ def posterior(
         R,
         used_xy,
         d[:, :2] / d[:, 2:],
+        sheet,
     )
 
 
 def use_weight(post: Posterior, region: UseRegion) -> np.ndarray:
     """W = mean_k J_k^T J_k (p, p) over the use region at the posterior's estimate (eq. D5)."""
-    J = post.params.spot_jacobian(post.estimate, region.q, region.target[:, 2])[2]
+    J = post.jacobian(region.q, region.target)
     return np.einsum("kap,kaq->pq", J, J) / len(J)
 
 
@@ -514,7 +559,7 @@ class Plan:
 
 def candidate_jacobian(post: Posterior, cand: Candidates) -> np.ndarray:
     """The candidates' spot Jacobians J_c (N, 2, p) at the posterior's estimate (eq. D6)."""
-    return post.params.spot_jacobian(post.estimate, cand.q, cand.target[:, 2])[2]
+    return post.jacobian(cand.q, cand.target)
 
 
 class _Design:
@@ -735,7 +780,7 @@ def weakest(
     share = float(lam[-1] / max(lam.sum(), 1e-300))
     rel = np.abs(u) / post.prior_std
     top = np.argsort(-rel)[:3]
-    names = tuple(post.params.names[i] for i in top if rel[i] >= 0.3 * rel[top[0]])
+    names = tuple(post.names[i] for i in top if rel[i] >= 0.3 * rel[top[0]])
     if not len(q):
         return Weakest(names, share, None, None, None)
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
@@ -753,7 +798,8 @@ def identifiable(
     rank with every candidate added), over the parameters ``solve`` counts (``counted``; ``Jc``:
     :func:`candidate_jacobian`, computed when not given)."""
     Jc = candidate_jacobian(post, cand) if Jc is None else Jc
-    rows = post.rows.reshape(-1, 2, post.params.size)
+    p = post.params.size  # the robot's columns: counted_rank adds the sheet's
+    rows, Jc = post.rows.reshape(-1, 2, post.rows.shape[1])[:, :, :p], Jc[:, :, :p]
     d = post.params.beam(post.estimate, cand.q).direction
     slope = np.vstack([post.slope, d[:, :2] / d[:, 2:]])
     return counted_rank(rows, post.target_xy, counted, post.slope), counted_rank(
@@ -818,6 +864,8 @@ class Coach:
         among the parameters, the base frame's gauge held (:mod:`solver.identify.laser_parameters`)
     anywhere : dict name -> (k, 3) array mm, or None: a camera session's spots need not be on the points:
         the candidates aim at these spots of each point's cell (:func:`candidates`)
+    pose : SheetPose or None, where a sheet session's sheet lies (its placement): the posterior's
+        covariance spans the sheet's pose, print and tilt, as ``solve`` fits them (:func:`posterior`)
     """
 
     def __init__(
@@ -835,11 +883,12 @@ class Coach:
         horizon: int = 25,
         sheet: bool = False,
         anywhere: dict | None = None,
+        pose: SheetPose | None = None,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
         aimer = model or nominal
-        self.nominal, self.layout, self.tolerances = nominal, layout, tolerances
+        self.nominal, self.layout, self.tolerances, self.pose = nominal, layout, tolerances, pose
         self.lookahead, self.stop_gain, self.horizon = lookahead, stop_gain, horizon
         self.region = use_region(aimer, layout, rng, workspace, constraints=con)
         self.cand = candidates(aimer, layout, rng, per_point, con, anywhere=anywhere)
@@ -850,7 +899,13 @@ class Coach:
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
         """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
         self.post = posterior(
-            self.nominal, q, target, self.tolerances, start=self.post.estimate, jacobians=self.jacobians
+            self.nominal,
+            q,
+            target,
+            self.tolerances,
+            start=self.post.estimate,
+            jacobians=self.jacobians,
+            sheet=self.pose,
         )
         return self.post
 
