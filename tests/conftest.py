@@ -207,3 +207,13 @@ def panda_noisy(tmp_path_factory):
     return made_session(
         tmp_path_factory, "panda_noisy", "panda_thesis_identified", "thesis", 15, 1.0, 2, "panda"
     )
+
+
+@pytest.fixture(scope="session")
+def sheet(tmp_path_factory):
+    """An A4 sheet's layout.yaml (markers, crosses), placed at 450, 0, 0 as `lasercal sheet --place` does."""
+    from lasercal.vision.sheet import design_sheet, write_layout
+
+    path = tmp_path_factory.mktemp("sheet") / "layout.yaml"
+    write_layout(path, design_sheet("A4"), -8.0, {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0})
+    return path

@@ -16,17 +16,7 @@ from lasercal.solver.analysis.design import Coach
 from lasercal.solver.errors import FormatError, LasercalError
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session
-from lasercal.vision.sheet import ARM, LINE, blank_spots, design_sheet, page_to_sheet, write_layout
-
-PLACE = {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0}
-
-
-@pytest.fixture(scope="module")
-def sheet(tmp_path_factory):
-    """An A4 sheet's layout.yaml as `lasercal sheet --place 450 0 0` writes it."""
-    path = tmp_path_factory.mktemp("sheet") / "layout.yaml"
-    write_layout(path, design_sheet("A4"), -8.0, PLACE)
-    return path
+from lasercal.vision.sheet import ARM, LINE, blank_spots, design_sheet, page_to_sheet
 
 
 def _to_boxes(xy: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -140,28 +130,6 @@ def test_an_aim_cell_left_half_empty_names_its_line_and_column(sheet, tmp_path):
     path.write_text(buf.getvalue())
     with pytest.raises(FormatError, match=rf"line {head + 2}.*aim_y|aim_y.*line {head + 2}"):
         load_session(tmp_path / "s")
-
-
-def test_a_coached_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet, tmp_path):
-    """The coach's planned spots survive a kill: the resumed session refits the same captures, plans the
-    same spots and ends where an uninterrupted one ends (poses, aims, measured spots)."""
-    from lasercal.collector.errors import RobotConnectionError
-
-    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 7}
-    guide = CaptureGuide(auto=True)
-    start_capture(capture_settings(given, str(sheet), str(tmp_path / "ref")), guide).run(io.StringIO())
-    ref = load_session(tmp_path / "ref")
-    cut = start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), guide)
-    cut.robot.disconnect_at = ref.t[1] + 1.0
-    with pytest.raises(RobotConnectionError):
-        cut.run(io.StringIO())
-    assert load_session(tmp_path / "s").m == 2
-    start_capture(capture_settings({}, resume=str(tmp_path / "s")), guide).run(io.StringIO())
-    s = load_session(tmp_path / "s")
-    np.testing.assert_array_equal(s.q, ref.q)
-    np.testing.assert_array_equal(s.target, ref.target)
-    for k in ("aim_x", "aim_y"):
-        np.testing.assert_array_equal(s.extra[k], ref.extra[k])
 
 
 def test_plan_on_a_camera_session_fits_the_camera_noise_and_plans_spots_anywhere(sheet, tmp_path):

@@ -18,17 +18,6 @@ from lasercal.solver.formats.session import load_layout, load_session, session_m
 from lasercal.solver.identify.spot import identify_lm, predict_spots
 from lasercal.solver.kinematics.aim import aim, polish
 from lasercal.vision.errors import VisionError
-from lasercal.vision.sheet import design_sheet, write_layout
-
-PLACE = {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0}
-
-
-@pytest.fixture(scope="module")
-def sheet(tmp_path_factory):
-    """An A4 sheet's layout.yaml (markers, crosses), placed at 450, 0, 0 as `lasercal sheet --place` does."""
-    path = tmp_path_factory.mktemp("sheet") / "layout.yaml"
-    write_layout(path, design_sheet("A4"), -8.0, PLACE)
-    return path
 
 
 def test_measured_spots_lie_within_their_stated_uncertainty(sheet):
@@ -158,13 +147,15 @@ def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tm
     assert np.all(off < 35.0) and np.median(off) < 15.0, off
 
 
-def test_a_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet, tmp_path):
+@pytest.mark.parametrize("coach", [False, True])
+def test_a_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet, tmp_path, coach):
     """Crash-safe as an aimed session: a lost link keeps every capture and photo on disk, and --resume ends
-    where an uninterrupted session ends, measured spots included (the photos' noise is keyed by the pose)."""
+    where an uninterrupted session ends, measured spots included (the photos' noise is keyed by the pose);
+    with the coach, the spots it planned anywhere on the sheet too (it refits the same captures)."""
     from lasercal.collector.errors import RobotConnectionError
 
-    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 4}
-    guide = CaptureGuide(auto=True, coach=False)
+    given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 4 + 3 * coach}
+    guide = CaptureGuide(auto=True, coach=coach)
     start_capture(capture_settings(given, str(sheet), str(tmp_path / "ref")), guide).run(io.StringIO())
     ref = load_session(tmp_path / "ref")
     cut = start_capture(capture_settings(given, str(sheet), str(tmp_path / "s")), guide)
@@ -178,3 +169,6 @@ def test_a_camera_session_killed_and_resumed_repeats_the_uninterrupted_one(sheet
     np.testing.assert_array_equal(s.target, ref.target)  # the camera measured the same spots
     np.testing.assert_array_equal(s.spot_sigma, ref.spot_sigma)
     assert len(list((tmp_path / "s" / "photos").iterdir())) == 5
+    assert (s.meta["collector"]["aim"] == "anywhere") == coach
+    for k in ("aim_x", "aim_y") if coach else ():
+        np.testing.assert_array_equal(s.extra[k], ref.extra[k])

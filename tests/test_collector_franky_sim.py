@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -249,13 +250,24 @@ def validate_scenario(workdir: str, host: str) -> dict:
     return report
 
 
+def _steps(text: str, moves: list) -> tuple[list, float]:
+    """Moves per previewed plan (the screen's "in N moves") and the largest joint step of ``moves``
+    ((where the arm was, where it was sent) pairs), rad: each plan's first step starts where the arm was
+    read, the others where the step before sent it."""
+    per_plan = [int(k) for k in re.findall(r"the arm will move to 1 configurations in (\d+) moves", text)]
+    first = np.cumsum([0] + per_plan[:-1])
+    steps = [
+        np.abs(np.subtract(b, a if k in first else moves[k - 1][1])).max() for k, (a, b) in enumerate(moves)
+    ]
+    return per_plan, float(max(steps))
+
+
 def capture_scenario(workdir: str, host: str) -> dict:
     """``lasercal capture --guide move`` on franky-sim: refused without confirmation, then --yes: the arm
     goes to each suggested pose in bounded steps and the captures are taken there."""
     sys.path.insert(0, str(ROOT))
     import contextlib
     import io
-    import re
 
     from lasercal.collector.cli.main import main
     from lasercal.collector.hardware.franky import FrankyRobot
@@ -296,18 +308,9 @@ def capture_scenario(workdir: str, host: str) -> dict:
         screen = io.StringIO()
         with contextlib.redirect_stdout(screen):
             report["rc"] = main(common + ["--yes", "-o", str(Path(workdir) / "s")])
-        per_plan = [
-            int(k)
-            for k in re.findall(r"the arm will move to 1 configurations in (\d+) moves", screen.getvalue())
-        ]
+        per_plan, report["largest_step"] = _steps(screen.getvalue(), moves)
         report["plans"] = per_plan
         report["moves"] = len(moves)
-        first = np.cumsum([0] + per_plan[:-1])  # each plan's first step starts where the arm was read
-        steps = [
-            np.abs(np.subtract(b, a if k in first else moves[k - 1][1])).max()
-            for k, (a, b) in enumerate(moves)
-        ]
-        report["largest_step"] = float(max(steps))
         arrivals = np.array([moves[k - 1][1] for k in np.cumsum(per_plan)])
         session = load_session(Path(workdir) / "s")
         report["captures"] = int(session.m)
@@ -332,7 +335,6 @@ def camera_scenario(workdir: str, host: str, per_point: int = 3) -> dict:
     import contextlib
     import csv
     import io
-    import re
 
     from lasercal.collector.cli.main import main
     from lasercal.collector.hardware.franky import FrankyRobot
@@ -379,15 +381,8 @@ def camera_scenario(workdir: str, host: str, per_point: int = 3) -> dict:
         text = screen.getvalue()
         report["hands_free"] = text.count("hands-free  [Ctrl-C stops]")
         report["by_hand"] = text.count("guided by hand once")
-        per_plan = [int(k) for k in re.findall(r"the arm will move to 1 configurations in (\d+) moves", text)]
-        report["plans"] = per_plan
+        report["plans"], report["largest_step"] = _steps(text, moves)
         report["moves"] = len(moves)
-        first = np.cumsum([0] + per_plan[:-1])  # each plan's first step starts where the arm was read
-        steps = [
-            np.abs(np.subtract(b, a if k in first else moves[k - 1][1])).max()
-            for k, (a, b) in enumerate(moves)
-        ]
-        report["largest_step"] = float(max(steps))
         if report["solve_rc"] == 0:
             fit = json.loads(solved.getvalue())
             keep = ("fit_rms_mm", "noise_by_kind", "sheet", "cross_validation")

@@ -19,7 +19,6 @@ from lasercal.collector.sessions.validate import FakeCamera, SpotLook, fake_view
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout
 from lasercal.vision.errors import VisionError
-from lasercal.vision.sheet import design_sheet, write_layout
 
 MM_PER_PX = 0.2  # validate's fake camera
 # A centre error a well-exposed spot stays within: the benchmark's max over 40 photos is 0.26 px
@@ -63,13 +62,6 @@ def test_a_clipping_camera_is_lowered_until_its_spot_does_not_clip():
     fixed = FakeCamera(Beam(1), view, 0.0, seed=1, look=SpotLook(peak=6.0))  # exposure None: not controlled
     said = io.StringIO()
     assert clipped_px(settle_exposure(fixed, out=said)) > 40 and said.getvalue() == ""
-
-
-@pytest.fixture(scope="module")
-def sheet(tmp_path_factory):
-    path = tmp_path_factory.mktemp("sheet") / "layout.yaml"
-    write_layout(path, design_sheet("A4"), -8.0, {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0})
-    return path
 
 
 def test_an_overexposed_sheet_camera_is_settled_with_its_markers_read(sheet):
