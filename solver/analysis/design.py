@@ -47,7 +47,7 @@ under the current model at the calibration points, kept when they satisfy :class
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -322,6 +322,8 @@ class Posterior:
     sheet : SheetPose or None, a sheet session's pose: ``cov``, ``rows`` and ``prior_root`` then also span the
         sheet's pose, print scale and tilt (eq. S3, after the robot's parameters; :func:`sheet_columns`), and
         errors are predicted on the sheet, as ``solve`` identifies it with the robot
+    on_sheet : Posterior or None, a sheet session's: this posterior with the sheet's parameters (``sheet``
+        set): the error it predicts is the promise (eq. D5 on the sheet); the design keeps to the robot's
     """
 
     params: LaserParams
@@ -338,6 +340,7 @@ class Posterior:
     target_xy: np.ndarray
     slope: np.ndarray
     sheet: SheetPose | None = None
+    on_sheet: Posterior | None = None
 
     @property
     def names(self) -> list:
@@ -484,17 +487,11 @@ def posterior(
         v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
     used_xy = target[w > 0, :2] if m else np.zeros((0, 2))
     d = P.beam(v, q[w > 0]).direction if m else np.zeros((0, 3))
-    sheet = sheet if m else None
-    if sheet is not None:  # the sheet's pose, print and tilt, identified with the robot as solve does
-        R = np.linalg.inv(laser_prior(P, tol, SHEET_KINDS, sheet.vector, SHEET_NAMES).whitening)
-        S = sheet_columns(sheet, target[w > 0], d[:, :2] / d[:, 2:]).reshape(-1, NSHEET)
-        J = np.concatenate([J, S], axis=1)
-    C = _posterior_cov(J, R, sigma)
-    return Posterior(
+    post = Posterior(
         P,
         v,
         P.to_model(v),
-        C,
+        _posterior_cov(J, R, sigma),
         sigma,
         1.0 / np.sqrt(2.0 * (prior.noise_dof + dof)),
         dof,
@@ -504,8 +501,14 @@ def posterior(
         R,
         used_xy,
         d[:, :2] / d[:, 2:],
-        sheet,
     )
+    if sheet is None or not m:
+        return post
+    # the sheet's pose, print and tilt, identified with the robot as solve does: the promise's covariance
+    Rs = np.linalg.inv(laser_prior(P, tol, SHEET_KINDS, sheet.vector, SHEET_NAMES).whitening)
+    Js = np.concatenate([J, sheet_columns(sheet, target[w > 0], post.slope).reshape(-1, NSHEET)], axis=1)
+    on_sheet = replace(post, cov=_posterior_cov(Js, Rs, sigma), rows=Js, prior_root=Rs, sheet=sheet)
+    return replace(post, on_sheet=on_sheet)
 
 
 def use_weight(post: Posterior, region: UseRegion) -> np.ndarray:
@@ -549,6 +552,17 @@ class Plan:
     expected: np.ndarray
     now: float
     history: tuple = field(default_factory=tuple)
+
+    def promised(self, post: Posterior, W: np.ndarray, now: float) -> Plan:
+        """This plan with its expected errors under another posterior (a sheet session's ``on_sheet``):
+        C updated by each planned capture in turn (eq. D6), sqrt(tr(W C)) after each (eq. D5)."""
+        C, expected = post.cov, []
+        for Jk in post.jacobian(self.q, self.target):
+            G = Jk @ C
+            C = C - G.T @ np.linalg.solve(G @ Jk.T + post.sigma**2 * np.eye(2), G)
+            expected.append(float(np.sqrt(max(np.sum(W * C), 0.0))))
+        history = tuple({**h, "expected_mm": x} for h, x in zip(self.history, expected))
+        return replace(self, expected=np.array(expected), now=now, history=history)
 
     def first(self, k: int) -> Plan:
         """The plan's first k captures (its predictions are those of taking them in order)."""
@@ -923,12 +937,18 @@ class Coach:
         """
         post = self.post
         W = use_weight(post, self.region)
-        e, de = predicted_error(post, W)
+        # the promise on the sheet (its pose, print and tilt with the robot's, as solve fits them); the
+        # design on the robot's parameters (on the sheet's, 45-capture camera sessions came out worse)
+        promise = post.on_sheet or post
+        Wp = W if promise is post else use_weight(promise, self.region)
+        e, de = predicted_error(promise, Wp)
         Jc = candidate_jacobian(post, self.cand)
         k = k or self.lookahead
         taken = None if target is None else (q, target)
         n = int(self.cand.available(allowed, taken).sum())
         plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc, taken=taken)
+        if promise is not post:
+            plan = plan.promised(promise, Wp, e)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         plan = plan.first(k)
         gain = 1.0 - ahead / e if e > 0 else 0.0
