@@ -45,7 +45,8 @@ FLOORS = {"errors": 0, "kinematics": 1, "formats": 2, "identify": 3, "control": 
 # the known upward import: a full-pose file's reader computes each pose from its circle points (Section 2.3)
 UPWARD = {("lasercal.solver.formats.fullpose_io", "lasercal.solver.identify.circlepoint")}
 # what the top floor may reach of the application, inside its functions
-API_REACHES = ("lasercal.collector.report", "lasercal.vision")
+# the front door's functions may reach the reports, vision and what a camera session's coach plans with
+API_REACHES = ("lasercal.collector.report", "lasercal.vision", "lasercal.collector.sessions.anywhere")
 
 
 def module_name(f: Path) -> str:
@@ -228,8 +229,9 @@ def test_the_solver_imports_no_floor_above_its_own():
 
 
 def test_the_top_floor_reaches_the_application_lazily():
-    """``lasercal`` (collector/api) takes collector.report and vision inside its functions only, never the
-    command line; neither solver nor vision imports it."""
+    """``lasercal`` (collector/api) takes collector.report, vision and the camera coach's sheet cells
+    (collector.sessions.anywhere) inside its functions only, never the command line; neither solver nor
+    vision imports it."""
     api = modules("api")
     for name, f in api.items():
         app = {m for m in imports(f) if m.split(".")[1] in ("collector", "vision")}

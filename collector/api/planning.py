@@ -129,8 +129,7 @@ def plan(
     """
     import numpy as np
 
-    from lasercal.collector.sessions.anywhere import cells, session_layout_file
-    from lasercal.collector.sessions.capture import CAMERA_NOISE_MM
+    from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM, cells, session_layout_file
     from lasercal.solver.analysis.design import Coach, DesignError, posterior
     from lasercal.solver.formats.session import load_layout, load_session, session_layout
     from lasercal.solver.identify.spot import identify_lm, in_base_frame

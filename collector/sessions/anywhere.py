@@ -16,6 +16,10 @@ import numpy as np
 from lasercal.collector.errors import SessionError
 from lasercal.solver.formats.session import Layout
 
+# the noise per axis a camera session's coach fits its measured captures with (the prior's sigma_0, eq. D3;
+# its 4 pseudo-observations fade after a few captures): what such sessions showed before the sheet's print
+# and tilt were fitted (0.07-0.10 mm); with them, 0.055-0.06 mm (docs/sessions.md)
+CAMERA_NOISE_MM = 0.1
 STEP_MM = 10.0  # grid of planned spots: finer adds candidates, not information (a rough aim is 3 mm)
 CLEAR_MM = 8.0  # least distance from ink: the spot (~2 mm across) plus a rough aim's 2.5 sigma
 

@@ -24,6 +24,7 @@ from lasercal.collector.errors import DeviceError, RobotConnectionError
 from lasercal.collector.hardware.base import JointState, RobotAdapter
 from lasercal.collector.hardware.triggers import Trigger
 from lasercal.collector.report.text import identifiable_text
+from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
 from lasercal.collector.sessions.store import CaptureStore
@@ -283,7 +284,6 @@ def coach_lines(st, counts: dict, current: np.ndarray, stop_gain: float, done: b
 
 
 # a camera session's columns (docs/formats.md)
-CAMERA_NOISE_MM = 0.1  # per axis: what camera sessions' measured captures show (0.07-0.10 mm, issue 38)
 SPOT_COLUMNS = ("photo", "camera_x", "camera_y", "camera_sx", "camera_sy", "camera_note")
 
 
