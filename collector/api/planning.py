@@ -160,7 +160,8 @@ def plan(
     post = posterior(nominal, session.q[use], session.target[use], tol, sheet=pose if sheet else None)
     anywhere = None
     if sheet and (session.meta.get("collector") or {}).get("aim") == "anywhere":  # spots planned anywhere
-        spots = cells(session_layout(session.meta, session.path), session_layout_file(session))
+        layout_file = session_layout_file(session.meta.get("collector") or {}, session.path)
+        spots = cells(session_layout(session.meta, session.path), layout_file)
         anywhere = {k: pose.to_base(v, layout.plane_z) for k, v in spots.items()}
     coach = Coach(
         nominal,

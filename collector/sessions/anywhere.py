@@ -70,7 +70,8 @@ def cells(layout: Layout, layout_file) -> dict:
     return {k: np.c_[spots[owner == i], np.zeros(np.sum(owner == i))] for i, k in enumerate(names)}
 
 
-def session_layout_file(session) -> Path:
-    """The layout file a capture session was started with (``collector.layout``, relative to its folder)."""
-    ref = Path(str((session.meta.get("collector") or {}).get("layout", "")))
-    return ref if ref.is_absolute() else Path(session.path) / ref
+def session_layout_file(collector: dict, folder) -> Path:
+    """The layout file a capture session was started with: its settings' ``layout`` (``collector`` in
+    session.yaml), relative to the session ``folder``."""
+    ref = Path(str(collector.get("layout", "")))
+    return ref if ref.is_absolute() else Path(folder) / ref

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lasercal.collector.hardware import make_rangefinder, make_robot
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.hardware.fakeworld import World, on_table, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
+from lasercal.collector.sessions.anywhere import session_layout_file
 from lasercal.collector.sessions.capture import (
     CaptureOptions,
     CaptureResult,
@@ -177,10 +177,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     nominal = load_model(cfg["robot"])
     world = World.draw(cfg.get("effects") or (), cfg["seed"])
     camera_spec = cfg.get("camera")
-    layout_file = settings.layout_path
-    if settings.resume:  # the layout file the session was started with, relative to its folder
-        layout_file = Path(str(cfg["layout"]))
-        layout_file = layout_file if layout_file.is_absolute() else settings.folder / layout_file
+    layout_file = session_layout_file(cfg, settings.folder) if settings.resume else settings.layout_path
     spots = aim_cells(cfg, guide, layout, layout_file, settings.resume)
     beside = BESIDE_MM if camera_spec and spots is None else (0.0, 0.0)
     # a sheet's points where its placement says: the simulated operator's table (as printed, on the sheet's
