@@ -13,9 +13,9 @@ panda_thesis_identified --layout sheet/layout.yaml --sheet-pose 452 3 1.0 --per-
 
 A mis-measured point exists only where a layout's points are measured (here the sheet's five calibration
 points measured in the base frame, a ``frame: base`` layout); on a printed sheet it is no candidate, and a
-camera's measured spot does not use its point. 'named' = the finding is the hidden effect; 'located' = exactly its joint (or point);
-'gain' = the held-out gain of the extension over the geometry (mean over the seeds where it was named, %).
-False alarms: sessions without an effect whose finding is not 'none'.
+camera's measured spot does not use its point. 'named' = the finding is the hidden effect; 'located' =
+exactly its joint (or point); 'gain' = the held-out gain of the extension over the geometry (mean over
+the seeds where it was named, %). False alarms: sessions without an effect whose finding is not 'none'.
 """
 
 from __future__ import annotations
