@@ -21,6 +21,7 @@ import pytest
 from lasercal.collector.cli.main import main
 from lasercal.simulation import simulate
 from lasercal.solver.analysis import diagnose
+from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_session
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.kinematics.effects import candidates
@@ -194,3 +195,24 @@ def test_the_print_scale_and_tilt_are_recovered_within_their_sigma_from_many_cap
     model = fit(load_session(tmp_path / "s")).model
     for k in ("scale_x", "scale_y", "tilt_x_rad", "tilt_y_rad"):
         assert abs(getattr(model.sheet, k) - getattr(true, k)) < 3 * model.sheet_std[k], k
+
+
+def test_a_camera_session_of_the_fake_robot_names_the_compliance_its_truth_holds(tmp_path, sheet):
+    # issue 45's second command: `capture --backend fake --camera fake --guide move --auto --truth T`, T a
+    # model whose extensions hold a joint-2 compliance; the fake arm ignored T's extensions and solve found
+    # nothing (every F = 0)
+    truth = tmp_path / "T.yaml"
+    load_model("panda_thesis_identified").replace(
+        name="compliant", extensions={"joint_compliance": {"units": "rad/Nm", "joints": [2], "c": [1.5e-4]}}
+    ).save(truth)
+    s = str(tmp_path / "s")
+    run(
+        ["capture", "--layout", str(sheet), "--robot", "panda", "--backend", "fake", "--camera", "fake"]
+        + ["--guide", "move", "--auto", "--per-point", "4", "--truth", str(truth), "-o", s]
+    )
+    d = diagnosis(tmp_path, s)
+    assert d["effect"] == "joint_compliance" and d["joints"] == [2], d["label"]
+    c2 = d["parameters"]["c2"]
+    assert abs(c2["value"] - 1.5e-4) < 4 * c2["std_error"]
+    held = d["acceptance"]["holdout_by_kind"]["measured"]  # 20 captures: folds of 16 fit loosely
+    assert held["extended"] < held["geometric"]

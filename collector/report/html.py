@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.collector.report.plots import diagnosis_plots, pyplot, save
-from lasercal.collector.report.text import format_diagnosis, noise_by_kind_line
+from lasercal.collector.report.text import fit_by_kind_text, format_diagnosis, noise_by_kind_line
 from lasercal.solver.analysis.diagnose import Diagnosis
 from lasercal.solver.analysis.stats import SpotStats, carriers, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
@@ -652,7 +652,8 @@ def write_report(
         ]
         parts += [
             '<p class="note">Each capture\'s residual (mm): a measured one is fitted to the spot the camera '
-            "measured, with its uncertainty; an aimed one to its cross, with the aiming noise.</p>",
+            "measured, with its uncertainty; an aimed one to where it was aimed (its cross, or the coach's "
+            "aim), with the aiming noise.</p>",
             _table(
                 "captures",
                 ["line", "point", "kind", "dx", "dy", "|r|", "uncertainty", "outlier"],
@@ -669,9 +670,15 @@ def write_report(
             else []
         ),
         ["condition number", f"{idf['condition']:.1f}"],
-        ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
-        ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
-        *([["noise by kind", noise_by_kind_line(rep["noise_by_kind"])]] if rep.get("noise_by_kind") else []),
+        *(
+            [["fit residual RMS", fit_by_kind_text(rep["fit_by_kind"], rep["noise_by_kind"])]]
+            + [["noise by kind", noise_by_kind_line(rep["noise_by_kind"])]]
+            if rep.get("noise_by_kind")  # a camera session: each kind of capture with its own figures
+            else [
+                ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
+                ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
+            ]
+        ),
         ["outliers", ", ".join(f"line {o['line']} ({o['point']})" for o in rep["outliers"]) or "none"],
     ]
     det = rep.get("determined_by")
