@@ -253,7 +253,7 @@ class FakeRobot(RobotAdapter):
         # torque noise shows in that time (exact binary steps, so a resumed session repeats itself).
         k = np.floor((t - self._t0) * 8.0)
         if k != self._grid:
-            self._grid, self._gravity = k, self.effects.torques(self._link(self._t0 + k / 8.0))[0]
+            self._grid, self._gravity = k, self.effects.torques(self._links_at(self._t0 + k / 8.0))[0]
         tau = self._gravity + self._noise.normal(0.0, self.motion.tau_noise, q.shape)
         return JointState(q, dq, tau, t, {"robot_mode": self._mode})
 
@@ -298,7 +298,7 @@ class FakeRobot(RobotAdapter):
         """The session's time (captures.csv's ``t``, s) at clock time t."""
         return t + self.t_offset
 
-    def _link(self, t: float) -> np.ndarray:
+    def _links_at(self, t: float) -> np.ndarray:
         """Where the links stand at clock time t, (1, n) rad: the encoders' pose plus the repeatability's
         delta, through the truth's effects."""
         return self.effects.links((self._kinematics(t)[0] + self._delta)[None], self._session_t(t))
@@ -306,7 +306,7 @@ class FakeRobot(RobotAdapter):
     def true_q(self) -> np.ndarray:
         """The configuration the arm truly is in now (the reported one plus the repeatability's, through the
         truth's effects), rad."""
-        return self._link(self.clock.now())[0]
+        return self._links_at(self.clock.now())[0]
 
     def true_spot(self, z: float) -> tuple[np.ndarray, float]:
         """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""
