@@ -203,7 +203,19 @@ def cmd_predict(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
 
     with atomic_output(args.output) as tmp, open(tmp, "w", newline="") as f, redirect_stdout(f):
-        return _predict(args)
+        code = _predict(args)
+    print(predicted_line(args.configs, args.output))
+    return code
+
+
+def predicted_line(configs, output) -> str:
+    """What ``predict -o`` wrote, one line: its rows and the columns it added after the input's (every
+    kind of model passes the input's columns through first, renamed where a predicted one takes a name)."""
+    from lasercal.solver.formats.table import read_csv
+
+    n_in = len(read_csv(configs)[0])
+    header, rows = read_csv(output)
+    return f"wrote {output}: {len(rows)} rows, the input's columns and {', '.join(header[n_in:])}"
 
 
 def _predict(args) -> int:

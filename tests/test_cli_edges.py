@@ -1,0 +1,40 @@
+"""Edges a new user cut on (issue 47, items 7-10, 15): what each command says and writes where a first run
+went wrong. Truth: the files the commands wrote, read back by an independent reader (csv.DictReader, the
+URDF's own text), and what a user types."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+
+from lasercal.collector.cli.main import main
+from lasercal.solver.formats.poses import pose_meta, write_pose_session
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.kinematics.poe import exp6, fk
+
+
+def test_predict_of_a_pose_model_names_its_measured_and_predicted_columns_apart(tmp_path, capsys):
+    """A pose session's captures predicted by the model solved on them: the measured x ... rz carried from
+    the input are measured_x ... measured_rz, the predicted keep x ... rz (the outside check reads them),
+    so a csv.DictReader reads each once; and ``-o`` says what it wrote."""
+    ur = load_model("ur10")
+    q = np.random.default_rng(3).uniform(-2.5, 2.5, (30, 6))
+    X = exp6(np.r_[0.1, -0.2, 0.5, 2500.0, -1500.0, -1200.0])  # the tracker 3 m away
+    T = X @ fk(ur.screws, ur.ee_pose @ exp6(np.r_[0, 0, 0.3, 1.0, 2.0, 90.0]), q)  # exact poses
+    write_pose_session(tmp_path / "s", pose_meta("ur10"), q, T)
+    model, out = tmp_path / "m.yaml", tmp_path / "out.csv"
+    assert main(["solve", str(tmp_path / "s"), "-o", str(model), "--folds", "0"]) == 0
+    capsys.readouterr()
+    assert main(["predict", str(model), str(tmp_path / "s" / "captures.csv"), "-o", str(out)]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert said == [f"wrote {out}: 30 rows, the input's columns and x, y, z, rx, ry, rz"]
+    header = out.read_text().splitlines()[0].split(",")
+    assert len(header) == len(set(header))
+    assert header[-12:] == [f"measured_{k}" for k in ("x", "y", "z", "rx", "ry", "rz")] + list(header[-6:])
+    measured = list(csv.DictReader((tmp_path / "s" / "captures.csv").open()))
+    rows = list(csv.DictReader(out.open()))
+    for k in ("x", "y", "z"):  # the predicted beside the measured (exact data: the fit reproduces them)
+        m = np.array([float(r[k]) for r in measured])
+        assert np.array_equal([float(r[f"measured_{k}"]) for r in rows], m)
+        assert np.abs(np.array([float(r[k]) for r in rows]) - m).max() < 1e-3
