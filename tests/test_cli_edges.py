@@ -38,3 +38,19 @@ def test_predict_of_a_pose_model_names_its_measured_and_predicted_columns_apart(
         m = np.array([float(r[k]) for r in measured])
         assert np.array_equal([float(r[f"measured_{k}"]) for r in rows], m)
         assert np.abs(np.array([float(r[k]) for r in rows]) - m).max() < 1e-3
+
+
+def test_export_urdf_says_on_stderr_what_a_urdf_cannot_carry(tmp_path, capsys):
+    """A compliance is no joint origin: ``--format urdf`` names it on stderr with its size, as ``--format
+    franka`` does (before: an XML comment only); a model without effects exports without a word."""
+    ext = {"joint_compliance": {"units": "rad/Nm", "joints": [2, 4], "c": [-2e-4, -1e-4]}}
+    load_model("panda").replace(extensions=ext).save(tmp_path / "m.yaml")
+    out = tmp_path / "m.urdf"
+    assert main(["export", str(tmp_path / "m.yaml"), "--format", "urdf", "-o", str(out)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    said = [s for s in err if s.startswith("lasercal: warning: not in the URDF: the joint_compliance")]
+    assert len(said) == 1 and "of joint(s) 2, 4" in said[0] and "mm at the flange" in said[0], err
+    assert "joint_compliance" in out.read_text()  # still listed in the file, for whoever reads it
+    load_model("panda").save(tmp_path / "n.yaml")
+    assert main(["export", str(tmp_path / "n.yaml"), "--format", "urdf", "-o", str(tmp_path / "n.urdf")]) == 0
+    assert "warning" not in capsys.readouterr().err
