@@ -5,10 +5,13 @@ URDF's own text), and what a user types."""
 from __future__ import annotations
 
 import csv
+import re
 
 import numpy as np
+import pytest
 
 from lasercal.collector.cli.main import main
+from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.poses import pose_meta, write_pose_session
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.kinematics.poe import exp6, fk
@@ -54,3 +57,64 @@ def test_export_urdf_says_on_stderr_what_a_urdf_cannot_carry(tmp_path, capsys):
     load_model("panda").save(tmp_path / "n.yaml")
     assert main(["export", str(tmp_path / "n.yaml"), "--format", "urdf", "-o", str(tmp_path / "n.urdf")]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory):
+    """A simulated session (session.yaml not written by capture), its model, and a finished validation."""
+    d = tmp_path_factory.mktemp("edges")
+    layout = str(builtin_dir("layouts") / "thesis.yaml")
+    sim = ["simulate", "panda_thesis_identified", "--layout", layout, "--per-point", "4", "-o", str(d / "s")]
+    assert main(sim) == 0
+    assert main(["solve", str(d / "s"), "-o", str(d / "m.yaml"), "--folds", "0"]) == 0
+    assert main(["validate", str(d / "m.yaml"), "--backend", "fake", "-n", "2", "-o", str(d / "v")]) == 0
+    return d
+
+
+def _hint(err: str) -> str:
+    """The advice of an 'exists and is kept (...)' line."""
+    return re.search(r"exists and is kept \((.*)\)$", err.strip()).group(1)
+
+
+@pytest.mark.parametrize(
+    "argv, folder, says",
+    [
+        (
+            ["validate", "{d}/m.yaml", "--backend", "fake", "-n", "2"],
+            "s",
+            "a capture session, not a validation",
+        ),
+        (
+            ["capture", "--backend", "fake", "--auto", "--per-point", "2"],
+            "v",
+            "a validation run, not a capture",
+        ),
+        (
+            ["capture", "--backend", "fake", "--auto", "--per-point", "2"],
+            "s",
+            "not written by lasercal capture",
+        ),
+        (["validate", "{d}/m.yaml", "--backend", "fake", "-n", "2"], "empty", "not a validation run"),
+    ],
+)
+def test_an_existing_output_is_resumed_only_where_the_resume_would_run(folders, argv, folder, says, capsys):
+    """``-o`` naming a folder the command cannot resume says to choose another -o; the --resume the old hint
+    gave fails there (the user's walkthrough), the one given for a validation run works."""
+    (folders / "empty" / "notes").mkdir(parents=True, exist_ok=True)
+    capsys.readouterr()
+    args = [a.replace("{d}", str(folders)) for a in argv]
+    assert main(args + ["-o", str(folders / folder)]) == 2
+    hint = _hint(capsys.readouterr().err)
+    assert says in hint and "choose another -o" in hint and "--resume" not in hint
+    assert main([argv[0], "--resume", str(folders / folder)]) == 2  # what the old hint said: it fails
+    assert "nothing to resume" in capsys.readouterr().err
+
+
+def test_a_validation_run_s_hint_resumes_it(folders, capsys):
+    capsys.readouterr()
+    validate = ["validate", str(folders / "m.yaml"), "--backend", "fake", "-n", "2", "-o", str(folders / "v")]
+    assert main(validate) == 2
+    hint = _hint(capsys.readouterr().err)
+    assert hint == f"resume it with --resume {folders / 'v'}"
+    assert main(["validate", *hint.split(" with ")[1].split()]) == 0
+    assert "2 of 2 configurations" in capsys.readouterr().out

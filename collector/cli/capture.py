@@ -13,6 +13,7 @@ from lasercal.collector.cli.options import (
     motion_arguments,
     number,
     output_argument,
+    resume_or_another,
     unused,
 )
 from lasercal.solver.formats.checks import METRES_BELOW_MM
@@ -29,7 +30,9 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         kind="folder",
-        instead="resume it with --resume {path}",
+        instead=resume_or_another(
+            "capture", "session.yaml", "a capture session", {"validation.yaml": "a validation run"}
+        ),
         metavar="SESSION",
         help="new session folder",
     )

@@ -13,6 +13,7 @@ from lasercal.collector.cli.options import (
     count,
     motion_arguments,
     output_argument,
+    resume_or_another,
     sheet_pose,
     sheet_pose_argument,
 )
@@ -28,7 +29,9 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         kind="folder",
-        instead="resume it with --resume {path}",
+        instead=resume_or_another(
+            "validate", "validation.yaml", "a validation run", {"session.yaml": "a capture session"}
+        ),
         metavar="DIR",
         help="new folder: validation.yaml, validation.csv, photos/",
     )
