@@ -5,6 +5,7 @@ URDF's own text), and what a user types."""
 from __future__ import annotations
 
 import csv
+import io
 import re
 
 import numpy as np
@@ -14,6 +15,7 @@ from lasercal.collector.cli.main import main
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.poses import pose_meta, write_pose_session
 from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_session
 from lasercal.solver.kinematics.poe import exp6, fk
 
 
@@ -118,3 +120,33 @@ def test_a_validation_run_s_hint_resumes_it(folders, capsys):
     assert hint == f"resume it with --resume {folders / 'v'}"
     assert main(["validate", *hint.split(" with ")[1].split()]) == 0
     assert "2 of 2 configurations" in capsys.readouterr().out
+
+
+CAPTURE = ["capture", "--backend", "fake", "--layout", "thesis", "--per-point", "2", "--no-coach"]
+
+
+def test_capture_whose_standard_input_ends_stops_keeps_its_captures_and_says_so(
+    tmp_path, capsys, monkeypatch
+):
+    """``capture`` without ``--auto`` reads Enter from standard input. Its end is no operator's quit: before
+    any capture, exit 2 and the new session is not kept (was exit 0, an empty session); after some, exit 1,
+    each capture on disk, and the resume the message gives finishes the session."""
+    s = tmp_path / "s"
+    monkeypatch.setattr("sys.stdin", open("/dev/null"))
+    assert main(CAPTURE + ["-o", str(s)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("lasercal: error: standard input ended"), err
+    assert "nothing captured" in err[0] and not s.exists()
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n\n\n"))  # three Enters, then the end
+    assert main(CAPTURE + ["-o", str(s)]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "standard input ended" in err[0] and "3 captures in" in err[0], err
+    assert load_session(s).m == 3
+    resume = err[0].split("resume with: ")[1].split()
+    assert resume == ["lasercal", "capture", "--resume", str(s)]
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))  # resumed, and nothing more: exit 2, the 3 kept
+    assert main(resume[1:] + ["--no-coach"]) == 2
+    assert "nothing captured this run" in capsys.readouterr().err and load_session(s).m == 3
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n\n\n"))
+    assert main(resume[1:] + ["--no-coach"]) == 0
+    assert load_session(s).m == 6 and "session complete: 6 captures" in capsys.readouterr().out

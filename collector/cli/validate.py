@@ -73,9 +73,11 @@ def args_validate(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_validate(args) -> int:
+    from lasercal.collector.errors import InputEnded
     from lasercal.collector.sessions.settings import given_settings, validate_settings
     from lasercal.collector.sessions.start import start_validation
     from lasercal.solver.analysis.stats import spot_stats
+    from lasercal.solver.errors import LasercalError
 
     settings = validate_settings(
         given_settings(vars(args)),
@@ -92,7 +94,13 @@ def cmd_validate(args) -> int:
         sheet_pose=sheet_pose(args.sheet_pose, "--sheet-pose") if args.sheet_pose else None,
     )
     started = start_validation(settings, yes=args.yes)
-    res = started.run(sys.stdout)
+    try:
+        res = started.run(sys.stdout)
+    except InputEnded as e:  # the operator's trigger (a real robot guided by hand) read standard input
+        raise LasercalError(
+            f"{e}; what was measured is in {settings.folder}: continue with: lasercal validate --resume "
+            f"{settings.folder}"
+        ) from None
     print(f"wrote {res.path} ({res.photos} photos this run; {res.summary()})")
     if not res.complete:
         print(f"continue with: lasercal validate --resume {settings.folder}")
