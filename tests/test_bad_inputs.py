@@ -1518,6 +1518,18 @@ def _dup_row(rel: str, row: int):
     return fn
 
 
+def _only_point(rel: str, name: str):
+    """Keep the captures at one point of a session's captures.csv."""
+
+    def fn(d: Path):
+        lines = (d / rel).read_text().splitlines()
+        (d / rel).write_text(
+            "\n".join(lines[:1] + [ln for ln in lines[1:] if ln.startswith(name + ",")]) + "\n"
+        )
+
+    return fn
+
+
 def _limits_rounded(rel: str, j: int, excess: float):
     """model.yaml's upper limit of joint j (0-based) rounded to ``excess`` rad below the largest angle
     measured in ``rel`` (a CSV with a q<j+1> column)."""
@@ -1584,6 +1596,9 @@ WARNINGS = [
     ("diagnose", DIAGNOSE + ["--prior", "{d}/prior.yaml"], "a prior angle in degrees",
      _touch("prior.yaml", "format: lasercal-prior/1\nprior: {eccentricity_rad: 5.0}\n"),
      "field 'prior.eccentricity_rad'"),
+    # issue 47 (item 15): on stderr, not on stdout
+    ("solve", SOLVE + ["-o", "{o}"], "every capture at one point", _only_point("sess/captures.csv", "P1"),
+     "every capture is at one point, P1"),
 ]  # fmt: skip
 
 

@@ -158,7 +158,7 @@ def simulated_sheet(folder, session, model) -> str:
 def cmd_solve(args) -> int:
     from lasercal.calibration import calibrate
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.errors import LasercalError, warn
     from lasercal.solver.formats.poses import is_pose_session
     from lasercal.solver.formats.session import load_session
 
@@ -184,6 +184,8 @@ def cmd_solve(args) -> int:
         allow_partial=args.allow_partial,
         payload=parse_payload(args.payload),
     )
+    if "warning" in cal.statistics:  # on stderr, where a script (and the outside check) looks for it
+        warn(f"{args.session}: {cal.statistics['warning']}")
     with atomic_output(args.output) as tmp:
         cal.save(tmp)
     if args.json:
