@@ -82,8 +82,8 @@ def ipa_text(m: int = 30) -> str:
 def base(tmp_path_factory):
     """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/, pos/
     (a position session of the UR5 URDF, which it names as 'robot: arm.urdf' beside its captures),
-    goals.csv, prior.yaml, sheet/ (a printed sheet and its layout, frame: sheet) and shs/ (a session on
-    that sheet, displaced from its placement)."""
+    goals.csv, prior.yaml, sheet/ (a printed sheet and its layout, frame: sheet), shs/ (a session on
+    that sheet, displaced from its placement) and shm.yaml (its model, the sheet found)."""
     d = tmp_path_factory.mktemp("valid")
     layout = yaml.safe_load((Path(__file__).resolve().parents[1] / "data/layouts/thesis.yaml").read_text())
     (d / "layout.yaml").write_text(dump_yaml(layout))  # as lasercal writes it: a whole file
@@ -123,6 +123,7 @@ def base(tmp_path_factory):
         (d / "sheet" / drawing).unlink()
     assert main(["simulate", "panda_thesis_identified", "--layout", str(d / "sheet" / "layout.yaml"),
                  "--per-point", "4", "--sheet-pose", "455", "5", "2", "-o", str(d / "shs")]) == 0  # fmt: skip
+    assert main(["solve", str(d / "shs"), "-o", str(d / "shm.yaml"), "--folds", "0"]) == 0
     return d
 
 
@@ -1398,6 +1399,9 @@ MODEL_SHEET_BAD = [
 ]  # fmt: skip
 for cid, edit, field in MODEL_SHEET_BAD:
     case(f"export: model {cid}", _argv("export"), _yaml("model.yaml", edit), f"model.yaml, field '{field}'")
+VALIDATE_SHM = ["validate", "{d}/shm.yaml"] + VALIDATE_SHEET[2:]  # the model solved on shs (sheet ~455 5 2)
+case("validate: --sheet-pose 5 m from where the model found the sheet (metres for mm, a slip)",
+     VALIDATE_SHM + ["--sheet-pose", "5455", "5", "2"], None, "--sheet-pose 5455 5 2", "silent")  # fmt: skip
 STD_NEGATIVE = _yaml("model.yaml", _set("sheet", SHEET_POSE), _set("sheet_std", SHEET_POSE | {"y_mm": -1.0}))
 case("export: model sheet_std negative", _argv("export"), STD_NEGATIVE, "model.yaml, field 'sheet_std.y_mm'")
 case("spots --model: a model's sheet_std negative", ["spots", "{d}/val/photos/0000.png", "--layout",
@@ -1597,6 +1601,8 @@ WARNINGS = [
      _touch("prior.yaml", "format: lasercal-prior/1\nprior: {eccentricity_rad: 5.0}\n"),
      "field 'prior.eccentricity_rad'"),
     # issue 47 (item 15): on stderr, not on stdout
+    ("validate", VALIDATE_SHM + ["--sheet-pose", "480", "5", "2"], "a --sheet-pose 25 mm from where the "
+     "model found the sheet", None, "--sheet-pose 480 5 2: lays P6"),
     ("solve", SOLVE + ["-o", "{o}"], "every capture at one point", _only_point("sess/captures.csv", "P1"),
      "every capture is at one point, P1"),
 ]  # fmt: skip
