@@ -529,6 +529,27 @@ for cid, spoil in JUSTIN_BAD.items():
     case(f"import-justin: {cid}", JUSTIN_IMPORT + ["-o", "{o}"], _justin_record(*spoil), "justin.csv")
 
 
+def _justin_units(deg: bool):
+    """The DLR file as a converter would spoil it whole: every joint in degrees (poses across the joints'
+    range, not the fixture's 0.1 rad, whose degrees 5.7 pass for radians), or every marker in mm."""
+
+    def fn(d: Path):
+        q = np.random.default_rng(7).uniform(-2.5, 2.5, (3, 19))
+        mm = 1000.0 if not deg else 1.0
+        records = [(k, "[" + " ".join(f"{v:.6e}" for v in (np.degrees(q[k]) if deg else q[k])) + "]",
+                    f'"[[{-1.8 * mm:g}  {2.2 * mm:g}  {(1 + k / 10) * mm:g}]\n [{-3 * mm:g}  {1.6 * mm:g}  '
+                    f'{1.8 * mm:g}]]"') for k in range(3)]  # fmt: skip
+        (d / "justin.csv").write_text(justin_text(records))
+
+    return fn
+
+
+case("import-justin: joints in degrees", JUSTIN_IMPORT + ["-o", "{o}"], _justin_units(True),
+     "justin.csv, line 2, column 'joints'", "silent")  # fmt: skip
+case("import-justin: markers in millimetres", JUSTIN_IMPORT + ["-o", "{o}"], _justin_units(False),
+     "justin.csv, line 2, column 'markers'", "silent")  # fmt: skip
+
+
 def _ipa_cell(row: int, col: str, text: str):
     """The series file with one cell replaced (data row ``row``, 0-based)."""
 
