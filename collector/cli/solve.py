@@ -186,13 +186,14 @@ def cmd_solve(args) -> int:
     )
     if "warning" in cal.statistics:  # on stderr, where a script (and the outside check) looks for it
         warn(f"{args.session}: {cal.statistics['warning']}")
+    truth = simulated_sheet(args.session, session, cal.model)  # before writing: a bad truth file is exit 2
     with atomic_output(args.output) as tmp:
         cal.save(tmp)
     if args.json:
         print(cal.to_json())
     else:
         sys.stdout.write(cal.summary())
-        sys.stdout.write(simulated_sheet(args.session, session, cal.model))
+        sys.stdout.write(truth)
         print(f"\nwrote {args.output}")
     return 0
 
