@@ -253,8 +253,10 @@ def check_outputs(args) -> None:
                 raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
             seen[out] = flag
             targets = [out / n for n in writes.get(dest, lambda a: ())(args)] if kind == "into" else [out]
+            if kind == "into":  # the folder itself an input, or inside one (not a folder of input files)
+                targets.insert(0, out)
             for target in targets:
-                hit = replaced_input(target, kind, inputs)
+                hit = replaced_input(target, "file" if kind == "into" and target == out else kind, inputs)
                 if hit is not None:
                     what = "" if target == out else f" ({target.name})"
                     raise SessionError(f"{flag} {value}{what}: would replace {hit} (expected another path)")
