@@ -1335,7 +1335,7 @@ PRIOR_BAD = [
     ("noise_mm of an unknown measurement", "format: lasercal-prior/1\nprior: {noise_mm: {tracker: 0.1}}\n",
      "field 'prior.noise_mm'", "culprit"),
     ("noise_mm infinite", "format: lasercal-prior/1\nprior: {noise_mm: {laser: .inf}}\n",
-     "field 'prior.noise_mm'", "culprit"),
+     "field 'prior.noise_mm.laser'", "culprit"),
     ("noise_dof infinite", "format: lasercal-prior/1\nprior: {noise_dof: .inf}\n", "field 'prior.noise_dof'",
      "culprit"),
     ("prior a list", "format: lasercal-prior/1\nprior: [4.0, 0.01]\n", "field 'prior'", "culprit"),
@@ -1427,6 +1427,50 @@ STD_NEGATIVE = _yaml("model.yaml", _set("sheet", SHEET_POSE), _set("sheet_std", 
 case("export: model sheet_std negative", _argv("export"), STD_NEGATIVE, "model.yaml, field 'sheet_std.y_mm'")
 case("spots --model: a model's sheet_std negative", ["spots", "{d}/val/photos/0000.png", "--layout",
      "{d}/sheet/layout.yaml", "--model", "{d}/model.yaml"], STD_NEGATIVE, "sheet_std.y_mm")  # fmt: skip
+
+
+# --- 10. issue 47's sweep: corrupted copies of files lasercal wrote, where each used to pass or write ------
+# a NaN in a field the command does not read is a corruption too (every YAML lasercal reads is checked whole)
+UNREAD_NAN = [
+    ("export", EXPORT + ["-o", "{o}"], "model.yaml", ("identification", "fit_rms_mm")),
+    ("predict", PREDICT, "model.yaml", ("identification", "prior", "tolerances", "offset_mm")),
+    ("solve", SOLVE + ["-o", "{o}"], "sess/session.yaml", ("simulated", "aim_noise_mm")),
+    ("report", REPORT + ["-o", "{o}"], "val/validation.yaml", ("collector", "settings", "hold")),
+    ("register", REGISTER + ["-o", "{o}"], "pmodel.yaml", ("identification", "sigma_mm")),
+    ("capture", CAPTURE_SHEET, "sheet/layout.yaml", ("paper", "width_mm")),
+    ("solve", ["solve", "{d}/shs", "--folds", "0", "-o", "{o}"], "shs/session.yaml",
+     ("simulated", "sheet", "pose", "x_mm")),
+]  # fmt: skip
+for cmd, argv, rel, keys in UNREAD_NAN:
+    field = ".".join(keys)
+    case(f"{cmd}: {rel} NaN in {field}, a field it does not read", argv, _yaml(rel, _set(*keys, nan)),
+         f"{rel.split('/')[-1]}, field '{field}'")  # fmt: skip
+case("validate: a sheet layout's marker corner NaN", VALIDATE_SHM,
+     _yaml("sheet/layout.yaml", lambda d: d["markers"]["ids"][0][0].__setitem__(0, nan)),
+     "layout.yaml, field 'markers.ids.0'")  # fmt: skip
+case("report: validation.csv a logged angle NaN", REPORT + ["-o", "{o}"],
+     _cell("val/validation.csv", 0, "q3", "nan"), "validation.csv, line 3, column 'q3'")  # fmt: skip
+# a simulated sheet session's truth file spoiled: refused before the model is written (it was written, exit 2)
+case("solve: a sheet session's truth.yaml cut short", ["solve", "{d}/shs", "--folds", "0", "-o", "{o}"],
+     _torn("shs/truth.yaml"), "truth.yaml", "torn")  # fmt: skip
+
+
+# a pose session's session.yaml is a whole file: cut at a line end, it says so (it was read as complete)
+def _last_line_lost(rel: str):
+    """A YAML file cut at the line end before its last line of content (and its end line '...', if any)."""
+
+    def fn(d: Path):
+        lines = [ln for ln in (d / rel).read_text().splitlines() if ln.strip() != "..."]
+        (d / rel).write_text("\n".join(lines[:-1]) + "\n")
+
+    return fn
+
+
+case("solve: a pose session.yaml truncated at a line end", ["solve", "{d}/ps", "--folds", "0", "-o", "{o}"],
+     _last_line_lost("ps/session.yaml"), "ps/session.yaml", "torn")  # fmt: skip
+# --report into the session it reads (it wrote its plots there)
+case("diagnose --report the input session folder", DIAGNOSE + ["--report", "{d}/sess"], None, "would replace",
+     "output")  # fmt: skip
 
 
 @pytest.fixture
