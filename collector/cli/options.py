@@ -168,7 +168,8 @@ def output_argument(
     flags : e.g. ``"-o", "--output"``
     kind : "file" (a new file), "folder" (a new or empty folder) or "into" (a folder written into,
         created if missing; files of the same names are replaced)
-    instead : what to do when the output exists ('{path}' is replaced); default: pass --force
+    instead : what to do when the output exists ('{path}' is replaced), or a function of the path giving
+        it (what the folder holds decides: a session resumes, another folder does not); default: pass --force
     writes : for ``kind="into"``: a function of the parsed arguments giving the names of the files
         written into the folder (each is checked not to be an input)
     kw : the other ``add_argument`` arguments (help, required, metavar, default)
@@ -252,8 +253,10 @@ def check_outputs(args) -> None:
                 raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
             seen[out] = flag
             targets = [out / n for n in writes.get(dest, lambda a: ())(args)] if kind == "into" else [out]
+            if kind == "into":  # the folder itself an input, or inside one (not a folder of input files)
+                targets.insert(0, out)
             for target in targets:
-                hit = replaced_input(target, kind, inputs)
+                hit = replaced_input(target, "file" if kind == "into" and target == out else kind, inputs)
                 if hit is not None:
                     what = "" if target == out else f" ({target.name})"
                     raise SessionError(f"{flag} {value}{what}: would replace {hit} (expected another path)")
@@ -263,8 +266,36 @@ def check_outputs(args) -> None:
             into=kind == "into",
             force=bool(getattr(args, "force", False)),
             option=flag,
-            instead=(instead or "pass --force to replace it").replace("{path}", str(value)),
+            instead=(
+                instead(value) if callable(instead) else (instead or "pass --force to replace it")
+            ).replace("{path}", str(value)),
         )
+
+
+def resume_or_another(command: str, marker: str, what: str, others: dict):
+    """An ``instead`` of :func:`output_argument` for a folder ``lasercal COMMAND --resume`` continues: the
+    resume where the folder's ``marker`` file says ``command`` started it (its stored settings, the key
+    ``collector``), else choose another ``-o``, saying what the folder is (``others``: file name -> what a
+    folder holding it is)."""
+
+    def instead(path) -> str:
+        from lasercal.solver.errors import LasercalError
+        from lasercal.solver.formats.robots import load_yaml
+
+        folder, why = Path(path), f"not {what}, no {marker}"
+        if (folder / marker).is_file():
+            try:
+                meta = load_yaml(folder / marker)
+            except LasercalError:
+                meta = None
+            if isinstance(meta, dict) and meta.get("collector"):
+                return "resume it with --resume {path}"
+            why = f"its {marker} was not written by lasercal {command}"
+        else:
+            why = next((f"{v}, not {what}" for k, v in others.items() if (folder / k).is_file()), why)
+        return f"{why}: nothing to resume there, choose another -o"
+
+    return instead
 
 
 def unused(args, why: str, *dests: str) -> None:

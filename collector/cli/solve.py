@@ -177,7 +177,7 @@ def simulated_sheet(folder, session, model) -> str:
 def cmd_solve(args) -> int:
     from lasercal.calibration import calibrate
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.errors import LasercalError, warn
     from lasercal.solver.formats.poses import is_pose_session
     from lasercal.solver.formats.session import load_session
 
@@ -203,13 +203,16 @@ def cmd_solve(args) -> int:
         allow_partial=args.allow_partial,
         payload=parse_payload(args.payload),
     )
+    if "warning" in cal.statistics:  # on stderr, where a script (and the outside check) looks for it
+        warn(f"{args.session}: {cal.statistics['warning']}")
+    truth = simulated_sheet(args.session, session, cal.model)  # before writing: a bad truth file is exit 2
     with atomic_output(args.output) as tmp:
         cal.save(tmp)
     if args.json:
         print(cal.to_json())
     else:
         sys.stdout.write(cal.summary())
-        sys.stdout.write(simulated_sheet(args.session, session, cal.model))
+        sys.stdout.write(truth)
         print(f"\nwrote {args.output}")
     return 0
 
@@ -222,7 +225,19 @@ def cmd_predict(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
 
     with atomic_output(args.output) as tmp, open(tmp, "w", newline="") as f, redirect_stdout(f):
-        return _predict(args)
+        code = _predict(args)
+    print(predicted_line(args.configs, args.output))
+    return code
+
+
+def predicted_line(configs, output) -> str:
+    """What ``predict -o`` wrote, one line: its rows and the columns it added after the input's (every
+    kind of model passes the input's columns through first, renamed where a predicted one takes a name)."""
+    from lasercal.solver.formats.table import read_csv
+
+    n_in = len(read_csv(configs)[0])
+    header, rows = read_csv(output)
+    return f"wrote {output}: {len(rows)} rows, the input's columns and {', '.join(header[n_in:])}"
 
 
 def _predict(args) -> int:

@@ -116,13 +116,12 @@ def load_validation(folder) -> Validation:
     for ln, r in rows[1:]:
         for j in qcols:
             try:
-                big = abs(float(r[j])) > 2 * np.pi
+                v = float(r[j])
             except (ValueError, IndexError):
                 continue
-            if big:
-                raise FormatError(
-                    cpath, f"{r[j]} looks like degrees (expected rad)", line=ln, field=header[j]
-                )
+            if not abs(v) <= 2 * np.pi:  # NaN too: a logged angle is a number
+                what = "looks like degrees" if np.isfinite(v) else "is not a finite number"
+                raise FormatError(cpath, f"{r[j]} {what} (expected rad)", line=ln, field=header[j])
     spots = []
     for ln, r in rows[1:]:
         if len(r) != len(header):
