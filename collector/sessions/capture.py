@@ -88,6 +88,8 @@ class Check:
     similar_to : int or None, 1-based number (at this point) of the most similar earlier capture
     distance : float, its joint-space distance, rad
     vary : tuple of int, 1-based joints whose spread over this point's captures is smallest
+    aim : (2,) array or None, the spot the coach planned off the point (layout frame, mm): ``offset`` is
+        then measured from it, not from the point
     """
 
     point: str
@@ -97,6 +99,14 @@ class Check:
     similar_to: int | None
     distance: float
     vary: tuple
+    aim: np.ndarray | None = None
+
+    @property
+    def target(self) -> str:
+        """What ``offset`` is measured from, in words: the point, or the aim the coach planned."""
+        if self.aim is None:
+            return self.point
+        return f"the aim ({self.aim[0]:.0f}, {self.aim[1]:.0f}) mm on the sheet"
 
 
 @dataclass(frozen=True)
@@ -110,7 +120,13 @@ class CaptureResult:
 
 
 def check_capture(
-    nominal: RobotModel, points: dict, name: str, q: np.ndarray, earlier: np.ndarray, opts: CaptureOptions
+    nominal: RobotModel,
+    points: dict,
+    name: str,
+    q: np.ndarray,
+    earlier: np.ndarray,
+    opts: CaptureOptions,
+    aim: tuple | None = None,
 ) -> Check:
     """The nominal-model check and the pose-diversity hint of a new capture.
 
@@ -122,26 +138,36 @@ def check_capture(
     q : (n,) array, the captured configuration, rad
     earlier : (k, n) array, earlier captures at this point, rad
     opts : CaptureOptions
+    aim : ((2,) array, (3,) array) or None, the spot the coach planned in the point's cell (layout frame,
+        base frame; mm): the beam is checked against it (``--aim anywhere``), not against the point
     """
-    p = points[name]
+    p = points[name] if aim is None else aim[1]
     spot, length = predict_spots(nominal, q[None], p[2])
+    mark = None if aim is None else np.asarray(aim[0], dtype=float)
     if length[0] <= 0:
         return Check(
-            name, np.full(2, np.nan), "", "the nominal beam points away from the table", None, np.nan, ()
+            name,
+            np.full(2, np.nan),
+            "",
+            "the nominal beam points away from the table",
+            None,
+            np.nan,
+            (),
+            mark,
         )
     offset = spot[0, :2] - p[:2]
-    names = list(points)
-    nearest = names[int(np.argmin([np.linalg.norm(spot[0, :2] - points[k][:2]) for k in names]))]
+    others = {**points, name: p}
+    nearest = min(others, key=lambda k: np.linalg.norm(spot[0, :2] - others[k][:2]))
     flag = ""
+    where = name if aim is None else "the aim"
     # within check_mm of its point the spot is the nominal model's error, even nearer another point (crosses
     # on a printed sheet lie 40-50 mm apart); beyond it, the nearer point names the likely mistake
     if np.linalg.norm(offset) > opts.check_mm and nearest != name:
-        flag = f"the beam lands nearest to {nearest}, not {name}: aimed at the wrong point?"
+        flag = f"the beam lands nearest to {nearest}, not {where}: aimed at the wrong point?"
     elif np.linalg.norm(offset) > opts.check_mm:
         flag = (
-            f"{np.linalg.norm(offset):.0f} mm from {name} by the nominal model (more than {opts.check_mm:g} "
-            "mm): "
-            "aimed at the wrong place, or the arm moved?"
+            f"{np.linalg.norm(offset):.0f} mm from {where} by the nominal model (more than "
+            f"{opts.check_mm:g} mm): aimed at the wrong place, or the arm moved?"
         )
     similar_to, distance, vary = None, np.nan, ()
     if len(earlier):
@@ -152,7 +178,7 @@ def check_capture(
             similar_to = k + 1
             spread = np.vstack([earlier, q]).std(axis=0) / np.ptp(nominal.limits, axis=1)
             vary = tuple(int(j) + 1 for j in np.argsort(spread)[:2])
-    return Check(name, offset, nearest, flag, similar_to, distance, vary)
+    return Check(name, offset, nearest, flag, similar_to, distance, vary, mark)
 
 
 def wait_still(
@@ -210,8 +236,8 @@ def _report(check: Check, number: int, t: float, peak: float, length: float | No
     if np.all(np.isfinite(check.offset)):
         dx, dy = check.offset
         lines.append(
-            f"  nominal model: the beam lands {np.hypot(dx, dy):.1f} mm from {check.point} (dx {dx:+.1f}, dy "
-            f"{dy:+.1f} mm)"
+            f"  nominal model: the beam lands {np.hypot(dx, dy):.1f} mm from {check.target} (dx {dx:+.1f}, "
+            f"dy {dy:+.1f} mm)"
         )
     if check.flag:
         lines.append(f"  ! {check.flag} -- discard it?")
@@ -604,9 +630,7 @@ def run_capture(
             earlier = np.array([q for p, q in zip(store.point, store.q) if p == name]).reshape(
                 -1, len(state.q)
             )
-            check = check_capture(
-                nominal, points if aim is None else {**points, name: aim[1]}, name, state.q, earlier, opts
-            )
+            check = check_capture(nominal, points, name, state.q, earlier, opts, aim)
             t = t_offset + (state.t - t_run)
             extra = dict(state.extra)
             if length is not None:
