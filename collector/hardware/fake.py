@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -247,12 +248,17 @@ class FakeRobot(RobotAdapter):
     def move_to(self, q: np.ndarray) -> None:
         """Move to q like a position-controlled arm; returns on arrival (the jiggle follows; with
         ``repeat_sigma`` none: the arm holds the pose it reached, the repeatability's draw off q)."""
-        self._attempts["move"] = self._attempts.get("move", 0) + 1
+        # a capture session's moves (the operator's arm) are keyed by the pose they go to and how often it
+        # was gone to, not by a count of moves a killed process forgets: its resumed session draws what the
+        # unbroken one drew; a validation's keep their count (its figures are measured with it)
+        pose = () if self.operator is None else (zlib.crc32(np.asarray(q, dtype=float).tobytes()),)
+        key = ("move", *pose)
+        self._attempts[key] = self._attempts.get(key, 0) + 1
         q_now, _ = self._kinematics(self.clock.now())
         duration = max(
             1.875 * np.abs(np.asarray(q) - q_now).max() / self.motion.speed, 0.5
         )  # 1.875: min-jerk peak/mean speed
-        self._start(q, "Move", (0x30FE, self._attempts["move"]), duration)
+        self._start(q, "Move", (0x30FE, *pose, self._attempts[key]), duration)
         if self.repeat_sigma:  # an honest arm: position control holds the pose, off by its repeatability only
             self._v0 = np.zeros_like(self._v0)
         self.clock.sleep(self._T)
@@ -272,6 +278,15 @@ class FakeRobot(RobotAdapter):
     def suggest_pose(self, q: np.ndarray) -> None:
         """The simulated operator starts the next hand-guiding from q (rad)."""
         self._suggested = np.asarray(q, dtype=float)
+
+    def resume_at(self, q: np.ndarray, t: float) -> None:
+        """A resumed session's arm: at rest at q (rad, the last capture's reported pose) with the clock at
+        the session's time t (s) -- as the killed session's arm and clock were when it logged that capture,
+        so the transits that follow (their durations from the start pose) are the unbroken session's."""
+        self.clock.t = float(t)
+        self._q0 = self._q1 = np.array(q, dtype=float)
+        self._t0, self._T, self._v0, self._grid = self.clock.t, 0.0, np.zeros_like(self._q1), None
+        self._delta = np.zeros_like(self._q1)
 
     def prompt_configuration(self, q: np.ndarray) -> None:
         self._attempts["guide"] = self._attempts.get("guide", 0) + 1

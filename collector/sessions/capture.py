@@ -563,11 +563,14 @@ def run_capture(
     settled = False  # the camera's exposure, set on the first photo (sessions.exposure)
     by_hand = False
     try:
+        if store.point:  # a resumed session: a simulated arm goes back to where its last capture was
+            robot.resume_at(store.q[-1], store.t[-1])
         robot.connect()
         if robot.guidance and not hands_free:
             w(f"{robot.name}: {robot.guidance}\n")
-        t_run = robot.clock.now()
-        t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
+        # the session's t keeps increasing across resumes; a simulated clock that continues the session's time
+        # shifts it by exactly 0, so a resumed session's t is the unbroken one's to the bit
+        t_shift = max(store.t, default=0.0) - robot.clock.now()
         status = None
         if coach is not None:
             # a resumed session: the coach goes through the fits (each warm-started from the one before)
@@ -631,7 +634,7 @@ def run_capture(
                 -1, len(state.q)
             )
             check = check_capture(nominal, points, name, state.q, earlier, opts, aim)
-            t = t_offset + (state.t - t_run)
+            t = state.t + t_shift
             extra = dict(state.extra)
             if length is not None:
                 extra["laser_length_measured"] = length
