@@ -13,6 +13,7 @@ from lasercal.collector.cli.options import (
     motion_arguments,
     number,
     output_argument,
+    photo_arguments,
     unused,
 )
 from lasercal.solver.formats.checks import METRES_BELOW_MM
@@ -111,6 +112,7 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "operator only refines the aim",
     )
     motion_arguments(p, "with --guide move: ")
+    photo_arguments(p)
     backend_arguments(p)
 
 

@@ -494,3 +494,20 @@ def motion_arguments(p: argparse.ArgumentParser, when: str = "") -> None:
         metavar="RAD",
         help=f"{when}largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
     )
+
+
+def photo_arguments(p: argparse.ArgumentParser) -> None:
+    """``--photos``, ``--photo-format`` (capture, validate): which photos are kept (every one is measured)."""
+    from lasercal.collector.sessions.photos import FORMATS, KEEP
+
+    p.add_argument(
+        "--photos",
+        choices=KEEP,
+        help="photos kept (each is measured as it is taken, its spot and sigma in the CSV): all (default), "
+        "first (the first at each point and every one whose spot could not be measured) or none",
+    )
+    p.add_argument(
+        "--photo-format",
+        choices=FORMATS,
+        help="png (default, lossless) or jpg (quality 95, a tenth of the size)",
+    )

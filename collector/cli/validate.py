@@ -13,6 +13,7 @@ from lasercal.collector.cli.options import (
     count,
     motion_arguments,
     output_argument,
+    photo_arguments,
     sheet_pose,
     sheet_pose_argument,
 )
@@ -57,6 +58,7 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "put it, else the layout's placement)",
     )
     motion_arguments(p)
+    photo_arguments(p)
     p.add_argument(
         "--camera",
         help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",

@@ -27,6 +27,7 @@ from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
+from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
 from lasercal.solver.formats.captures import AIM_XY
@@ -57,6 +58,7 @@ class CaptureOptions:
         ``max_step``) and the operator only refines the aim by hand
     yes : bool, the moves are confirmed in advance (``--yes``); otherwise typed ``yes`` on a terminal
     max_step : float, largest joint change of one commanded move, rad
+    photos : PhotoPolicy, which of a camera session's photos are written, and how
     """
 
     per_point: int
@@ -73,6 +75,7 @@ class CaptureOptions:
     move: bool = False
     yes: bool = False
     max_step: float = MAX_STEP
+    photos: PhotoPolicy = ALL_PNG
 
 
 @dataclass(frozen=True)
@@ -366,15 +369,47 @@ def new_session(
     )
 
 
+@dataclass(frozen=True)
+class Seen:
+    """What the camera made of a capture (:func:`spot_cells`).
+
+    Attributes
+    ----------
+    cells : dict, the row's :data:`SPOT_COLUMNS` (``photo`` empty when the photo was not kept)
+    said : str, the line(s) said at once; without a final newline when the spot was not measured (the
+        caller says what becomes of the capture)
+    nbytes : int, the photo's size as encoded for its file, bytes (0 with ``--photos none``)
+    img : (h, w, 3) uint8 array, the photo
+    """
+
+    cells: dict
+    said: str
+    nbytes: int
+    img: np.ndarray
+
+    @property
+    def measured(self) -> bool:
+        return "camera_x" in self.cells
+
+
 def spot_cells(
-    folder: Path, camera, measure, t: float, point: np.ndarray, meta: dict, img=None
-) -> tuple[dict, str]:
-    """Photograph a capture, keep the photo and measure its spot: the row's :data:`SPOT_COLUMNS` and the
-    line(s) said at once.
+    folder: Path,
+    camera,
+    measure,
+    t: float,
+    point: np.ndarray,
+    meta: dict,
+    img=None,
+    policy: PhotoPolicy = ALL_PNG,
+    first: bool = True,
+) -> Seen:
+    """Photograph a capture, measure its spot and keep the photo as ``policy`` says: the row's
+    :data:`SPOT_COLUMNS` and the line(s) said at once.
 
     A spot that cannot be measured (hidden by the arm, outside the view, unreadable, two candidates)
-    leaves ``camera_x``..``camera_sy`` empty and its reason in ``camera_note``; the line said then has no
-    newline: the caller says what becomes of the capture.
+    leaves ``camera_x``..``camera_sy`` empty and its reason in ``camera_note``. The spot is measured from
+    the photo in memory: a photo not kept (:class:`~collector.sessions.photos.PhotoPolicy`) loses nothing
+    of the measurement.
 
     Parameters
     ----------
@@ -384,32 +419,40 @@ def spot_cells(
     point : (3,) array, where the spot was aimed, base frame at the placement (the message's distance), mm
     meta : dict, session.yaml (a sheet's placement maps the measured spot to the base frame)
     img : (h, w, 3) array or None, the photo if already taken (None: taken here)
+    policy : PhotoPolicy, which photos are written and how
+    first : bool, the first capture at its point (``--photos first`` keeps it)
     """
-    import cv2
-
     from lasercal.collector.sessions.store import write_atomic_bytes
     from lasercal.vision.errors import VisionError
 
     img = camera.photo() if img is None else img
-    name = f"photos/capture_{int(round(t * 1000)):09d}.png"
-    ok, png = cv2.imencode(".png", img)
-    if not ok:
-        raise DeviceError(f"cannot encode photo {name}")
-    (folder / "photos").mkdir(exist_ok=True)
-    write_atomic_bytes(folder / name, png.tobytes())  # before the row: a row never names a missing photo
+    name = f"photos/capture_{int(round(t * 1000)):09d}.{policy.fmt}"
     try:
         m = measure(img, name)
     except VisionError as e:
         why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
-        return {"photo": name, "camera_note": why}, f"  ! camera: the spot could not be measured ({why})"
-    cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
-    cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
-    layout = session_layout(meta, folder)
-    said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
-    if layout.frame != "sheet" or layout.sheet is not None:  # where the placement puts it: the cross's frame
-        where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
-        said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the aim"
-    return cells, said + "\n"
+        cells, said = (
+            {"photo": name, "camera_note": why},
+            f"  ! camera: the spot could not be measured ({why})",
+        )
+    else:
+        cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
+        cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
+        layout = session_layout(meta, folder)
+        said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
+        if (
+            layout.frame != "sheet" or layout.sheet is not None
+        ):  # where the placement puts it: the cross's frame
+            where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
+            said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the aim"
+        said += "\n"
+    data = b"" if policy.keep == "none" else policy.encode(img, name)
+    if policy.kept(first, "camera_x" in cells):
+        (folder / "photos").mkdir(exist_ok=True)
+        write_atomic_bytes(folder / name, data)  # before the row: a row never names a missing photo
+    else:
+        cells["photo"] = ""
+    return Seen(cells, said, len(data), img)
 
 
 def aimed_layout(layout: Layout, offset) -> Layout:
@@ -568,6 +611,12 @@ def run_capture(
         robot.connect()
         if robot.guidance and not hands_free:
             w(f"{robot.name}: {robot.guidance}\n")
+        if camera is not None:
+            pol = opts.photos
+            w(
+                f"camera: each capture is photographed and its spot measured at once (captures.csv); photos "
+                f"kept: {pol.keep}, {pol.fmt.upper()} ({pol.choices()})\n"
+            )
         # the session's t keeps increasing across resumes; a simulated clock that continues the session's time
         # shifts it by exactly 0, so a resumed session's t is the unbroken one's to the bit
         t_shift = max(store.t, default=0.0) - robot.clock.now()
@@ -644,9 +693,15 @@ def run_capture(
                 first = None if settled else settle_exposure(camera, readable_by(measure))
                 settled = True
                 aimed_at = points[name] if aim is None else aim[1]
-                cells, seen = spot_cells(store.folder, camera, measure, t, aimed_at, meta, first)
+                got = spot_cells(
+                    store.folder, camera, measure, t, aimed_at, meta, first, opts.photos, counts[name] == 0
+                )
+                if first is not None:  # the run's first photo: its size says what the photos will take
+                    left = sum(max(opts.per_point - k, 0) for k in counts.values())
+                    w(estimate_line(opts.photos, got.nbytes, left, len(requested)) + "\n")
+                cells, seen = got.cells, got.said
                 extra.update(cells)
-                if "camera_x" in cells:
+                if got.measured:
                     pass  # measured
                 elif hands_free and not by_hand:  # no aim and no measurement: no data
                     w(f"{seen}: not kept; this pose is guided by hand once: aim beside the cross, trigger\n")
@@ -685,6 +740,8 @@ def run_capture(
                         f"{opts.until_mm:g} mm: session complete\n"
                     )
                     w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
+                    if camera is not None:
+                        w(written_line(store.folder) + "\n")
                     return CaptureResult(True, counts, captured, discarded)
     except KeyboardInterrupt:
         robot.stop()
@@ -701,4 +758,6 @@ def run_capture(
         robot.close()
     w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
     w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
+    if camera is not None:
+        w(written_line(store.folder) + "\n")
     return CaptureResult(True, counts, captured, discarded)

@@ -58,6 +58,8 @@ SETTINGS = FIXED + (
     "ros_joints",
     "rangefinder_query",
     "aperture_z",
+    "photos",  # which photos are kept and how: no measurement depends on it (sessions.photos)
+    "photo_format",
 )
 
 

@@ -25,6 +25,7 @@ from lasercal.collector.sessions.capture import (
     session_coach,
 )
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
+from lasercal.collector.sessions.photos import PhotoPolicy
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
 from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
 from lasercal.collector.sessions.store import CaptureStore
@@ -218,6 +219,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         move=guide.move,
         yes=guide.yes,
         max_step=guide.max_step,
+        photos=PhotoPolicy.of(cfg),
     )
     hint = (
         f"lasercal capture --resume {store.folder}"
@@ -389,6 +391,7 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
         cfg["hold"],
         yes=yes,
         max_step=run["max_step"],
+        photos=PhotoPolicy.of(cfg),
     )
     return StartedValidation(settings, model, layout, point, robot, camera, measure, trigger, opts, world)
 

@@ -16,10 +16,9 @@ makes, seen from above (``vision.render``).
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
@@ -28,6 +27,7 @@ from lasercal.collector.sessions.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import wait_still
 from lasercal.collector.sessions.exposure import FakeExposure, readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
+from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
@@ -306,6 +306,8 @@ class ValidateOptions:
     keep_photos : int or None, write only the photos of the first k configurations (None: every one); the
         others are measured and not kept (their row's ``photo`` is empty): ``lasercal demo``'s 240 fake
         photos were 200 MB
+    photos : PhotoPolicy, which photos are written (``first``: the run's first and every one not measured)
+        and how; a run whose photos are not measured (no markers) keeps them all
     """
 
     n: int = 60
@@ -318,6 +320,7 @@ class ValidateOptions:
     yes: bool = False
     max_step: float = MAX_STEP
     keep_photos: int | None = None
+    photos: PhotoPolicy = ALL_PNG
 
 
 def run_validation(
@@ -424,6 +427,12 @@ def run_validation(
     )
     w = out.write
     photos, spots, failed, settled = 0, [], 0, False
+    # a photo nobody measures is the only record of its spot: kept whatever --photos says
+    policy = opts.photos if measure is not None else replace(opts.photos, keep="all")
+    w(
+        f"every photo {'is measured at once (validation.csv) and ' if measure else ''}kept as the options "
+        f"say: {policy.keep}, {policy.fmt.upper()} ({policy.choices()})\n"
+    )
     if resume:
         w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
     try:
@@ -455,36 +464,35 @@ def run_validation(
                 )
                 continue
             # the exposure is settled on the first photo, with the laser on the point
+            first = not settled
             img = camera.photo() if settled else settle_exposure(camera, readable_by(measure))
             settled = True
-            name = f"photos/{i:04d}.png" if opts.keep_photos is None or i < opts.keep_photos else ""
-            if name:
-                ok, png = cv2.imencode(".png", img)
-                if not ok:
-                    raise DeviceError(f"cannot encode photo {name}")
-                write_atomic_bytes(folder / name, png.tobytes())  # a kill leaves no truncated photo
-            row = {
-                "index": str(i),
-                **{f"q{j + 1}": v for j, v in enumerate(state.q)},
-                "photo": name,
-                "q_dev": float(np.abs(state.q - q).max()),
-            }
-            msg = f"photo {i + 1}/{opts.n}: {name or 'not kept'}"
-            if measure is not None:
+            name = f"photos/{i:04d}.{policy.fmt}"
+            row = {"index": str(i), **{f"q{j + 1}": v for j, v in enumerate(state.q)}}
+            seen = ""
+            if measure is not None:  # measured from the photo in memory, kept or not
                 try:
                     xy, advice = measure(img, name)
                 except VisionError as e:  # one unreadable photo must not end the run: it stays on disk
-                    msg += f", not measured ({e})"
+                    seen = f", not measured ({e})"
                     failed += 1
                 else:
                     row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
                     spots.append(xy)
-                    msg += f", spot {np.hypot(*(xy - p[:2])):.2f} mm from {point}"
+                    seen = f", spot {np.hypot(*(xy - p[:2])):.2f} mm from {point}"
                     if advice:  # said while the photos are taken, so the next ones can be better
-                        msg += f"; exposure: {advice}"
+                        seen += f"; exposure: {advice}"
+            keep = opts.keep_photos is None or i < opts.keep_photos
+            keep &= policy.kept(len(done) + photos == 0, "x_mm" in row)
+            data = policy.encode(img, name) if keep or first else b""
+            if keep:
+                write_atomic_bytes(folder / name, data)  # a kill leaves no truncated photo
+            if first and policy.keep != "none":
+                w(estimate_line(policy, len(data), len(todo), 1) + "\n")
+            row.update(photo=name if keep else "", q_dev=float(np.abs(state.q - q).max()))
             log.append(row)
             photos += 1
-            w(msg + "\n")
+            w(f"photo {i + 1}/{opts.n}: {name if keep else 'not kept'}{seen}\n")
     except (RobotConnectionError, KeyboardInterrupt) as e:
         robot.stop()
         total = len(done) + photos
@@ -500,6 +508,7 @@ def run_validation(
         log.close()
         robot.close()
         camera.close()
+    w(written_line(folder) + "\n")
     return ValidationResult(
         log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n, failed
     )
