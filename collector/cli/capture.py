@@ -15,6 +15,8 @@ from lasercal.collector.cli.options import (
     output_argument,
     photo_arguments,
     unused,
+    view_arguments,
+    view_options,
 )
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 
@@ -113,6 +115,7 @@ def args_capture(p: argparse.ArgumentParser) -> None:
     )
     motion_arguments(p, "with --guide move: ")
     photo_arguments(p)
+    view_arguments(p)
     backend_arguments(p)
 
 
@@ -143,5 +146,5 @@ def cmd_capture(args) -> int:
                 "stopped"
             )
         print(f"resuming {store.folder}: {len(store.point)} captures on disk")
-    started.run(sys.stdout)
+    started.run(sys.stdout, view_options(args, settings.cfg))
     return 0

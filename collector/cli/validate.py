@@ -16,6 +16,8 @@ from lasercal.collector.cli.options import (
     photo_arguments,
     sheet_pose,
     sheet_pose_argument,
+    view_arguments,
+    view_options,
 )
 
 
@@ -59,6 +61,7 @@ def args_validate(p: argparse.ArgumentParser) -> None:
     )
     motion_arguments(p)
     photo_arguments(p)
+    view_arguments(p)
     p.add_argument(
         "--camera",
         help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
@@ -91,7 +94,7 @@ def cmd_validate(args) -> int:
         sheet_pose=sheet_pose(args.sheet_pose, "--sheet-pose") if args.sheet_pose else None,
     )
     started = start_validation(settings, yes=args.yes)
-    res = started.run(sys.stdout)
+    res = started.run(sys.stdout, view_options(args, settings.cfg))
     print(f"wrote {res.path} ({res.photos} photos this run; {res.summary()})")
     if not res.complete:
         print(f"continue with: lasercal validate --resume {settings.folder}")
