@@ -852,6 +852,7 @@ class CaptureRun:
         """Photograph and measure the capture, check it with the nominal model, append its row."""
         store, state, name, aim, opts = self.store, self.still, self.name, self.aim, self.opts
         camera, counts, lay = self.camera, self.counts, self.layout
+        self.state.update(problem=None)  # what went wrong before: this capture's photo supersedes it
         length = self.rangefinder.measure() if self.rangefinder is not None else None
         earlier = np.array([q for p, q in zip(store.point, store.q) if p == name]).reshape(-1, len(state.q))
         check = check_capture(self.nominal, self.points, name, state.q, earlier, opts, aim)
@@ -946,8 +947,6 @@ class CaptureRun:
         phase = "captured" if got is None or got.measured else "problem"
         self.state.update(last=last)
         self.state.phase(phase, f"captured {self.name} #{self.counts[self.name]}", ACTIONS[1:])
-        if got is not None and got.measured:
-            self.state.update(problem=None)
 
     def coached(self):
         if self.coach is None:

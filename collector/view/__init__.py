@@ -10,7 +10,6 @@ behind (no file, no other process), and ``--resume`` brings the page back.
 
 from __future__ import annotations
 
-import sys
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -61,7 +60,7 @@ def simulated_scene(camera):
 
 
 @contextmanager
-def live_view(state, options: ViewOptions, camera=None, layout_file=None, out=sys.stdout):
+def live_view(state, options: ViewOptions, camera=None, layout_file=None):
     """Serve the view of a session while the ``with`` block runs it.
 
     Parameters
@@ -71,7 +70,6 @@ def live_view(state, options: ViewOptions, camera=None, layout_file=None, out=sy
     camera : the session's camera or None; when given the block must photograph through the yielded
         camera (a :class:`~.live.SharedCamera`), which the live frames share
     layout_file : the layout file, whose ``markers`` the frames are checked against (None: none)
-    out : text stream for the address and the token (said once)
 
     Yields
     ------
@@ -92,12 +90,12 @@ def live_view(state, options: ViewOptions, camera=None, layout_file=None, out=sy
         server.feed = feed
     server.start()
     if server.remote:
-        out.write(
+        state.say(
             f"live view: {server.url(False)} (served to other devices on {options.host}); the page asks for "
             f"this run's token: {server.token}\n"
         )
     else:
-        out.write(f"live view: {server.url()}\n")
+        state.say(f"live view: {server.url()}\n")
     if feed is not None:
         feed.start()
     try:
