@@ -20,6 +20,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +32,7 @@ try:
     from playwright.sync_api import sync_playwright
 except ImportError:  # pragma: no cover - the test extra brings both
     sync_playwright = None
-pytestmark = pytest.mark.skipif(
+needs_browser = pytest.mark.skipif(
     CHROMIUM is None or sync_playwright is None,
     reason="the live view's browser test needs Debian's chromium (apt-get install chromium) and the test "
     "extra (aiohttp, playwright)",
@@ -146,6 +147,7 @@ def _true_spot_on_sheet(started) -> np.ndarray:
     return layout.sheet.from_base(spot[None, :2])[0]
 
 
+@needs_browser
 def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypatch):
     monkeypatch.setattr(start_module, "SessionState", Gated)
     Gated.want = {"setup", "outside", "inside", "hidden", "end"}
@@ -184,6 +186,9 @@ def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypat
                 assert _get(base + "action", None, {"do": "stop"})[0] == 403
                 assert _get(url.replace("/?", "/state?"))[0] == 200
                 page.goto(url)
+            if name == "outside":  # moving: the page may stop the session, not capture or discard
+                assert _get(base + "action", token, {"do": "capture"})[0] == 409
+                assert _get(base + "action", token, {"do": "discard"})[0] == 409
             shown, snap = _settle(page, state, since)
             frame = snap["frame"]
             # what the page shows is the session's state
@@ -227,3 +232,70 @@ def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypat
     session.join(600)
     assert result["r"].complete and set(moves) == {"session"}
     assert set(seen) == {"setup", "outside", "inside", "hidden", "end"}
+
+
+class Never:
+    """A trigger nobody presses (the terminal left alone): only the page's actions drive the session."""
+
+    hint = "nobody"
+
+    def wait(self) -> str:
+        threading.Event().wait()
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+@pytest.mark.skipif(sync_playwright is None, reason="the live view needs the test extra's aiohttp")
+def test_the_pages_three_actions_drive_a_hand_guided_session_and_move_nothing(tmp_path):
+    """Hand-guided (no camera, no coach): the page's capture now captures, discard the last removes it,
+    stop ends the session, resumable; no action moves the arm (the simulated operator guides it, as a
+    hand would), an action the session cannot take is refused with the reason, and the ended session
+    leaves nothing serving."""
+    from lasercal.solver.formats.session import load_session
+
+    given = {"backend": "fake", "per_point": 2, "aim_noise": 1.0, "seed": 1}
+    started = start_capture(
+        capture_settings(given, "thesis", str(tmp_path / "s")), CaptureGuide(auto=False, coach=False)
+    )
+    started = replace(started, trigger=Never())
+    moves = []
+    started.robot.move_to = lambda q: moves.append(q)
+    out = io.StringIO()
+    result = {}
+    session = threading.Thread(
+        target=lambda: result.update(r=started.run(out, ViewOptions(port=0))), daemon=True, name="session"
+    )
+    session.start()
+    while "live view: " not in out.getvalue():
+        time.sleep(0.05)
+    url = re.search(r"live view: (http://\S+)", out.getvalue()).group(1)
+    base, token = url.split("?token=")
+
+    def when(check, timeout=120.0) -> dict:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            s = json.loads(_get(base + "state", token)[1])
+            if check(s):
+                return s
+            time.sleep(0.05)
+        raise AssertionError(s)
+
+    def done(s) -> int:
+        return sum(p["done"] for p in s["progress"])
+
+    when(lambda s: s["phase"] == "aiming")
+    for k in range(3):
+        assert _get(base + "action", token, {"do": "capture"}) == (200, b'{"ok": true, "queued": "capture"}')
+        when(lambda s, k=k: s["phase"] == "aiming" and done(s) == k + 1)
+    assert _get(base + "action", token, {"do": "discard"})[0] == 200
+    when(lambda s: s["phase"] == "aiming" and done(s) == 2)
+    assert "discarded the last capture at" in out.getvalue()
+    assert _get(base + "action", token, {"do": "jump"})[0] == 409  # not one of the three
+    assert _get(base + "action", token, {"do": "stop"})[0] == 200
+    session.join(120)
+    assert not result["r"].complete and load_session(tmp_path / "s").m == 2
+    assert not moves  # the page moved nothing (the simulated operator guided the arm, by hand)
+    assert "stopped: 2 captures are safe" in out.getvalue()
+    with pytest.raises(OSError):  # the session ended: nothing serves any more, nothing is left behind
+        urllib.request.urlopen(base + "state?token=" + token, timeout=5)
