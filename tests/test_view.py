@@ -299,3 +299,22 @@ def test_the_pages_three_actions_drive_a_hand_guided_session_and_move_nothing(tm
     assert "stopped: 2 captures are safe" in out.getvalue()
     with pytest.raises(OSError):  # the session ended: nothing serves any more, nothing is left behind
         urllib.request.urlopen(base + "state?token=" + token, timeout=5)
+
+
+@pytest.mark.skipif(sync_playwright is None, reason="the live view needs the test extra's aiohttp")
+def test_a_view_that_cannot_be_served_leaves_no_session_behind(tmp_path, capsys):
+    """The view's port taken: one line naming it, exit 2, and the new session's folder is not left."""
+    import socket
+
+    from lasercal.collector.cli.main import main
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        argv = ["capture", "--layout", "thesis", "--backend", "fake", "--auto", "--per-point", "1",
+                "--no-coach", "--view", "--view-port", str(port), "-o", str(tmp_path / "s")]  # fmt: skip
+        assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--view: cannot serve on 127.0.0.1:{port}" in err[0]
+    assert not (tmp_path / "s").exists()

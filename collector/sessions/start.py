@@ -8,7 +8,7 @@ nothing to clean up; what the session then does is :func:`sessions.capture.run_c
 from __future__ import annotations
 
 import sys
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -117,7 +117,12 @@ class StartedCapture:
         """
         state = SessionState("capture", out)
         try:
-            with session_view(state, view, self.camera, self.layout_file()) as camera:
+            with ExitStack() as stack:
+                try:
+                    camera = stack.enter_context(session_view(state, view, self.camera, self.layout_file()))
+                except BaseException:  # e.g. the view's port taken: a new session, still empty, is undone
+                    self.abandon()
+                    raise
                 return self._run(state, camera, view is not None)
         finally:
             self.store.close()
@@ -129,11 +134,14 @@ class StartedCapture:
 
     def layout_file(self):
         """The layout file the session's markers are in."""
-        return (
-            session_layout_file(self.settings.cfg, self.settings.folder)
-            if self.settings.resume
-            else (self.settings.layout_path)
-        )
+        cfg, folder = self.settings.cfg, self.settings.folder
+        return session_layout_file(cfg, folder) if self.settings.resume else self.settings.layout_path
+
+    def abandon(self) -> None:
+        """A new session that could not start, still empty, leaves nothing behind."""
+        self.store.close()
+        if not self.settings.resume and not self.store.point:
+            self.store.remove_empty()
 
     def _run(self, state, camera, viewed: bool) -> CaptureResult:
         cfg, layout = self.settings.cfg, self.settings.layout
@@ -150,9 +158,7 @@ class StartedCapture:
                     anywhere = {k: layout.sheet.to_base(v, layout.plane_z) for k, v in self.spots.items()}
                 coach = session_coach(self.store, self.nominal, aimed, cfg, sheet, anywhere)
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
-            self.store.close()
-            if not self.settings.resume and not self.store.point:
-                self.store.remove_empty()
+            self.abandon()
             raise
         real = cfg["backend"] != "fake"
         return run_capture(
