@@ -78,6 +78,45 @@ def session(sheet: Path, folder: Path, per_point: int, view: bool) -> dict:
     return stats
 
 
+class Webcam:
+    """A camera whose frames cost nothing to read, as a webcam's (a photo of the session, given again)."""
+
+    name = "webcam"
+
+    def __init__(self, img: np.ndarray):
+        self.img = img
+
+    def photo(self) -> np.ndarray:
+        return self.img.copy()
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def pipeline(sheet: Path, folder: Path, seconds: float = 20.0) -> dict:
+    """The view alone with a camera whose frames are free: frames shown per second and their latency."""
+    from playwright.sync_api import sync_playwright
+
+    from lasercal.collector.view import live_view
+
+    state = SessionState("capture")
+    state.update(target={"xy": [0.0, 0.0], "tol_mm": 5.0, "label": "P3"})
+    cam = Webcam(cv2.imread(str(next((folder / "photos").glob("*.png")))))
+    said = io.StringIO()
+    state._out = said
+    with live_view(state, ViewOptions(port=0, fps=30), cam, sheet), sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=shutil.which("chromium"), args=ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 800})
+        page.goto(said.getvalue().split("live view: ", 1)[1].split()[0])
+        time.sleep(3.0)  # past the first frames
+        f0 = page.evaluate("window.viewStats.frames")
+        time.sleep(seconds)
+        v = page.evaluate("({f: window.viewStats.frames, l: window.viewStats.latencies.slice()})")
+        browser.close()
+    n = v["f"] - f0
+    return {"fps": n / seconds, "latencies": v["l"][-n:]}
+
+
 def work_per_frame(sheet: Path, folder: Path) -> float:
     """The view's work on one 1280 x 960 photo (markers, spot, outline, target, JPEG), s: median of 20."""
     photo = cv2.imread(str(next((folder / "photos").glob("*.png"))))
@@ -96,12 +135,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--per-point", type=int, default=9)
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--frames-only", action="store_true", help="only the view's own cost (no sessions)")
     a = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="bench_view_"))
     sheet = work / "layout.yaml"
     write_layout(sheet, design_sheet("A4"), -8.0, {"x_mm": 450.0, "y_mm": 0.0, "yaw_deg": 0.0})
     rows = []
-    for k in range(a.repeat):
+    if a.frames_only:  # a short session for its photos
+        session(sheet, work / "plain0", 1, False)
+    for k in range(0 if a.frames_only else a.repeat):
         for view in (False, True):
             folder = work / f"{'view' if view else 'plain'}{k}"
             load = os.getloadavg()[0]
@@ -127,10 +169,18 @@ def main() -> None:
             )
     plain = [r for v, r, _ in rows if not v]
     viewed = [r for v, r, _ in rows if v]
-    for what in ("wall", "cpu"):
+    for what in ("wall", "cpu") if rows else ():
         ratio = np.mean([r[what] for r in viewed]) / np.mean([r[what] for r in plain])
         print(f"{what} time with the view / without: {ratio:.3f}")
     print(f"the view's work per 1280 x 960 frame: {1000 * work_per_frame(sheet, work / 'plain0'):.0f} ms")
+    load = os.getloadavg()[0]
+    r = pipeline(sheet, work / "plain0")
+    lat = np.array(r["latencies"])
+    print(
+        f"the view with frames that cost nothing (a webcam's): {r['fps']:.1f} frames/s on the page, latency "
+        f"median {1000 * np.median(lat):.0f} ms (90 %: {1000 * np.quantile(lat, 0.9):.0f}; load average "
+        f"{load:.1f})"
+    )
     print(f"(work folder {work})")
 
 
