@@ -33,8 +33,7 @@ def test_beam_check_takes_its_photos_live_and_fits_the_circle(tmp_path, monkeypa
     for k in range(len(ANGLES)):  # the device gives 4 frames per photo: 3 dropped (stale buffers), 1 read
         for j in range(4):
             cv2.imwrite(str(frames / f"{4 * k + j:04d}.png"), _photo(k))
-    answers = iter([""] * len(ANGLES) + ["q"])
-    monkeypatch.setattr("builtins.input", lambda: next(answers))
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n" * len(ANGLES) + "q\n"))  # Enter at each angle, q
     rc = main(
         ["beam-check", "--device", str(frames / "%04d.png"), "--save", str(tmp_path / "beam"), "--json"]
     )

@@ -19,10 +19,10 @@ import time
 import cv2
 import numpy as np
 
-from lasercal.vision.errors import VisionError
-
 HALF = 0.5  # the frame the page gets, and the one the markers are found on: half the camera's resolution
 WINDOW_PX = 48  # half-side of the full-resolution window around the reddest pixel the spot detector reads
+SIM_RENDERS = 3.0  # a simulated camera's new pictures a second at most
+MARKERS_EVERY_S = 0.5  # the markers are found again this often (the sheet and camera stay put)
 MAX_MM_PER_PX = 0.5  # a spot ~2 mm across wants 0.3-0.5 mm/px (docs/sessions.md, "Where to put a camera")
 CLIP_LEVEL = 250  # a channel at or above this is clipped (8-bit)
 JPEG_QUALITY = 80
@@ -72,6 +72,9 @@ class LiveFeed:
         self.camera, self.state, self.markers, self.fps = camera, state, markers, fps
         self.outline, self.scene = outline, scene
         self._last: tuple = (None, None)  # the scene and the picture taken of it
+        self._rendered = -1e9  # when it was taken (monotonic s)
+        self._drawn: tuple = (None, None)  # the target and the annotated frame of the last picture
+        self._found: tuple = (-1e9, None, 0, [])  # when the markers were last found, their homography, ...
         self._cond = threading.Condition()
         self.seq, self.jpeg, self.t = 0, b"", 0.0
         self._times: list[float] = []
@@ -97,9 +100,12 @@ class LiveFeed:
         while not self._stop.is_set():
             t0 = time.monotonic()
             try:
-                img = self.grab()
+                img, fresh = self.grab()
                 grabbed = time.time()
-                jpeg, info = self.annotate(img)
+                target = self.state.data.get("target")
+                if fresh or target != self._drawn[0] or self._drawn[1] is None:
+                    self._drawn = (target, self.annotate(img))
+                jpeg, info = self._drawn[1]
             except Exception as e:  # a camera that fails a frame: said on the page, the session goes on
                 self.error = f"live frame: {e}"
                 self.state.set_frame_info({"error": self.error})
@@ -108,14 +114,17 @@ class LiveFeed:
             self.publish(jpeg, info, grabbed)
             self._stop.wait(max(period - (time.monotonic() - t0), 0.0))
 
-    def grab(self) -> np.ndarray:
-        """The camera's next frame; a simulated scene that has not changed is not rendered again."""
+    def grab(self) -> tuple[np.ndarray, bool]:
+        """The camera's next frame, and whether it is a new picture. A simulated scene is rendered again
+        only when it changed, and at most :data:`SIM_RENDERS` times a second (a render costs 0.1-0.4 s of
+        the CPU the simulated session runs on); meanwhile its last picture is the frame."""
         if self.scene is None:
-            return self.camera.frame()
-        key = self.scene()
-        if key != self._last[0]:
-            self._last = (key, self.camera.frame())
-        return self._last[1]
+            return self.camera.frame(), True
+        key, now = self.scene(), time.monotonic()
+        if key != self._last[0] and now - self._rendered >= 1.0 / SIM_RENDERS:
+            self._last, self._rendered = (key, self.camera.frame()), now
+            return self._last[1], True
+        return self._last[1], False
 
     def publish(self, jpeg: bytes, info: dict, grabbed: float) -> None:
         """Hand a frame to the page's waiting readers."""
@@ -145,17 +154,19 @@ class LiveFeed:
         """The frame, half size, with the markers, the sheet's outline, the target and the spot drawn; and
         what was found (JSON-able)."""
         small = cv2.resize(img, None, fx=HALF, fy=HALF, interpolation=cv2.INTER_AREA)
+        spot = find_spot(img, small)  # before anything is drawn on the half frame
         gray = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
         h, w = img.shape[:2]
         info: dict = {"size": [w, h]}
         H = self._markers(gray, small, info)
-        clipped = cv2.threshold(img.max(axis=2), CLIP_LEVEL - 1, 1, cv2.THRESH_BINARY)[1]
-        info["clipped_px"] = int(cv2.countNonZero(clipped))
+        # a pixel with any channel clipped: every byte thresholded, then the channels summed (OpenCV; numpy's
+        # max over the channel axis is 50 times slower at this size)
+        hot = cv2.threshold(img, CLIP_LEVEL - 1, 255, cv2.THRESH_BINARY)[1]
+        info["clipped_px"] = int(cv2.countNonZero(cv2.cvtColor(hot, cv2.COLOR_BGR2GRAY)))
         focus = float(cv2.Laplacian(gray, cv2.CV_32F).var())
         self._focus_best = max(self._focus_best, focus)
         info.update(focus=round(focus, 1), focus_rel=round(focus / max(self._focus_best, 1e-9), 3))
         target = self.state.data.get("target")
-        spot = find_spot(img)
         info["spot_px"] = None if spot is None else [round(float(v), 1) for v in spot]
         if H is not None:
             self._on_sheet(H, small, spot, target, info)
@@ -190,6 +201,15 @@ class LiveFeed:
         """Find the markers, draw them; the homography sheet mm -> full-resolution px, or None."""
         if self.markers is None:
             return None
+        now = time.monotonic()
+        if now - self._found[0] < MARKERS_EVERY_S:  # found a moment ago: drawn again, not searched
+            _, H, read, found = self._found
+            info.update(
+                markers_read=read, markers_missing=sorted(set(self.markers.corners) - {i for i, _ in found})
+            )
+            for _, c in found:
+                cv2.polylines(small, [c.astype(np.int32)], True, (0, 200, 0), 2)
+            return H
         corners, ids, _ = self._detector.detectMarkers(gray)
         known = self.markers.corners
         found = (
@@ -201,11 +221,11 @@ class LiveFeed:
         info["markers_missing"] = sorted(set(known) - {i for i, _ in found})
         for _, c in found:
             cv2.polylines(small, [c.astype(np.int32)], True, (0, 200, 0), 2)
-        if len(found) < 2:  # 8 corners at least for a stable homography
-            return None
-        mm = np.vstack([np.asarray(known[i], dtype=float) for i, _ in found])
-        px = np.vstack([c for _, c in found]) / HALF
-        H, _ = cv2.findHomography(mm, px)
+        H = None
+        if len(found) >= 2:  # 8 corners at least for a stable homography
+            mm = np.vstack([np.asarray(known[i], dtype=float) for i, _ in found])
+            H, _ = cv2.findHomography(mm, np.vstack([c for _, c in found]) / HALF)
+        self._found = (now, H, len(found), found)
         return H
 
     def _on_sheet(self, H: np.ndarray, small: np.ndarray, spot, target, info: dict) -> None:
@@ -239,21 +259,25 @@ class LiveFeed:
             cv2.circle(small, tuple(int(v) for v in c * HALF), r, colour, 2)
 
 
-def find_spot(img: np.ndarray):
-    """The laser spot of a live frame, (u, v) px at full resolution, or None: ``vision.detect`` on a window
-    around the reddest (or greenest) pixel of the frame at a quarter of its size."""
-    from lasercal.vision.detect import detect_spots
-
-    q = cv2.resize(img, None, fx=0.25, fy=0.25, interpolation=cv2.INTER_AREA).astype(np.int16)
+def find_spot(img: np.ndarray, half: np.ndarray | None = None):
+    """The laser spot of a live frame, (u, v) px at full resolution, or None: the reddest (or greenest)
+    pixel of the frame at a quarter of its size, then the centroid of the laser colour's excess over half
+    its peak in a window around it at full resolution (a view's estimate, ~0.3 px; a capture's spot is
+    measured on its photo by ``vision``'s detector). ``half``: the frame at half size, if made already
+    (nothing drawn on it yet)."""
+    half = cv2.resize(img, None, fx=HALF, fy=HALF, interpolation=cv2.INTER_AREA) if half is None else half
+    q = cv2.resize(half, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA).astype(np.int16)
     b, g, r = q[..., 0], q[..., 1], q[..., 2]
     colour = np.maximum(r - np.maximum(g, b), g - np.maximum(r, b))
     v, u = np.unravel_index(int(np.argmax(colour)), colour.shape)
     if colour[v, u] < 12:  # nothing coloured stands out: no spot in view
         return None
     u0, v0 = max(int(u * 4) - WINDOW_PX, 0), max(int(v * 4) - WINDOW_PX, 0)
-    window = img[v0 : v0 + 2 * WINDOW_PX, u0 : u0 + 2 * WINDOW_PX]
-    try:
-        spots, _ = detect_spots(np.ascontiguousarray(window), "live frame")
-    except VisionError:
+    w = img[v0 : v0 + 2 * WINDOW_PX, u0 : u0 + 2 * WINDOW_PX].astype(np.float32)
+    wb, wg, wr = w[..., 0], w[..., 1], w[..., 2]
+    excess = np.maximum(wr - np.maximum(wg, wb), wg - np.maximum(wr, wb))
+    excess = np.maximum(excess - 0.5 * excess.max(), 0)
+    m = cv2.moments(excess)
+    if m["m00"] <= 0:
         return None
-    return spots[0].u + u0, spots[0].v + v0
+    return u0 + m["m10"] / m["m00"], v0 + m["m01"] / m["m00"]
