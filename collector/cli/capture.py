@@ -13,8 +13,11 @@ from lasercal.collector.cli.options import (
     motion_arguments,
     number,
     output_argument,
+    photo_arguments,
     resume_or_another,
     unused,
+    view_arguments,
+    view_options,
 )
 from lasercal.collector.errors import InputEnded
 from lasercal.solver.formats.checks import METRES_BELOW_MM
@@ -115,6 +118,8 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "operator only refines the aim",
     )
     motion_arguments(p, "with --guide move: ")
+    photo_arguments(p)
+    view_arguments(p)
     backend_arguments(p)
 
 
@@ -147,7 +152,7 @@ def cmd_capture(args) -> int:
         print(f"resuming {store.folder}: {len(store.point)} captures on disk")
     before = len(started.store.point)
     try:
-        started.run(sys.stdout)
+        started.run(sys.stdout, view_options(args, settings.cfg))
     except InputEnded as e:
         return input_ended(started, before, e)
     return 0

@@ -525,3 +525,55 @@ def motion_arguments(p: argparse.ArgumentParser, when: str = "") -> None:
         metavar="RAD",
         help=f"{when}largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
     )
+
+
+def photo_arguments(p: argparse.ArgumentParser) -> None:
+    """``--photos``, ``--photo-format`` (capture, validate): which photos are kept (every one is measured)."""
+    from lasercal.collector.sessions.photos import FORMATS, KEEP
+
+    p.add_argument(
+        "--photos",
+        choices=KEEP,
+        help="photos kept (each is measured as it is taken, its spot and sigma in the CSV): all (default), "
+        "first (the first at each point and every one whose spot could not be measured) or none",
+    )
+    p.add_argument(
+        "--photo-format",
+        choices=FORMATS,
+        help="png (default, lossless) or jpg (quality 95, a tenth of the size)",
+    )
+
+
+def view_arguments(p: argparse.ArgumentParser) -> None:
+    """``--view``, ``--view-host``, ``--view-port`` (capture, validate, beam-check): the live view."""
+    p.add_argument(
+        "--view",
+        action="store_const",
+        const=True,
+        help="serve a live view of the session on this machine (127.0.0.1): the camera's frames with what is "
+        "found, the coach's instruction, progress, problems; needs pip install 'lasercal[view]'",
+    )
+    p.add_argument(
+        "--view-host",
+        metavar="ADDR",
+        help="with --view: serve it on this address instead (another device, e.g. a tablet, can then open "
+        "it); a one-time token is printed that the page asks for",
+    )
+    p.add_argument(
+        "--view-port",
+        type=count(0, 65535),
+        metavar="PORT",
+        help="with --view: the port (default 8765; 0: any)",
+    )
+
+
+def view_options(args, stored: dict | None = None):
+    """The live view's options from the command line (and a resumed session's stored ``view``), or None."""
+    from lasercal.collector.view import DEFAULT_PORT, ViewOptions
+
+    stored = stored or {}
+    if not (args.view or stored.get("view")):
+        unused(args, "it places the live view (--view)", "view_host", "view_port")
+        return None
+    port = args.view_port if args.view_port is not None else stored.get("view_port", DEFAULT_PORT)
+    return ViewOptions(host=args.view_host or "127.0.0.1", port=port)

@@ -13,9 +13,12 @@ from lasercal.collector.cli.options import (
     count,
     motion_arguments,
     output_argument,
+    photo_arguments,
     resume_or_another,
     sheet_pose,
     sheet_pose_argument,
+    view_arguments,
+    view_options,
 )
 
 
@@ -60,6 +63,8 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "put it, else the layout's placement)",
     )
     motion_arguments(p)
+    photo_arguments(p)
+    view_arguments(p)
     p.add_argument(
         "--camera",
         help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
@@ -101,7 +106,7 @@ def cmd_validate(args) -> int:
             started.camera.close()
             raise
     try:
-        res = started.run(sys.stdout)
+        res = started.run(sys.stdout, view_options(args, settings.cfg))
     except InputEnded as e:  # the operator's trigger (a real robot guided by hand) read standard input
         raise LasercalError(
             f"{e}; what was measured is in {settings.folder}: continue with: lasercal validate --resume "

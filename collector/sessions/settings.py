@@ -58,6 +58,10 @@ SETTINGS = FIXED + (
     "ros_joints",
     "rangefinder_query",
     "aperture_z",
+    "photos",  # which photos are kept and how: no measurement depends on it (sessions.photos)
+    "photo_format",
+    "view",  # --view: a resumed session brings its live view back (on 127.0.0.1 unless told again)
+    "view_port",
 )
 
 

@@ -8,6 +8,7 @@ nothing to clean up; what the session then does is :func:`sessions.capture.run_c
 from __future__ import annotations
 
 import sys
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -19,14 +20,17 @@ from lasercal.collector.sessions.anywhere import session_layout_file
 from lasercal.collector.sessions.capture import (
     CaptureOptions,
     CaptureResult,
+    StateStream,
     aimed_layout,
     new_session,
     run_capture,
     session_coach,
 )
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
+from lasercal.collector.sessions.photos import PhotoPolicy
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
 from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
+from lasercal.collector.sessions.state import EitherTrigger, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.collector.sessions.world import (
     SimulatedWorld,
@@ -99,18 +103,49 @@ class StartedCapture:
     measure: object = None
     spots: dict | None = None
 
-    def run(self, out=sys.stdout) -> CaptureResult:
+    def run(self, out=sys.stdout, view=None) -> CaptureResult:
         """Run the session (:func:`run_capture`) on screen ``out``; close the store and devices after.
 
         Parameters
         ----------
         out : text stream, the operator's screen
+        view : collector.view.ViewOptions or None, serve the live view while the session runs
 
         Returns
         -------
         CaptureResult
         """
+        state = SessionState("capture", out)
+        try:
+            with ExitStack() as stack:
+                try:
+                    camera = stack.enter_context(session_view(state, view, self.camera, self.layout_file()))
+                except BaseException:  # e.g. the view's port taken: a new session, still empty, is undone
+                    self.abandon()
+                    raise
+                return self._run(state, camera, view is not None)
+        finally:
+            self.store.close()
+            if self.camera is not None:
+                self.camera.close()
+            self.trigger.close()
+            if self.rangefinder is not None:
+                self.rangefinder.close()
+
+    def layout_file(self):
+        """The layout file the session's markers are in."""
+        cfg, folder = self.settings.cfg, self.settings.folder
+        return session_layout_file(cfg, folder) if self.settings.resume else self.settings.layout_path
+
+    def abandon(self) -> None:
+        """A new session that could not start, still empty, leaves nothing behind."""
+        self.store.close()
+        if not self.settings.resume and not self.store.point:
+            self.store.remove_empty()
+
+    def _run(self, state, camera, viewed: bool) -> CaptureResult:
         cfg, layout = self.settings.cfg, self.settings.layout
+        state.phase("setup", "the coach designs the session")
         try:
             # Built here, not at start: the coach's design takes a while, after the resume is announced.
             coach = None
@@ -123,33 +158,24 @@ class StartedCapture:
                     anywhere = {k: layout.sheet.to_base(v, layout.plane_z) for k, v in self.spots.items()}
                 coach = session_coach(self.store, self.nominal, aimed, cfg, sheet, anywhere)
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
-            self.store.close()
-            if not self.settings.resume and not self.store.point:
-                self.store.remove_empty()
+            self.abandon()
             raise
-        try:
-            real = cfg["backend"] != "fake"
-            return run_capture(
-                self.store,
-                self.robot,
-                self.trigger,
-                self.nominal,
-                self.opts,
-                out,
-                self.rangefinder,
-                self.hint,
-                coach,
-                real,
-                self.camera,
-                self.measure,
-            )
-        finally:
-            self.store.close()
-            if self.camera is not None:
-                self.camera.close()
-            self.trigger.close()
-            if self.rangefinder is not None:
-                self.rangefinder.close()
+        real = cfg["backend"] != "fake"
+        return run_capture(
+            self.store,
+            self.robot,
+            EitherTrigger(self.trigger, state) if viewed else self.trigger,
+            self.nominal,
+            self.opts,
+            None,
+            self.rangefinder,
+            self.hint,
+            coach,
+            real,
+            camera,
+            self.measure,
+            state,
+        )
 
 
 def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapture:
@@ -206,8 +232,6 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
             confirmable(guide.yes, what="to the suggested poses ")
     if settings.resume:
         store = CaptureStore.open(settings.folder)
-        if cfg["backend"] == "fake":  # the fake arm's drift runs on the session's clock, across resumes
-            robot.t_offset = max(store.t, default=0.0)
     else:
         store = new_session(
             settings.folder, cfg, layout, settings.layout_path, robot, nominal, rangefinder, camera, world
@@ -221,6 +245,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         move=guide.move,
         yes=guide.yes,
         max_step=guide.max_step,
+        photos=PhotoPolicy.of(cfg),
     )
     hint = (
         f"lasercal capture --resume {store.folder}"
@@ -292,19 +317,26 @@ class StartedValidation:
     opts: ValidateOptions
     world: SimulatedWorld | None = None
 
-    def run(self, out=sys.stdout) -> ValidationResult:
+    def run(self, out=sys.stdout, view=None) -> ValidationResult:
         """Run the validation (:func:`run_validation`) on screen ``out``; it closes the robot and camera.
 
         Parameters
         ----------
         out : text stream, the operator's screen
+        view : collector.view.ViewOptions or None, serve the live view while the validation runs
 
         Returns
         -------
         ValidationResult
         """
+        state = SessionState("validation", out)
+        with session_view(state, view, self.camera, self.layout.path) as camera:
+            return self._run(state, camera, view is not None)
+
+    def _run(self, state, camera, viewed: bool) -> ValidationResult:
         from lasercal.collector.sessions.validate import run_validation
 
+        out = StateStream(state)
         s = self.settings
         extra = {"collector": {"settings": s.cfg, "run": s.run}}
         if self.world is not None:
@@ -320,14 +352,14 @@ class StartedValidation:
             self.layout,
             self.point,
             self.robot,
-            self.camera,
+            camera,
             self.opts,
-            self.trigger,
+            EitherTrigger(self.trigger, state) if viewed and self.trigger is not None else self.trigger,
             self.measure,
-            out=out,
             meta_extra=extra,
             resume=s.resume,
             confirm_moves=s.cfg["backend"] != "fake",
+            state=state,
         )
 
 
@@ -392,8 +424,22 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
         cfg["hold"],
         yes=yes,
         max_step=run["max_step"],
+        photos=PhotoPolicy.of(cfg),
     )
     return StartedValidation(settings, model, layout, point, robot, camera, measure, trigger, opts, world)
+
+
+@contextmanager
+def session_view(state, view, camera, layout_file):
+    """The live view around a session (:func:`collector.view.live_view`) when ``view`` asks for it: yields
+    the camera the session photographs with (shared with the view's frames), else the camera itself."""
+    if view is None:
+        yield camera
+        return
+    from lasercal.collector.view import live_view
+
+    with live_view(state, view, camera, layout_file) as shared:
+        yield shared if shared is not None else camera
 
 
 def _pose_text(pose) -> str:
