@@ -664,7 +664,8 @@ class CaptureRun:
                 step = step()
         except KeyboardInterrupt:
             robot.stop()
-            self.say(f"\ninterrupted: the arm was stopped; {self.saved()}\n")
+            moved = "the arm was stopped; " if self.opts.move else ""  # a hand-guided arm is the operator's
+            self.say(f"\ninterrupted: {moved}{self.saved()}\n")
             self.state.end(f"interrupted: {self.saved()}", "stopped")
             raise
         except MotionRefused as e:

@@ -466,7 +466,8 @@ class ValidationRun:
             )
             self.state.end(where, "stopped")
             if isinstance(e, KeyboardInterrupt):
-                self.say(f"\ninterrupted: the arm was stopped; {where}\n")
+                moved = "" if self.guided else "the arm was stopped; "  # a hand-guided arm is the operator's
+                self.say(f"\ninterrupted: {moved}{where}\n")
                 raise
             raise RobotConnectionError(f"{e}; {where}") from None
         finally:
