@@ -184,8 +184,8 @@ def test_the_docs_recipe_runs_as_written_on_the_simulated_robot(tmp_path, monkey
     (capture's simulated operator triggers: --auto), fewer captures and configurations to keep it short."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "goals.csv").write_text("x,y,z\n450,0,300\n")
-    swap = {"--backend franky --host 172.16.0.2": "--backend fake", " --camera 0": "", "-n 60": f"-n {N}",
-            "--per-point 15": "--per-point 5 --auto"}  # fmt: skip
+    swap = {"--backend franky --host 172.16.0.2": "--backend fake", " --camera 0": " --camera fake",
+            "-n 60": f"-n {N}", "--per-point 9": "--per-point 5 --auto"}  # fmt: skip
     ran = []
     for line in recipe(DOCS):
         for a, b in swap.items():
