@@ -87,6 +87,12 @@ COMMANDS = (
         "a printable reference sheet (PDF, SVG at 1:1: crosses, markers, scale bars) and its layout",
     ),
     Command(
+        "mujoco-scene",
+        "mujoco",
+        "cmd_mujoco_scene",
+        "a MuJoCo world for a printed sheet: a perturbed outside arm, the sheet, a laser, a camera",
+    ),
+    Command(
         "spots",
         "vision",
         "spots_command",
