@@ -327,8 +327,11 @@ def _world(spec, layout, drawn: dict, width: float, height: float, light: float,
     )
     mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "lasercal_sheet"
     spec.add_material(name="table", rgba=[0.55, 0.45, 0.35, 1], specular=0.0)
-    table = world.add_body(name="table", pos=[xy[0], xy[1], z - 0.0002 - 0.02])
-    table.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.45, 0.6, 0.02], material="table")
+    # the table slopes as the sheet lies on it: its top 0.2 mm under the paper everywhere
+    table = world.add_body(name="table", pos=[xy[0], xy[1], z], quat=_quat(R))
+    table.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.45, 0.6, 0.02], pos=[0, 0, -0.0202], material="table"
+    )
     world.add_geom(  # the robot's mounting plate, from the table to its base
         type=mujoco.mjtGeom.mjGEOM_CYLINDER,
         size=[0.11, -z / 2, 0],
