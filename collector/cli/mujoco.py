@@ -141,12 +141,13 @@ def cmd_mujoco_scene(args) -> int:
     from lasercal.solver.formats.session import load_layout
     from lasercal.solver.whole import dump_yaml
 
+    passive = passives(args)  # the options' own mistakes first
     layout = load_layout(args.layout)
     pdf = Path(layout.path).parent / "sheet.pdf"
     if not pdf.is_file():
         raise FormatError(layout.path, f"no sheet.pdf beside it (expected {pdf}: lasercal sheet writes both)")
     options = SceneOptions(
-        None if args.exact else args.seed, passive=passives(args), light=args.light, shadows=args.shadows
+        None if args.exact else args.seed, passive=passive, light=args.light, shadows=args.shadows
     )
     with atomic_output(args.output, folder=True) as tmp:
         info = write_scene(tmp, layout, pdf, options)
