@@ -53,7 +53,9 @@ def build(out: Path, sheet_dir: Path, seed: int, spring: float) -> dict:
     from xacrodoc import XacroDoc
 
     xacrodoc.packages.update_package_cache({"franka_description": str(FRANKA)})
-    urdf = XacroDoc.from_file(str(FRANKA / "robots/fer/fer.urdf.xacro"), subargs={"hand": "false"}).to_urdf_string()
+    urdf = XacroDoc.from_file(
+        str(FRANKA / "robots/fer/fer.urdf.xacro"), subargs={"hand": "false"}
+    ).to_urdf_string()
     urdf = re.sub(r"<(visual|collision)\b.*?</\1>", "", urdf, flags=re.S)
     spec = mujoco.MjSpec.from_string(urdf)
     spec.compiler.balanceinertia = True  # franka_description's link 4 inertia breaks the triangle inequality
@@ -68,9 +70,13 @@ def build(out: Path, sheet_dir: Path, seed: int, spring: float) -> dict:
         j.armature, j.damping, j.frictionloss = 0.1, [1.0, 0, 0], 0.0
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST  # stiff servos on light links: implicit
     for name in JOINTS:
-        spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=3000, kv=100)
+        spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(
+            kp=3000, kv=100
+        )
     if spring:
-        h = spec.body("fer_link2").add_joint(name="hidden_spring", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+        h = spec.body("fer_link2").add_joint(
+            name="hidden_spring", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1]
+        )
         h.stiffness, h.damping, h.armature = [1 / spring, 0, 0], [3.0, 0, 0], 0.01
     link7 = spec.body("fer_link7")  # the flange (fer_joint8, fixed) lies 107 mm along link 7's z
     off = rng.normal(0, 1, 2)
@@ -101,7 +107,9 @@ def build(out: Path, sheet_dir: Path, seed: int, spring: float) -> dict:
         quat=rot(np.r_[0, 0, -np.pi / 2]),  # the page's right is the sheet frame's -y, its top +x
         material="paper",
     )
-    sheet.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.4, 0.5, 0.01], pos=[0, 0, -0.0102], rgba=[0.4, 0.3, 0.2, 1])
+    sheet.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.4, 0.5, 0.01], pos=[0, 0, -0.0102], rgba=[0.4, 0.3, 0.2, 1]
+    )
     eye = centre + np.r_[0.30 * np.cos(yaw) - 0.02, 0.30 * np.sin(yaw) + 0.03, 0.65]
     fwd = (centre - eye) / np.linalg.norm(centre - eye)
     right = np.cross(fwd, [0, 0, 1])
@@ -113,7 +121,13 @@ def build(out: Path, sheet_dir: Path, seed: int, spring: float) -> dict:
         fovy=24.0,
         resolution=[1600, 1200],
     )
-    world.add_light(pos=np.r_[centre[:2], 1.2], dir=[0, 0, -1], diffuse=[0.4] * 3, castshadow=False, type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+    world.add_light(
+        pos=np.r_[centre[:2], 1.2],
+        dir=[0, 0, -1],
+        diffuse=[0.4] * 3,
+        castshadow=False,
+        type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+    )
     spec.visual.headlight.ambient, spec.visual.headlight.diffuse = [0.25] * 3, [0.1] * 3
     spec.visual.global_.offwidth, spec.visual.global_.offheight = 1600, 1200
     spec.add_text(name="lasercal_joints", data=" ".join(JOINTS))
@@ -151,7 +165,9 @@ def true_spot(world_file: Path, q: np.ndarray, scale) -> np.ndarray:
 
 def lasercal(*args) -> str:
     t = time.time()
-    p = subprocess.run([sys.executable, "-m", "lasercal.collector.cli.main", *map(str, args)], capture_output=True, text=True)
+    p = subprocess.run(
+        [sys.executable, "-m", "lasercal.collector.cli.main", *map(str, args)], capture_output=True, text=True
+    )
     if p.returncode not in (0, 1):
         raise SystemExit(f"lasercal {args[0]} failed:\n{p.stderr}")
     print(f"  ({time.time() - t:.0f} s) lasercal {args[0]}", flush=True)
@@ -178,12 +194,40 @@ def main() -> None:
     solve = lasercal("solve", d / "session", "-o", d / "model.yaml", "--extend", "auto")
     print("  solve:", next(x for x in solve.splitlines() if x.startswith("finding")))
     p6 = np.array(yaml.safe_load(layout.read_text())["points"]["P6"][:2])
-    for name, model, extra in (("nominal", "panda", ["--sheet-from", d / "model.yaml"]), ("calibrated", d / "model.yaml", [])):
-        out = lasercal("validate", model, "--layout", layout, "--point", "P6", "-n", 30, *common, *extra, "-o", d / f"val_{name}")
+    for name, model, extra in (
+        ("nominal", "panda", ["--sheet-from", d / "model.yaml"]),
+        ("calibrated", d / "model.yaml", []),
+    ):
+        out = lasercal(
+            "validate",
+            model,
+            "--layout",
+            layout,
+            "--point",
+            "P6",
+            "-n",
+            30,
+            *common,
+            *extra,
+            "-o",
+            d / f"val_{name}",
+        )
         said = float(out.split("error mean ")[1].split(" mm")[0])
-        rows = list(csv.DictReader(line for line in open(d / f"val_{name}" / "validation.csv") if not line.startswith("#")))
-        err = [np.linalg.norm(true_spot(world, np.array([float(r[f"q{j}"]) for j in range(1, 8)]), truth["scale"]) - p6) for r in rows]
-        print(f"{name}: validate says error mean {said:.3f} mm; MuJoCo's ray on the hidden truth {np.mean(err):.3f} mm")
+        rows = list(
+            csv.DictReader(
+                line for line in open(d / f"val_{name}" / "validation.csv") if not line.startswith("#")
+            )
+        )
+        err = [
+            np.linalg.norm(
+                true_spot(world, np.array([float(r[f"q{j}"]) for j in range(1, 8)]), truth["scale"]) - p6
+            )
+            for r in rows
+        ]
+        print(
+            f"{name}: validate says error mean {said:.3f} mm; MuJoCo's ray on the hidden truth "
+            f"{np.mean(err):.3f} mm"
+        )
 
 
 if __name__ == "__main__":
