@@ -63,7 +63,8 @@ def vision_error(session: Path, world_file: Path) -> np.ndarray:
 
 
 def error_mean(text: str) -> float:
-    return float(text.split("error mean ")[1].split(" mm")[0])
+    """validate's 'error mean' (NaN when it measured fewer than two spots)."""
+    return float(text.split("error mean ")[1].split(" mm")[0]) if "error mean " in text else float("nan")
 
 
 def main() -> None:

@@ -7,8 +7,9 @@ DIR is a folder ``bench_mujoco.py`` filled (scene/, model.yaml). Goals: the nomi
 configurations aiming at the sheet (``x,y,z`` mm, base frame). Before: the nominal's own configurations
 commanded; after: ``lasercal correct model.yaml goals.csv``'s. Each command is settled in the world (its
 servos, gravity, passive joints) and the flange (107 mm along joint 7's axis from link 7's frame, as
-franka_description puts it; the hand and laser mounted on it are tools) read from MuJoCo, in the robot's own base frame (eq. S2: joint 1 as the nominal's, joint 2's direction at q = 0
-as the nominal's: the frame every sheet calibration is in), built from MuJoCo's own joint axes at q = 0.
+franka_description puts it; the hand and laser mounted on it are tools) read from MuJoCo, in the robot's
+own base frame (eq. S2: joint 1 as the nominal's, joint 2's direction at q = 0 as the nominal's: the frame
+every sheet calibration is in), built from MuJoCo's own joint axes at q = 0.
 """
 
 from __future__ import annotations

@@ -212,7 +212,7 @@ def main() -> None:
             "-o",
             d / f"val_{name}",
         )
-        said = float(out.split("error mean ")[1].split(" mm")[0])
+        said = float(out.split("error mean ")[1].split(" mm")[0]) if "error mean " in out else float("nan")
         rows = list(
             csv.DictReader(
                 line for line in open(d / f"val_{name}" / "validation.csv") if not line.startswith("#")

@@ -39,14 +39,18 @@ CAMERA = "lasercal_camera"
 SHEET_BODY = "lasercal_sheet"
 SPOT_GROUP = 5  # lasercal's group: the spot's disc, which the laser's own ray must not hit
 SPOT_SIGMA_M = 1.0e-3  # the beam's footprint at normal incidence: a Gaussian of this sigma, m
-SPOT_LAYERS, SPOT_ALPHA = 6, 0.27  # stacked discs, each this opaque: 85 % of their colour at the centre
+SPOT_LAYERS, SPOT_ALPHA = 10, 0.17  # stacked discs, each this opaque: 85 % of their light at the centre
 # disc k's radius: where the Gaussian falls to the middle of the k-th and (k+1)-th layers' cover
 SPOT_RINGS_M = tuple(
     SPOT_SIGMA_M
     * np.sqrt(2 * np.log((1 - (1 - SPOT_ALPHA) ** SPOT_LAYERS) / (1 - (1 - SPOT_ALPHA) ** (k + 0.5))))
     for k in range(SPOT_LAYERS)
 )
-SPOT_RGBA = (0.62, 0.4, 0.37, SPOT_ALPHA)  # lit and emissive: red above paper at two thirds of full scale
+# the laser's light: red with the Bayer filters' crosstalk (vision.render's LASER_RESPONSE), its peak adding
+# 0.43 of full scale to the photo at exposure 1, whatever the room's light (on paper at two thirds of full
+# scale its core just clips; a session's exposure settles below that, sessions.exposure)
+SPOT_RGBA = (1.0, 0.1, 0.04, SPOT_ALPHA)
+SPOT_EMISSION = 0.5
 DEFAULT_PX = (1280, 960)
 SPEED = 0.6  # rad/s, a commanded move's peak joint speed (as the fake arm's)
 HOP_S = 0.5  # s, the shortest commanded move
@@ -176,12 +180,12 @@ class MujocoWorld:
         self.path = Path(path)
         try:
             spec = mj.MjSpec.from_file(str(self.path))
-            # the laser's light: emissive translucent discs stacked into a Gaussian footprint, red over the
-            # paper (as a camera sees a red laser spot exposed not to clip; the paper's tone beneath shows)
+            # the laser's light: emissive translucent discs stacked into a Gaussian footprint (drawn in a
+            # photo's second pass, in the dark: their light adds to the room's, as a laser's does)
             spot = spec.worldbody.add_body(
                 name="lasercal_spot", mocap=True
             )  # at the origin: the extent stays
-            spec.add_material(name="lasercal_spot", rgba=SPOT_RGBA, emission=1.0, specular=0.0)
+            spec.add_material(name="lasercal_spot", rgba=SPOT_RGBA, emission=SPOT_EMISSION, specular=0.0)
             for k, r in enumerate(SPOT_RINGS_M):
                 spot.add_geom(
                     name=f"lasercal_spot_{k}",
@@ -438,10 +442,19 @@ class MujocoRobot(RobotAdapter):
 
 class MujocoCamera:
     """Photos of the world through its camera ``lasercal_camera``, rendered by MuJoCo (the spot's disc placed
-    where the beam meets the world first)."""
+    where the beam meets the world first).
+
+    A photo is two MuJoCo renders added: the world as its lights show it without the spot, and the spot's
+    emissive discs alone with every light off (the world black behind them, hiding them where it is in
+    front): the laser's light adds to the room's, brighter on lit paper, clipping where both are bright.
+    Its exposure is a gain on all the light it renders -- the world's lights, the headlight and the spot's
+    emission, scaled together before each photo -- set through OpenCV's properties as a real camera's is
+    (``CAP_PROP_AUTO_EXPOSURE`` manual, ``CAP_PROP_EXPOSURE`` the gain; :mod:`sessions.exposure` lowers it
+    while the spot clips or cannot be found, as under a bright lamp that clips the paper).
+    """
 
     name = "mujoco"
-    exposure_control = False  # a rendered photo: its light is the world's
+    exposure_control = True
 
     def __init__(self, world: MujocoWorld):
         if world.c.camera is None:
@@ -453,6 +466,40 @@ class MujocoCamera:
         g.offwidth, g.offheight = max(g.offwidth, self.size[0]), max(g.offheight, self.size[1])
         self._renderer = None
         self.last_hit = None  # the world point the spot was drawn at, m (truth: for scoring, never estimates)
+        m = world.m
+        self.exposure = 1.0
+        self._light = (m.light_diffuse.copy(), m.light_ambient.copy(), m.light_specular.copy())
+        self._head = (np.array(m.vis.headlight.ambient), np.array(m.vis.headlight.diffuse))
+        self._emission = m.mat_emission.copy()
+
+    def get(self, prop) -> float:
+        """OpenCV's exposure properties: manual (1), and the gain."""
+        import cv2
+
+        return {cv2.CAP_PROP_AUTO_EXPOSURE: 1.0, cv2.CAP_PROP_EXPOSURE: self.exposure}.get(prop, 0.0)
+
+    def set(self, prop, value) -> bool:
+        import cv2
+
+        if prop == cv2.CAP_PROP_EXPOSURE and np.isfinite(value) and value > 0:
+            self.exposure = float(value)
+            return True
+        return prop == cv2.CAP_PROP_AUTO_EXPOSURE
+
+    def _expose(self, room: float, laser: float) -> None:
+        """Scale the world's lights by ``room`` and the spot's emission by ``laser`` (the exposure, or 0)."""
+        m = self.world.m
+        m.light_diffuse[:], m.light_ambient[:], m.light_specular[:] = (x * room for x in self._light)
+        m.vis.headlight.ambient, m.vis.headlight.diffuse = self._head[0] * room, self._head[1] * room
+        spot = m.geom_matid[self.world.c.spot_geom]
+        m.mat_emission[:] = self._emission * room
+        m.mat_emission[spot] = self._emission[spot] * laser
+
+    def _render(self, spot: bool) -> np.ndarray:
+        opt = self.world.mj.MjvOption()
+        opt.geomgroup[SPOT_GROUP] = int(spot)
+        self._renderer.update_scene(self.world.d, CAMERA, scene_option=opt)
+        return self._renderer.render()
 
     def photo(self) -> np.ndarray:
         """One frame, (h, w, 3) BGR uint8."""
@@ -468,10 +515,12 @@ class MujocoCamera:
                     "Mesa's EGL (Debian: apt-get install libegl-mesa0 libgl1-mesa-dri)"
                 ) from None
         self.last_hit = self.world.show_spot()
-        opt = mj.MjvOption()
-        opt.geomgroup[SPOT_GROUP] = 1
-        self._renderer.update_scene(self.world.d, CAMERA, scene_option=opt)
-        return np.ascontiguousarray(self._renderer.render()[:, :, ::-1])
+        self._expose(self.exposure, 0.0)
+        room = self._render(spot=False)
+        self._expose(0.0, self.exposure)
+        laser = self._render(spot=True)
+        img = np.minimum(room.astype(np.uint16) + laser, 255).astype(np.uint8)
+        return np.ascontiguousarray(img[:, :, ::-1])
 
     def close(self) -> None:
         if self._renderer is not None:
