@@ -137,6 +137,44 @@ def test_a_passive_spring_bends_by_its_compliance_times_the_torque(scenes):
         assert abs(bend) > 5e-4
 
 
+def test_the_simulated_operator_puts_mujoco_beam_on_the_printed_point(scenes):
+    """Hand-guiding without noise: from a pose of the nominal robot the operator nudges the arm, watching
+    MuJoCo's spot, until the beam meets the point where the sheet body holds it (the perturbed world with
+    its spring, where the nominal pose misses by millimetres)."""
+    from lasercal.collector.hardware.mujoco import make_mujoco_robot
+
+    layout = load_layout(scenes / "sheet" / "layout.yaml")
+    cfg = {"world": scenes / "spring" / "scene.xml", "aim_noise": 0.0, "seed": 0}
+    robot = make_mujoco_robot(cfg, load_model("fr3"), layout.in_base(), 1, layout.sheet)
+    robot.connect()
+    for name in ("P1", "P5"):
+        robot.prompt_point(name, layout.in_base().points[name], 0)
+        hit = robot.world.ray()[0]
+        assert np.abs(robot.world.on_sheet(hit)[:2] - layout.points[name][:2]).max() < 1e-3  # mm
+
+
+def test_backlash_and_friction_are_passive_joints_gravity_takes_to_an_end(tmp_path, scenes):
+    """--backlash 2:0.002 --friction 2:0.3: a passive hinge after joint 2 free over 2 mrad, with dry
+    friction; joint 2's torque (tens of Nm) takes it to the end of its range its sign says (the sign of a
+    spring's bend, -compliance x torque)."""
+    code, _, err = lasercal(
+        "mujoco-scene", "--layout", scenes / "sheet" / "layout.yaml", "-o", tmp_path / "bl", "--exact",
+        "--backlash", "2:0.002", "--friction", "2:0.3",
+    )  # fmt: skip
+    assert code == 0, err
+    world = MujocoWorld(tmp_path / "bl" / "scene.xml")
+    j = world.m.joint("passive_joint2")
+    assert (
+        world.m.jnt_range[j.id].tolist() == [-0.001, 0.001] and world.m.dof_frictionloss[j.dofadr[0]] == 0.3
+    )
+    for q in ([0, -0.3, 0, -2.2, 0, 1.9, 0.8], [0, 0.5, 0, -1.5, 0, 2.0, 0.8]):
+        settle_at(world, np.array(q))
+        tau2 = world.state().tau[1]
+        # at the end its torque pushes it to, which gives a little (MuJoCo's limit, ~2e-5 rad/Nm here)
+        bend = -world.d.qpos[j.qposadr[0]] * np.sign(tau2)
+        assert 0.001 - 1e-5 < bend < 0.001 + 3e-5 * abs(tau2)
+
+
 @pytest.mark.usefixtures("renders")
 def test_the_camera_measures_the_spot_where_mujoco_ray_meets_the_sheet(scenes):
     """Photos rendered by MuJoCo (the spot drawn where mj_ray hits), measured through the sheet's markers as
@@ -180,7 +218,8 @@ def test_a_short_hands_free_session_calibrates_in_mujoco(scenes, tmp_path):
         code, out, err = lasercal(
             "validate", model, "--layout", sheet, "--point", "P6", "-n", 4, *common, *extra, "-o", out_dir
         )
-        assert code == 0, err
+        assert code in (0, 1), err  # 1: a configuration gave no spot (the arm hid it): said, the run kept
+        assert int(out.split(" spots measured")[0].split()[-1]) >= 3, out
         means[str(model)] = float(out.split("error mean ")[1].split(" mm")[0])
     nominal, calibrated = means["fr3"], means[str(tmp_path / "m.yaml")]
     assert nominal > 2.0 and calibrated < nominal / 5
@@ -197,9 +236,10 @@ def test_a_short_hands_free_session_calibrates_in_mujoco(scenes, tmp_path):
         tmp_path / "c.csv",
     )
     assert code == 0, err
-    planned = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=2)[:, 1:8]
-    done = np.genfromtxt(tmp_path / "v1" / "validation.csv", delimiter=",", skip_header=2)[:, 1:8]
-    assert np.abs(planned - done).max() < 1e-5  # the arm reached what it was commanded
+    planned = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=2)
+    done = np.genfromtxt(tmp_path / "v1" / "validation.csv", delimiter=",", skip_header=2)
+    index = done[:, 0].astype(int)  # the rows validate wrote, by configuration
+    assert np.abs(planned[index, 1:8] - done[:, 1:8]).max() < 1e-5  # the arm reached what it was commanded
 
 
 def test_new_session_is_what_plan_reads(scenes, tmp_path):
