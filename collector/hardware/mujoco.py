@@ -50,6 +50,7 @@ SPOT_RINGS_M = tuple(
 # 0.43 of full scale to the photo at exposure 1, whatever the room's light (on paper at two thirds of full
 # scale its core just clips; a session's exposure settles below that, sessions.exposure)
 SPOT_RGBA = (1.0, 0.1, 0.04, SPOT_ALPHA)
+SPOT_LIFT_M = 4e-5  # each disc above the one below it (and the surface): clear of it in the depth buffer
 SPOT_EMISSION = 0.5
 DEFAULT_PX = (1280, 960)
 SPEED = 0.6  # rad/s, a commanded move's peak joint speed (as the fake arm's)
@@ -191,7 +192,7 @@ class MujocoWorld:
                     name=f"lasercal_spot_{k}",
                     type=mj.mjtGeom.mjGEOM_ELLIPSOID,
                     size=[r, r, 1e-5],
-                    pos=[0, 0, 4e-5 * (k + 1)],
+                    pos=[0, 0, SPOT_LIFT_M * (k + 1)],
                     material="lasercal_spot",
                     group=SPOT_GROUP,
                     contype=0,
@@ -259,9 +260,14 @@ class MujocoWorld:
         x = self.mj.mj_ray(self.m, self.d, a, u, self.ray_groups, 1, self.c.laser_body, gid, normal)
         return (None if x < 0 else a + x * u), int(gid[0]), normal
 
-    def show_spot(self) -> np.ndarray | None:
-        """Place the spot's disc where the beam meets the world (its footprint stretched by 1/cos of the
-        beam's tilt from the surface's normal, along its azimuth), or out of sight; returns the hit, m."""
+    def show_spot(self, eye: np.ndarray) -> np.ndarray | None:
+        """Place the spot's discs where the beam meets the world (the footprint stretched by 1/cos of the
+        beam's tilt from the surface's normal, along its azimuth), or hide them; returns the hit, m.
+
+        Each disc floats its lift above the surface (they are stacked) on the line of sight from the camera
+        at ``eye`` (m) through the hit: seen from there each is centred on the hit, which a lift along the
+        normal alone would shift by lift x tan(the view's tilt) (0.06 mm, the camera 30 deg off vertical).
+        """
         hit, _, normal = self.ray()
         c = self.c
         self.m.mat_rgba[self.m.geom_matid[c.spot_geom], 3] = (
@@ -280,8 +286,11 @@ class MujocoWorld:
         self.mj.mju_mat2Quat(quat, R.ravel())
         self.d.mocap_pos[c.spot_mocap] = hit
         self.d.mocap_quat[c.spot_mocap] = quat
+        sight = (eye - hit) / np.linalg.norm(eye - hit)
+        rise = R.T @ sight / max(float(sight @ normal), 0.05)  # body frame: 1 up the normal per unit along it
         for k, r in enumerate(SPOT_RINGS_M):
             self.m.geom_size[c.spot_geom + k] = [r / cos, r, 1e-5]
+            self.m.geom_pos[c.spot_geom + k] = SPOT_LIFT_M * (k + 1) * rise
         self.mj.mj_kinematics(self.m, self.d)
         return hit
 
@@ -514,7 +523,7 @@ class MujocoCamera:
                     f"({str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__}): install "
                     "Mesa's EGL (Debian: apt-get install libegl-mesa0 libgl1-mesa-dri)"
                 ) from None
-        self.last_hit = self.world.show_spot()
+        self.last_hit = self.world.show_spot(self.world.d.cam_xpos[self.world.c.camera])
         self._expose(self.exposure, 0.0)
         room = self._render(spot=False)
         self._expose(0.0, self.exposure)
