@@ -72,6 +72,9 @@ def main() -> None:
     ap.add_argument("dir", nargs="?", default="bench_mujoco")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--per-point", type=int, default=9)
+    ap.add_argument(
+        "--eye", type=float, metavar="MM", help="by eye instead: no camera, this aiming noise (mm)"
+    )
     ap.add_argument("--scene", nargs=argparse.REMAINDER, default=[])
     a = ap.parse_args()
     d = Path(a.dir)
@@ -83,12 +86,13 @@ def main() -> None:
     world = d / "scene" / "scene.xml"
     common = ["--backend", "mujoco", "--world", world, "--robot", "fr3"]
     t = time.time()
+    how = ["--camera", "mujoco", "--guide", "move"] if a.eye is None else ["--aim-noise", a.eye]
     out = lasercal(
-        "capture", *common, "--layout", layout, "--camera", "mujoco", "--guide", "move", "--auto",
-        "--per-point", a.per_point, "-o", d / "session", log=d / "capture.log",
+        "capture", *common, "--layout", layout, *how, "--auto", "--per-point", a.per_point,
+        "-o", d / "session", log=d / "capture.log",
     )  # fmt: skip
     wall = time.time() - t
-    measured = sum(1 for r in csv.DictReader(open(d / "session" / "captures.csv")) if r["camera_x"])
+    measured = sum(1 for r in csv.DictReader(open(d / "session" / "captures.csv")) if r.get("camera_x"))
     rows = sum(1 for _ in csv.DictReader(open(d / "session" / "captures.csv")))
     print(
         f"capture: {rows} captures ({measured} measured by the camera) in {wall:.0f} s wall; "
@@ -110,6 +114,10 @@ def main() -> None:
         f"validate -n 30 at P6: error mean nominal {error_mean(nom):.3f} mm, calibrated "
         f"{error_mean(cal):.3f} mm"
     )
+    promise = [x for x in open(d / "capture.log") if "predicted error at" in x][-1].strip()
+    print(f"the coach's last promise: {promise}")
+    if a.eye is not None:
+        return
     e = vision_error(d / "session", world)
     print(
         f"vision: {len(e)} measured spots against MuJoCo's ray hit: RMS {np.sqrt((e**2).mean(0))[0]:.4f}, "
