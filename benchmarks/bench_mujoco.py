@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -79,6 +80,10 @@ def main() -> None:
     a = ap.parse_args()
     d = Path(a.dir)
     d.mkdir(exist_ok=True)
+    for old in ("session", "val_nominal", "val_calibrated", "model.yaml"):  # a rerun starts afresh
+        shutil.rmtree(d / old, ignore_errors=True) if (d / old).is_dir() else (d / old).unlink(
+            missing_ok=True
+        )
     if not (d / "sheet").exists():
         lasercal("sheet", "-o", d / "sheet", "--robot", "fr3", "--place", 450, 0, 0)
     layout = d / "sheet" / "layout.yaml"
