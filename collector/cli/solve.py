@@ -135,6 +135,25 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         type=number(-100, 100),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
+    p.add_argument(
+        "--measured",
+        type=number(0, 1),
+        default=0.0,
+        help="laser: the share of captures whose spot a camera measured (0..1, default 0: every capture "
+        "aimed by eye); the rest are aimed with --aim-noise",
+    )
+    p.add_argument(
+        "--spot-sigma",
+        type=number(1e-4, 10, "mm"),
+        default=0.03,
+        help="laser: the camera's noise on a measured spot, mm per axis (default 0.03)",
+    )
+    p.add_argument(
+        "--aim-radius",
+        type=number(0, 150, "mm"),
+        help="laser: each capture aims at a random spot within this radius of its point, mm (default 40 "
+        "with --measured, else 0: at the points)",
+    )
     output_argument(p, "-o", "--output", kind="folder", required=True, help="session folder to write")
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
@@ -283,6 +302,8 @@ def cmd_simulate(args) -> int:
             "per_point",
             "aim_noise",
             "sheet_pose",
+            "measured",
+            "aim_radius",
         )
     elif args.layout:  # (without a layout the simulation refuses to run)
         unused(args, "an option of --measurement position", "configs", "targets", "noise")
@@ -310,6 +331,9 @@ def cmd_simulate(args) -> int:
             noise=args.noise,
             base_link=args.base_link,
             tip_link=args.tip_link,
+            measured=args.measured,
+            spot_sigma=args.spot_sigma,
+            aim_radius=args.aim_radius,
         )
     print(f"wrote {args.output}: {sim.summary}")
     return 0

@@ -193,6 +193,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         repeat_sigma=world.repeat_sigma,
         place=lambda xy: on_table(layout, world, xy),
         placement=layout.sheet if layout.frame == "sheet" else None,
+        printed=layout.frame == "sheet",
     )
     camera, measure = capture_camera(camera_spec, cfg, robot, layout, layout_file, world)
     rangefinder = make_rangefinder(cfg, robot, layout.plane_z)
@@ -208,6 +209,8 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
             confirmable(guide.yes, what="to the suggested poses ")
     if settings.resume:
         store = CaptureStore.open(settings.folder)
+        if cfg["backend"] == "fake":  # the fake arm's drift runs on the session's clock, across resumes
+            robot.t_offset = max(store.t, default=0.0)
     else:
         store = new_session(
             settings.folder, cfg, layout, settings.layout_path, robot, nominal, rangefinder, camera, world
