@@ -153,26 +153,28 @@ def test_the_simulated_operator_puts_mujoco_beam_on_the_printed_point(scenes):
         assert np.abs(robot.world.on_sheet(hit)[:2] - layout.points[name][:2]).max() < 1e-3  # mm
 
 
-def test_backlash_and_friction_are_passive_joints_gravity_takes_to_an_end(tmp_path, scenes):
-    """--backlash 2:0.002 --friction 2:0.3: a passive hinge after joint 2 free over 2 mrad, with dry
-    friction; joint 2's torque (tens of Nm) takes it to the end of its range its sign says (the sign of a
-    spring's bend, -compliance x torque)."""
+def test_a_backlash_is_a_passive_joint_gravity_takes_to_an_end(tmp_path, scenes):
+    """--backlash 2:0.002: a passive hinge after joint 2 free over 2 mrad; joint 2's torque (tens of Nm)
+    takes it to the end of its range its sign says (a spring's bend's sign, -compliance x torque), where the
+    arm comes to rest."""
     code, _, err = lasercal(
         "mujoco-scene", "--layout", scenes / "sheet" / "layout.yaml", "-o", tmp_path / "bl", "--exact",
-        "--backlash", "2:0.002", "--friction", "2:0.3",
+        "--backlash", "2:0.002",
     )  # fmt: skip
     assert code == 0, err
     world = MujocoWorld(tmp_path / "bl" / "scene.xml")
     j = world.m.joint("passive_joint2")
-    assert (
-        world.m.jnt_range[j.id].tolist() == [-0.001, 0.001] and world.m.dof_frictionloss[j.dofadr[0]] == 0.3
-    )
+    assert world.m.jnt_range[j.id].tolist() == [-0.001, 0.001]
+    robot = MujocoRobot(world)
+    robot.connect()
     for q in ([0, -0.3, 0, -2.2, 0, 1.9, 0.8], [0, 0.5, 0, -1.5, 0, 2.0, 0.8]):
-        settle_at(world, np.array(q))
-        tau2 = world.state().tau[1]
-        # at the end its torque pushes it to, which gives a little (MuJoCo's limit, ~2e-5 rad/Nm here)
+        robot.move_to(np.array(q))
+        state, peak = wait_still(robot, 0.005, 0.5, 30.0, 1 / 64)
+        assert state is not None, peak  # it comes to rest at its end (no chatter)
+        tau2 = state.tau[1]
+        # at the end its torque pushes it to, and past it by the soft limit's give (~1e-4 rad/Nm)
         bend = -world.d.qpos[j.qposadr[0]] * np.sign(tau2)
-        assert 0.001 - 1e-5 < bend < 0.001 + 3e-5 * abs(tau2)
+        assert 0.001 - 1e-5 < bend < 0.001 + 2e-4 * abs(tau2)
 
 
 @pytest.mark.usefixtures("renders")

@@ -291,13 +291,10 @@ def _arm(spec, drawn: dict, passive: tuple) -> None:
         j.damping = [PASSIVE_DAMPING, 0.0, 0.0]
         j.armature = 0.01
         j.frictionloss = p.friction
-        if (
-            p.backlash
-        ):  # its ends stiff: MuJoCo's default soft limit gives 2 mrad under 20 Nm, this ~2e-5 rad/Nm
+        if p.backlash:  # MuJoCo's soft limit: its ends give ~1e-4 rad/Nm (stiffer ends chattered: the arm
+            # never came to rest); a backlash here is free play, then a spring
             j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
             j.range = [-p.backlash / 2, p.backlash / 2]
-            j.solref_limit = [0.004, 1.0]
-            j.solimp_limit = [0.999, 0.9999, 1e-4, 0.5, 2.0]
     d, r = drawn["laser"]
     hand = spec.body("hand")
     # the beam along the site's z: the flange's z (the hand turns about it), tilted by the mount
