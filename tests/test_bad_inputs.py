@@ -816,12 +816,16 @@ BASE = {  # an argv of every command that parses and runs on the valid inputs (o
     "study-mukca": STUDY,
     "sheet": ["sheet"],
     "correct": ["correct", "{d}/model.yaml", "{d}/goals.csv"],
+    "mujoco-scene": ["mujoco-scene", "--layout", "{d}/sheet/layout.yaml"],
+    "new-session": ["new-session", "--layout", "{d}/sheet/layout.yaml"],
+    "configurations": ["configurations", "{d}/model.yaml", "--layout", "{d}/layout.yaml"],
 }
 OUT = {"demo": "-o", "capture": "-o", "solve": "-o", "plan": "-o", "validate": "-o", "report": "-o",
        "export": "-o", "simulate": "-o", "diagnose": "--report", "camera-calibrate": "-o", "fullpose": "-o",
        "simulate-fullpose": "-o", "import-mukca": "-o", "import-justin": "-o", "study-mukca": "-o",
        "import-ipa": "-o", "register": "-o",
-       "spots": "--overlay", "beam-check": "--overlay", "sheet": "-o", "correct": "-o"}  # fmt: skip
+       "spots": "--overlay", "beam-check": "--overlay", "sheet": "-o", "correct": "-o",
+       "mujoco-scene": "-o", "new-session": "-o", "configurations": "-o"}  # fmt: skip
 
 
 def _argv(cmd: str) -> list:
@@ -1427,6 +1431,31 @@ STD_NEGATIVE = _yaml("model.yaml", _set("sheet", SHEET_POSE), _set("sheet_std", 
 case("export: model sheet_std negative", _argv("export"), STD_NEGATIVE, "model.yaml, field 'sheet_std.y_mm'")
 case("spots --model: a model's sheet_std negative", ["spots", "{d}/val/photos/0000.png", "--layout",
      "{d}/sheet/layout.yaml", "--model", "{d}/model.yaml"], STD_NEGATIVE, "sheet_std.y_mm")  # fmt: skip
+
+# issue 46: the MuJoCo world, an empty session, a model's configurations
+MUJOCO_CAPTURE = ["capture", "--layout", "{d}/sheet/layout.yaml", "--backend", "mujoco", "--per-point", "3"]
+case("capture --backend mujoco without --world", MUJOCO_CAPTURE + ["-o", "{o}"], None, "--world")
+case("capture --world a torn MJCF", MUJOCO_CAPTURE + ["--world", "{d}/w.xml", "-o", "{o}"],
+     _touch("w.xml", "<mujoco><worldbody><body name='a'>"), "w.xml")  # fmt: skip
+case("capture --world on --backend fake", FAKE_CAPTURE + ["--world", "{d}/layout.yaml", "-o", "{o}"], None,
+     "--world")  # fmt: skip
+case("mujoco-scene: no sheet.pdf beside the layout", _argv("mujoco-scene"), None, "sheet.pdf")
+case("mujoco-scene --spring after joint 9", _argv("mujoco-scene") + ["--spring", "9:1e-4"], None, "--spring")
+case("mujoco-scene --spring without a value", _argv("mujoco-scene") + ["--spring", "2"], None, "--spring")
+case("mujoco-scene --friction with no passive joint", _argv("mujoco-scene") + ["--friction", "2:0.5"], None,
+     "--friction")  # fmt: skip
+case("mujoco-scene -o the layout's folder", ["mujoco-scene", "--layout", "{d}/sheet/layout.yaml", "-o",
+     "{d}/sheet", "--force"], None, "-o")  # fmt: skip
+case("new-session --aim without --camera", _argv("new-session") + ["--aim", "anywhere"], None, "--aim")
+case("new-session --aim anywhere on a layout no sheet printed", ["new-session", "--layout", "{d}/layout.yaml",
+     "--camera", "--aim", "anywhere", "-o", "{o}"], None, "layout.yaml")  # fmt: skip
+case("new-session -o the layout's folder", ["new-session", "--layout", "{d}/sheet/layout.yaml", "-o",
+     "{d}/sheet"], None, "-o")  # fmt: skip
+case("configurations: a sheet layout, a model without a sheet pose", ["configurations", "panda", "--layout",
+     "{d}/sheet/layout.yaml", "-o", "{o}"], None, "sheet")  # fmt: skip
+case("configurations: no such point", _argv("configurations") + ["--point", "P9"], None, "P9")
+case("configurations -o the model", ["configurations", "{d}/model.yaml", "--layout", "{d}/layout.yaml", "-o",
+     "{d}/model.yaml", "--force"], None, "-o")  # fmt: skip
 
 
 # --- 10. issue 47's sweep: corrupted copies of files lasercal wrote, where each used to pass or write ------

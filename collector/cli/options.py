@@ -144,6 +144,12 @@ def trigger(text: str) -> str:
     raise argparse.ArgumentTypeError(f"{text!r}: expected enter, serial:URL or pilot")
 
 
+def world_file(text: str) -> str:
+    """An argparse ``type`` for ``--world``: an existing file, kept as its absolute path (a resumed session
+    finds it from any folder, and compares equal)."""
+    return str(Path(existing("file")(text)).resolve())
+
+
 INFILE = existing("file")
 INFOLDER = existing("folder")
 ROBOT = existing("file", "robots")
@@ -454,7 +460,18 @@ def backend_arguments(p: argparse.ArgumentParser) -> None:
     from lasercal.collector.hardware import BACKENDS  # here: the commands without a robot skip its import
 
     g = p.add_argument_group("robot backend")
-    g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
+    g.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        help="fake (simulated Panda), mujoco (--world), franky, panda-py or ros",
+    )
+    g.add_argument(
+        "--world",
+        type=world_file,
+        metavar="SCENE.xml",
+        help="mujoco: the MuJoCo world file (MJCF; its contract: docs/formats.md; lasercal mujoco-scene "
+        "writes one)",
+    )
     g.add_argument(
         "--robot", type=ROBOT, help="nominal robot model: name under data/robots/ or YAML (default panda)"
     )

@@ -366,6 +366,8 @@ def new_session(
         }
         if world is not None and world.effects:
             extra["simulated"]["world"] = world.as_dict()
+    if cfg["backend"] == "mujoco":  # the report says simulated; the world file is named, never read for a fit
+        extra["simulated"] = {"world": cfg["world"], "aim_noise_mm": cfg["aim_noise"], "seed": cfg["seed"]}
     if camera is not None and cfg.get("aim") != "anywhere":  # beside each cross: a spot on ink is biased
         from lasercal.collector.sessions.spotcam import BESIDE_MM
 

@@ -12,7 +12,7 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-from lasercal.collector.hardware import make_rangefinder, make_robot
+from lasercal.collector.hardware import SIMULATED, make_rangefinder, make_robot
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.hardware.fakeworld import World, on_table, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
@@ -160,7 +160,7 @@ class StartedCapture:
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
             self.abandon()
             raise
-        real = cfg["backend"] != "fake"
+        real = cfg["backend"] not in SIMULATED
         return run_capture(
             self.store,
             self.robot,
@@ -198,8 +198,10 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         ``move`` on a real robot whose moves cannot be confirmed (no ``yes`` and no terminal).
     """
     cfg, layout = settings.cfg, settings.layout
-    if guide.auto and cfg["backend"] != "fake":
-        raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
+    if guide.auto and cfg["backend"] not in SIMULATED:
+        raise LasercalError(
+            "--auto needs --backend fake or mujoco (only the simulated operator can trigger by itself)"
+        )
     nominal = load_model(cfg["robot"])
     world = World.draw(cfg.get("effects") or (), cfg["seed"])
     camera_spec = cfg.get("camera")
@@ -216,6 +218,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         points=table_points(layout, world, beside),
         repeat_sigma=world.repeat_sigma,
         place=lambda xy: on_table(layout, world, xy),
+        placement=layout.sheet if layout.frame == "sheet" else None,
         printed=layout.frame == "sheet",
     )
     camera, measure = capture_camera(camera_spec, cfg, robot, layout, layout_file, world)
@@ -228,7 +231,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
             raise LasercalError(
                 f"--guide move: the {robot.name} backend cannot move the arm (use --guide hand)"
             )
-        if cfg["backend"] != "fake":
+        if cfg["backend"] not in SIMULATED:
             confirmable(guide.yes, what="to the suggested poses ")
     if settings.resume:
         store = CaptureStore.open(settings.folder)
@@ -358,7 +361,7 @@ class StartedValidation:
             self.measure,
             meta_extra=extra,
             resume=s.resume,
-            confirm_moves=s.cfg["backend"] != "fake",
+            confirm_moves=s.cfg["backend"] not in SIMULATED,
             state=state,
         )
 
@@ -415,7 +418,7 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     )
     trigger = None
     if run["guide"] or not robot.can_move:
-        trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
+        trigger = AutoTrigger() if cfg["backend"] in SIMULATED else make_trigger(cfg["trigger"], robot)
     opts = ValidateOptions(
         run["n"],
         cfg["seed"],

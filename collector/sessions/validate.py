@@ -172,7 +172,7 @@ def make_camera(
     (camera, measure): ``measure(img, name) -> ((2,) mm, exposure advice)`` or None when the photos can
     only be stored (a real camera and a layout without markers)
     """
-    spec = spec or ("fake" if cfg["backend"] == "fake" else None)
+    spec = spec or {"fake": "fake", "mujoco": "mujoco"}.get(cfg["backend"])
     if spec == "fake":
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
@@ -193,6 +193,10 @@ def make_camera(
 
     markers = load_markers(layout_path)
     measure = None if markers is None else (lambda img, name: measure_with_markers(img, name, markers, sheet))
+    if spec == "mujoco":  # the MuJoCo world's camera, measured as a real camera's photos are
+        from lasercal.collector.hardware.mujoco import mujoco_camera
+
+        return mujoco_camera(robot), measure
     return OpenCVCamera(int(spec) if spec.isdigit() else spec), measure
 
 
