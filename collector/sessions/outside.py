@@ -13,8 +13,6 @@ from __future__ import annotations
 import datetime
 from pathlib import Path
 
-import numpy as np
-
 from lasercal.collector.sessions.capture import SPOT_COLUMNS
 from lasercal.collector.sessions.store import csv_line, write_atomic
 from lasercal.solver.formats.captures import AIM_XY
@@ -96,8 +94,8 @@ def write_empty_session(
 
 
 def model_configurations(model_ref: str, layout_file, point: str | None, n: int, seed: int, sheet_from=None):
-    """The configurations ``validate`` would command for ``point``: ``n`` diverse in-limit configurations
-    of the model whose beam meets the point (aiming IK, seed ``seed``), on a sheet where the model's (or
+    """The configurations ``validate`` would command for ``point`` (:func:`~lasercal.collector.sessions.
+    validate.validation_commands`: the model's effects applied), on a sheet where the model's (or
     ``sheet_from``'s) calibration found it.
 
     Returns
@@ -105,7 +103,7 @@ def model_configurations(model_ref: str, layout_file, point: str | None, n: int,
     (q (n, N) rad, point (3,) mm base frame, point name, the layout in the base frame)
     """
     from lasercal.collector.sessions.start import sheet_world
-    from lasercal.collector.sessions.validate import check_layout, validation_point
+    from lasercal.collector.sessions.validate import check_layout, validation_commands, validation_point
 
     layout = load_layout(layout_file)
     point = validation_point(layout, point)
@@ -114,5 +112,4 @@ def model_configurations(model_ref: str, layout_file, point: str | None, n: int,
     sheet, _ = sheet_world({"backend": BACKEND}, layout, model, model_ref, sheet_from)
     if sheet is not None:
         layout = layout.in_base(sheet)
-    q = layout.aim_at(model, point, n, np.random.default_rng(seed))
-    return q, layout.points[point], point, layout
+    return validation_commands(layout, model, model_ref, point, n, seed), layout.points[point], point, layout

@@ -266,6 +266,26 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
                 )
 
 
+def validation_commands(
+    layout: Layout, model: RobotModel, model_ref, point: str, n: int, seed: int
+) -> np.ndarray:
+    """The configurations a validation commands at ``point`` (n, N) rad: ``n`` diverse in-limit poses whose
+    beam meets the point under the model (the aiming IK, seed ``seed``), as the robot's encoders must read
+    them -- under the model's robot effects (a compliance, an eccentricity) the true pose is the aimed one
+    (:func:`solver.control.correct.command_angles`, their torques the fit's gravity model's), as ``correct``
+    commands a goal; ``validate`` and ``configurations`` both call this."""
+    from lasercal.solver.control.correct import command_angles, joint_effect
+    from lasercal.solver.control.nominal import gravity_robot
+    from lasercal.solver.kinematics.effects import extension_from_model
+
+    q = layout.aim_at(model, point, n, np.random.default_rng(seed))
+    ext = extension_from_model(model.extensions, model_ref, model.n)
+    if ext is None:
+        return q
+    joint_effect(ext)
+    return command_angles(model, ext, q, gravity_robot(model, model_ref))
+
+
 @dataclass(frozen=True)
 class ValidationResult:
     """Where a validation run wrote its table, and the spots it measured ((k, 2) mm, base frame).
@@ -416,7 +436,9 @@ class ValidationRun:
         folder, opts, robot, camera = self.folder, self.opts, self.robot, self.camera
         if not resume and (folder / "validation.csv").exists():
             raise SessionError(f"{folder} already holds a validation run: resume it with --resume {folder}")
-        self.planned = self.layout.aim_at(self.model, self.point, opts.n, np.random.default_rng(opts.seed))
+        self.planned = validation_commands(
+            self.layout, self.model, self.model_ref, self.point, opts.n, opts.seed
+        )
         if self.guided and self.trigger is None:
             raise DeviceError(
                 f"the {robot.name} backend cannot move the arm: the operator guides it, so a trigger is "
