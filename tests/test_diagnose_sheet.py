@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -121,9 +122,15 @@ def test_an_effect_hidden_in_a_sheet_session_is_named_at_its_joint(
 
 @pytest.mark.parametrize("kind, seed", [("eye", 21), ("camera", 22), ("mixed", 23)])
 def test_a_sheet_session_without_an_effect_finds_none(tmp_path, sheet, kind, seed):
-    d = diagnosis(tmp_path, simulated(tmp_path, sheet, kind, seed))
+    s = simulated(tmp_path, sheet, kind, seed)
+    d = diagnosis(tmp_path, s)
     assert d["effect"] == "none", d["label"]
     assert "reference_point_offset" in d["untested"]  # a printed point is where the printer put it
+    if kind == "camera":  # what remains beyond the camera is said plainly (here: nothing but its noise)
+        text = run(["solve", s, "-o", str(tmp_path / "m.yaml"), "--force", "--extend", "auto"])
+        remains = re.search(r"^remains: ([\d.]+) mm per axis beyond what the camera sees", text, re.M)
+        # sqrt of the variance's excess over 0.03^2 from ~110 residual degrees of freedom: 0.011 at one sigma
+        assert remains and float(remains.group(1)) < 0.025, text
 
 
 def test_a_measured_layouts_point_offset_is_judged_by_the_captures_aimed_at_it(tmp_path):

@@ -15,7 +15,8 @@ def format_diagnosis(d) -> str:
         best = "no candidate the data can see"
         if d.tests:
             best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
-        lines.append(f"finding: none -- the geometric model and aiming noise explain the data ({best})")
+        what = "the noise" if d.geometric.extra.get("noise") else "aiming noise"
+        lines.append(f"finding: none -- the geometric model and {what} explain the data ({best})")
     else:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
         lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
@@ -28,6 +29,14 @@ def format_diagnosis(d) -> str:
                 + " -- only data that move them differently tell them apart: more varied configurations, "
                 "more reference points; none, when they share their axis and load)"
             )
+    noise = (d.extended or d.geometric).extra.get("noise")
+    if noise and noise["measured"]:  # a camera session: what remains beyond the camera, said plainly
+        lines.append(
+            f"remains: {noise['unseen_mm']:.3f} mm per axis beyond what the camera sees "
+            f"({noise['camera_mm']:.3f}), unexplained by the model -- the arm's repeatability (a Panda's: "
+            "about 0.05 mm at the spot), or an effect no candidate describes (backlash, friction, a sheet "
+            "that is not flat)"
+        )
     b = d.bootstrap
     if b:
         lines.append(
