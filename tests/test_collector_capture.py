@@ -203,7 +203,8 @@ def test_a_photo_taken_while_the_arm_creeps_is_measured_in_mm_of_spot_and_a_simu
         step = np.zeros(7)
         step[j] = turn
         want = np.linalg.norm(np.diff(predict_spots(panda, np.array([q0, q0 + step]), -8.0)[0], axis=0))
-        assert moved_during_photo(Creeping(step, Clock()), still, panda, -8.0) == pytest.approx(want, rel=1e-9)
+        got = moved_during_photo(Creeping(step, Clock()), still, panda, -8.0)
+        assert got == pytest.approx(want, rel=1e-9)
     shoulder = np.r_[0, 2e-5, 0, 0, 0, 0, 0]  # joint 2 by 2e-5 rad: 0.007 mm at the spot, a retake
     assert moved_during_photo(Creeping(shoulder, Clock()), still, panda, -8.0) > PHOTO_MOVED_MM
     # a simulated clock cannot move the arm between the read and the photo: not read (its reads draw noise)
