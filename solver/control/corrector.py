@@ -327,7 +327,8 @@ class Corrector:
         """The joint command (n,) rad for one goal: a (4, 4) frame, a (6,) pose (mm, rotation vector rad)
         or a (3,) position (mm), base frame, for the tool; warm-started from the previous command."""
         pg, Rg = _goal(goal)
-        start = [a + a - b for a, b in zip(self._qt, self._qt_prev)]  # the last tick's motion again (doc, 2)
+        # from where the last tick's motion carries the true angles (module docstring, 2)
+        start = [a + a - b for a, b in zip(self._qt, self._qt_prev)]
         q = self._solve(pg, Rg, start)
         return self._fallback(goal) if q is None else np.array(q)
 
