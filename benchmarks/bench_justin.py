@@ -25,6 +25,7 @@ to H's measured positions, with the command's model and with the same model fitt
 from __future__ import annotations
 
 import argparse
+import resource
 import tempfile
 import time
 from dataclasses import replace
@@ -97,10 +98,11 @@ def split_check(measurements: str) -> None:
     keep = [i for i, h in enumerate(header) if h not in ("x", "y", "z")]
     rows = [ln.split(",") for ln, h in zip(lines[1:], H) if h]
     (tmp / "CFG.csv").write_text("\n".join(",".join(r[i] for i in keep) for r in [header] + rows) + "\n")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
     cmd = ["lasercal", "solve", str(tmp / "T"), "-o", str(tmp / "M.yaml"), "--extend", "auto", "--folds", "0"]
     solved = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
     seconds = time.perf_counter() - t0
+    cpu = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - c0
     cmd = ["lasercal", "predict", str(tmp / "M.yaml"), str(tmp / "CFG.csv"), "-o", str(tmp / "OUT.csv")]
     subprocess.run(cmd, capture_output=True, text=True, check=True)
     got = np.genfromtxt(tmp / "OUT.csv", delimiter=",", names=True)
@@ -109,7 +111,7 @@ def split_check(measurements: str) -> None:
     finding = next((ln for ln in solved.splitlines() if ln.startswith("finding")), "")
     mapline = next((ln for ln in solved.splitlines() if ln.startswith("joint_map")), "no map line")
     print(f"split: T {int((~H).sum()) // 2} records, H {int(H.sum()) // 2} (fold 0 of 5 by record, seed 1)")
-    print(f"  solve T --extend auto --folds 0: {seconds:.0f} s wall; {finding}")
+    print(f"  solve T --extend auto --folds 0: {seconds:.0f} s wall, {cpu:.0f} s CPU; {finding}")
     print(f"  {mapline}")
     print(f"  predict H: mean 3-D error {np.linalg.norm(pred - held.target, axis=1).mean():.3f} mm")
     model = load_model(tmp / "M.yaml")
