@@ -25,8 +25,9 @@ from lasercal.solver.errors import FormatError
 from lasercal.solver.kinematics.effects import Combination, Extension, extension_from_model
 from lasercal.solver.kinematics.joint_names import joint_tags
 
-# knot spacing: the UR10's errors decorrelate over 0.1-0.3 rad of a joint; 0.05 rad predicted held-out series
-# 14 % better than 0.1 rad (with the prior joint_map_rad 0.3 mrad against 0.1 mrad; docs/real-data.md)
+# knot spacing: the UR10's errors decorrelate over 0.1-0.3 rad of a joint. Chosen (with joint_map_rad
+# 0.3 mrad) on the UR10's leave-one-series-out: 0.236 mm held out against 0.262-0.272 for 0.1 rad; chosen
+# inside it (nested, benchmarks/bench_ur10.py), 0.05 rad won every fold: 0.233 mm (docs/real-data.md)
 STEP_RAD = 0.05
 # position sessions (solver.analysis.diagnose.joint_map_stage): hundreds of configurations, not the UR10's
 # 16,000 poses -- DLR's Justin (280 of its records, its other 70 held out) predicted best at 0.5 rad of
