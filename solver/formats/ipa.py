@@ -201,6 +201,8 @@ def write_ipa_session(folder, out, half: str | None = None) -> int:
 
     s = read_series(folder)
     m = len(s["q"])
+    if half is not None and m < 2:
+        raise FormatError(s["file"], f"{m} row: too few to split in halves", line=2)
     rows = slice(0, m) if half is None else slice(0, m // 2) if half == HALVES[0] else slice(m // 2, m)
     meta = pose_meta(
         "ur10",
