@@ -77,6 +77,11 @@ def models(train, auto: bool):
         without = fit(train, base, suspects=d.geometric.weights == 0) if jm is not None else ident
         out["--extend auto, without map"] = (without.model, without.extension)
         out["--extend auto (+ map if kept)"] = (ident.model, ident.extension)
+        jm = d.acceptance.get("joint_map", {})
+        h, ci = jm.get("holdout_rms_mm", {}), jm.get("gain_percent_ci95")
+        kept = "kept" if jm.get("accepted") else "not kept"
+        print(f"  its map: {kept}; its own folds {h.get('without', 0):.3f} -> {h.get('with', 0):.3f} mm RMS, "
+              f"gain CI {ci}", flush=True)  # fmt: skip
     return out
 
 
