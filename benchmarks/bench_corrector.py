@@ -9,7 +9,8 @@ full-pose goals 1 ms apart per speed (0.06, 0.5, 1.0, 1.5, 1.7 m/s along the pat
 * ``ahead``: a circle of 150 mm radius in the horizontal plane, away from the base (x from 304 to 604 mm),
   the tool rocking by 0.3 rad about two horizontal axes (periods in the ratio 1 : 1.3) at a peak angular
   speed of 2.5 rad/s x v / 1.7 m/s: at 1.7 m/s both of Franka's Cartesian limits at once. The joints stay
-  within the Panda's joint speed limits (2.2-2.6 rad/s) at every speed.
+  within the Panda's joint speed limits (2.2-2.6 rad/s) until ten seconds of laps carry the redundant joint
+  to a limit margin (the column ``joint rad/s`` counts those goals too).
 * ``inward``: the circle of 100 mm radius towards the base with a 50 mm vertical wave (the tests' path),
   the same rocking. It passes 100 mm from joint 1's axis: at 1 m/s and faster the joints move faster than
   a Panda's can (the column ``joint rad/s``) and joint 2 runs onto its limit margin (``at limit``), where
