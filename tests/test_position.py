@@ -334,38 +334,71 @@ def test_joint_compliance_without_inertias_is_found_by_extend_auto(tmp_path, cap
         assert held["geometric"] < 1.15 * floor
 
 
-def test_a_joint_angle_error_is_kept_as_a_joint_map_and_predict_applies_it(tmp_path, capsys):
-    """Truth: the perturbed UR5 whose joint 2 is off by 1 mrad sin(pi q2 / 2) -- an error over the joint's
-    own angle (a gear's, an encoder's), 8 of the map's 0.5 rad knots a period -- 60 configurations x 3
-    targets, 0.02 mm noise. ``--extend auto`` keeps the joint error map by its cross-validation (held out
-    3x better with it), the model file carries it, and predict applies it: 20 new configurations are
-    predicted to within 3x the noise floor (the geometry alone misses them by more)."""
+def angle_error_session(folder: Path, amp: float, m: int, new: int, seed: int):
+    """The perturbed UR5 whose joint 2 is off by ``amp`` sin(pi q2 / 2) rad -- an error over the joint's own
+    angle (a gear's, an encoder's), 8 of the map's 0.5 rad knots a period -- ``m`` configurations x 3 targets
+    written to ``folder`` and ``new`` more held back, 0.02 mm noise.
+
+    Returns
+    -------
+    (3 new,) q rows (3 new, 6) rad, target names, their measured positions (3 new, 3) mm
+    """
     nominal = load_urdf(DATA / "ur5.urdf")
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(seed)
     truth = perturbed(nominal, rng)
-    m, new = 60, 20
     q = np.repeat(random_configs(nominal, m + new, rng), 3, axis=0)
     names = np.tile(np.array(list(truth.targets), dtype=object), m + new)
     qt = q.copy()
-    qt[:, 1] += 1e-3 * np.sin(np.pi * q[:, 1] / 2)
+    qt[:, 1] += amp * np.sin(np.pi * q[:, 1] / 2)
     y = simulate_positions(truth, qt, names, SIGMA, rng)
-    S, M, cfg, out = tmp_path / "S", tmp_path / "m.yaml", tmp_path / "cfg.csv", tmp_path / "out.csv"
     meta = position_meta(str(DATA / "ur5.urdf"), truth.targets)
-    write_position_session(S, meta, q[: 3 * m], y[: 3 * m], names[: 3 * m])
+    write_position_session(folder, meta, q[: 3 * m], y[: 3 * m], names[: 3 * m])
+    return q[3 * m :], names[3 * m :], y[3 * m :]
+
+
+def predicted_rms(model: Path, q, names, y, tmp_path) -> float:
+    """``lasercal predict`` on the configurations: 3-D RMS to the measured positions, mm."""
+    cfg, out = tmp_path / "cfg.csv", tmp_path / "out.csv"
+    cfg.write_text(
+        "q1,q2,q3,q4,q5,q6,target\n"
+        + "".join(",".join(map(repr, r.tolist())) + f",{nm}\n" for r, nm in zip(q, names))
+    )
+    assert main(["predict", str(model), str(cfg), "-o", str(out), "--force"]) == 0
+    a = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding=None)
+    return float(np.sqrt(np.mean(np.sum((np.c_[a["x"], a["y"], a["z"]] - y) ** 2, axis=1))))
+
+
+def test_a_joint_angle_error_is_kept_as_a_joint_map_and_predict_applies_it(tmp_path, capsys):
+    """A 1 mrad angle error on joint 2 (:func:`angle_error_session`), 60 configurations: ``--extend auto``
+    keeps the joint error map by its cross-validation (held out 3x better with it), the model file carries
+    it, and predict applies it: 20 new configurations are predicted to within 3x the noise floor (the
+    geometry alone misses them by more)."""
+    S, M = tmp_path / "S", tmp_path / "m.yaml"
+    held = angle_error_session(S, 1e-3, 60, 20, 5)
     assert main(["solve", str(S), "-o", str(M), "--extend", "auto", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)["diagnosis"]
     jm = d["acceptance"]["joint_map"]
     assert d["effect"].endswith("joint_map") and jm["accepted"]
     assert jm["holdout_rms_mm"]["with"] < jm["holdout_rms_mm"]["without"] / 3
     assert "joint_map" in load_model(M).extensions
-    cfg.write_text(
-        "q1,q2,q3,q4,q5,q6,target\n"
-        + "".join(",".join(map(repr, r.tolist())) + f",{nm}\n" for r, nm in zip(q[3 * m :], names[3 * m :]))
-    )
-    assert main(["predict", str(M), str(cfg), "-o", str(out)]) == 0
-    a = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding=None)
-    miss = np.sqrt(np.mean(np.sum((np.c_[a["x"], a["y"], a["z"]] - y[3 * m :]) ** 2, axis=1)))
-    assert miss < 3 * np.sqrt(3) * SIGMA
+    assert predicted_rms(M, *held, tmp_path) < 3 * np.sqrt(3) * SIGMA
+
+
+def test_a_map_whose_fold_gains_scatter_is_kept_when_it_predicts_better(tmp_path, capsys):
+    """An angle error of 0.05 mrad (seed 4; 200 configurations): the map's pooled held-out RMS is 6 % lower,
+    one fold of five a loss (fold gains -2.6 to +12.7 %, so the 95 % interval of the gains reaches below
+    0). Kept, as every extension is, by the pooled held-out RMS: fitted on the session it predicts 200 new
+    configurations 8.8 % better than the geometry (truth; the acceptance rule's evidence, on sessions with
+    and without a map and on Justin's records, is in docs/position.md)."""
+    S, M, G = tmp_path / "S", tmp_path / "m.yaml", tmp_path / "geo.yaml"
+    held = angle_error_session(S, 5e-5, 200, 200, 4)
+    assert main(["solve", str(S), "-o", str(M), "--extend", "auto", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)["diagnosis"]
+    jm = d["acceptance"]["joint_map"]
+    assert min(jm["gain_percent_folds"]) < 0 and jm["gain_percent_ci95"][0] < 0  # not "CI above 0"
+    assert jm["accepted"] and set(load_model(M).extensions) == {"joint_map"}
+    assert main(["solve", str(S), "-o", str(G), "--folds", "0"]) == 0
+    assert predicted_rms(M, *held, tmp_path) < 0.95 * predicted_rms(G, *held, tmp_path)
 
 
 # ----------------------------------------------------------------------------- predict reproduces the fit
