@@ -1,16 +1,18 @@
 """Robot hardware: backends behind one small interface
 (:class:`~lasercal.collector.hardware.base.RobotAdapter`), and the factories that build them from settings.
 
-``fake`` (simulated Panda and operator), ``franky`` (franky-control), ``panda-py``
-(panda-python), ``ros`` (rosbridge /joint_states). Each backend module imports its SDK
-only when used; a missing SDK is a one-line error with the pip command.
+``fake`` (simulated Panda and operator), ``mujoco`` (a MuJoCo world file, its arm and camera driven
+as hardware is), ``franky`` (franky-control), ``panda-py`` (panda-python), ``ros`` (rosbridge
+/joint_states). Each backend module imports its SDK only when used; a missing SDK is a one-line error
+with the pip command.
 """
 
 from __future__ import annotations
 
 import os
 
-BACKENDS = ("fake", "franky", "panda-py", "ros")
+BACKENDS = ("fake", "mujoco", "franky", "panda-py", "ros")
+SIMULATED = ("fake", "mujoco")  # backends whose arm is simulated: their moves need no confirmation
 
 
 def _desk(cfg: dict):
@@ -27,17 +29,48 @@ def fake_truth(cfg: dict, nominal, base=None):
     Returns
     -------
     RobotModel
+
+    Raises
+    ------
+    FormatError
+        A truth whose ``extensions`` the fake arm cannot simulate, naming its file and the field
+        (:func:`collector.hardware.fakeeffects.arm_effects`).
     """
     from lasercal.collector.hardware.fake import perturbed_model
+    from lasercal.collector.hardware.fakeeffects import arm_effects
     from lasercal.solver.formats.robots import load_model
 
     if cfg.get("perturb_seed") is not None:
         return perturbed_model(nominal, cfg["perturb_seed"])
-    return load_model(cfg["truth"], base=base)
+    truth = load_model(cfg["truth"], base=base)
+    arm_effects(truth, truth_file(cfg["truth"], base))  # refused now, naming the file
+    return truth
+
+
+def truth_file(ref, base=None) -> str:
+    """How errors name the truth ``ref``: its file (a built-in name resolved), else ``ref`` as given."""
+    from lasercal.solver.errors import FormatError
+    from lasercal.solver.formats.robots import resolve_robot_path
+
+    if str(ref).lower().endswith(".urdf"):
+        return str(ref)
+    try:
+        return str(resolve_robot_path(ref, base))
+    except FormatError:
+        return str(ref)
 
 
 def make_robot(
-    cfg: dict, nominal, layout, per_point: int = 0, truth=None, points=None, repeat_sigma=0.0, place=None
+    cfg: dict,
+    nominal,
+    layout,
+    per_point: int = 0,
+    truth=None,
+    points=None,
+    repeat_sigma=0.0,
+    place=None,
+    placement=None,
+    printed: bool = False,
 ):
     """The robot adapter a settings mapping asks for.
 
@@ -53,6 +86,10 @@ def make_robot(
         (None: the layout's calibration points; :func:`fakeworld.table_points`)
     repeat_sigma : float, the fake arm's repeatability, rad (:mod:`collector.hardware.fakeworld`)
     place : callable or None, where the layout's spots truly are on the fake table (:class:`FakeRobot`)
+    placement : SheetPose or None, the layout's placement of its sheet (mujoco: the operator finds a point on
+        the world's sheet through it)
+    printed : bool, the layout is a printed sheet (its crosses lie where it says: a truth's point offset
+        is refused)
 
     Returns
     -------
@@ -61,19 +98,41 @@ def make_robot(
     from lasercal.solver.errors import LasercalError
 
     backend = cfg["backend"]
+    if cfg.get("world") and backend != "mujoco":
+        raise LasercalError(f"--world is a MuJoCo world file: it needs --backend mujoco (not {backend})")
+    if backend == "mujoco":
+        from lasercal.collector.hardware.mujoco import make_mujoco_robot
+
+        return make_mujoco_robot(cfg, nominal, layout, per_point, placement)
     if backend == "fake":
         from lasercal.collector.hardware.base import FakeClock
         from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
+        from lasercal.collector.hardware.fakeeffects import arm_effects
 
         truth = fake_truth(cfg, nominal) if truth is None else truth
+        source = truth_file(cfg["truth"]) if cfg.get("truth") and cfg.get("perturb_seed") is None else None
+        effects = arm_effects(truth, source, layout.points if per_point else None, printed and per_point > 0)
         pts = {k: (layout.points if points is None else points)[k] for k in layout.calibration}
         operator = (
-            FakeOperator(truth, pts, per_point, cfg["aim_noise"], cfg["seed"], layout.aim_kwargs())
+            FakeOperator(
+                truth,
+                effects.aimed_points(pts),
+                per_point,
+                cfg["aim_noise"],
+                cfg["seed"],
+                layout.aim_kwargs(),
+            )
             if per_point
             else None
         )
         return FakeRobot(
-            truth, FakeClock(), operator, seed=cfg["seed"], repeat_sigma=repeat_sigma, place=place
+            truth,
+            FakeClock(),
+            operator,
+            seed=cfg["seed"],
+            repeat_sigma=repeat_sigma,
+            place=place,
+            effects=effects,
         )
     if not cfg.get("host"):
         raise LasercalError(f"--backend {backend} needs --host (the robot's or rosbridge's address)")

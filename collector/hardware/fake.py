@@ -9,21 +9,25 @@
   interrupted and resumed captures exactly what an uninterrupted one would.
 * Motion: a minimum-jerk transit to the pose, then a release jiggle whose joint speed
   decays exponentially, plus velocity-sensor noise -- the standstill detector has to
-  wait for it. Torques: the true robot's gravity torques plus sensor noise.
+  wait for it. Torques: the true robot's gravity torques at the pose its links stand in, plus sensor noise.
+* The true robot's ``extensions`` (compliance, eccentricity, drift, a joint map, a point offset): the
+  encoders report q while the links stand where the effects put them
+  (:mod:`collector.hardware.fakeeffects`).
 """
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
 
 from lasercal.collector.errors import RobotConnectionError
 from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
+from lasercal.collector.hardware.fakeeffects import ArmEffects, arm_effects
 from lasercal.solver.errors import AimingError
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
-from lasercal.solver.kinematics.gravity import gravity_torques
 from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -153,6 +157,8 @@ class FakeRobot(RobotAdapter):
         a new draw keyed like the motion for every pose reached
     place : callable (k, 2) -> (k, 3) or None, where spots of the layout's frame truly are on the table
         (:func:`collector.hardware.fakeworld.on_table`): the simulated operator aims at a planned spot there
+    effects : ArmEffects or None, the truth's extensions (:mod:`collector.hardware.fakeeffects`; None:
+        those of ``truth``, refused with its name when the fake arm cannot simulate them)
     """
 
     name = "fake"
@@ -170,10 +176,12 @@ class FakeRobot(RobotAdapter):
         disconnect_at: float | None = None,
         repeat_sigma: float = 0.0,
         place=None,
+        effects: ArmEffects | None = None,
     ):
         self.truth, self.clock, self.operator, self.motion = truth, clock, operator, motion
         self.seed, self.disconnect_at, self.repeat_sigma = seed, disconnect_at, repeat_sigma
         self.place = place
+        self.effects = arm_effects(truth) if effects is None else effects
         self._attempts: dict = {}
         self._connected = False
         home = np.array(truth.home if truth.home is not None else truth.limits.mean(axis=1), dtype=float)
@@ -186,12 +194,16 @@ class FakeRobot(RobotAdapter):
 
     # ------------------------------------------------------------ motion model
 
-    def _start(self, q: np.ndarray, mode: str, key: tuple, duration: float | None = None) -> None:
+    def _start(
+        self, q: np.ndarray, mode: str, key: tuple, duration: float | None = None, aimed: bool = False
+    ) -> None:
         """Begin a transit from where the arm is now to q, ending in a release jiggle.
 
         Every draw of the motion and of its sensor noise is keyed by ``key``; a hand-guided
         transit's duration is drawn too (not taken from the distance), so that the same
         capture comes out the same after a resume, whatever pose the arm started from.
+        q is what the encoders will read, or with ``aimed`` where the operator brings the links: the
+        encoders then read the effects' inverse at arrival, off by the repeatability's delta.
         """
         q = np.asarray(q, dtype=float)
         q_now, _ = self._kinematics(self.clock.now())
@@ -199,9 +211,11 @@ class FakeRobot(RobotAdapter):
         self._v0 = rng.normal(0.0, self.motion.settle_speed, q.shape)
         self._T = rng.uniform(*self.motion.guide_time) if duration is None else duration
         self._noise = rng
+        self._delta = self._repeat(key, q.shape)
+        if aimed:
+            q = self.effects.encoders(q[None], self.clock.now() + self._T)[0] - self._delta
         self._q0, self._q1, self._t0, self._mode = q_now, q, self.clock.now(), mode
         self._grid = None
-        self._delta = self._repeat(key, q.shape)
 
     def _repeat(self, key: tuple, shape) -> np.ndarray:
         """The reached minus the reported pose of the transit ``key``, rad (its own stream: switching
@@ -234,10 +248,7 @@ class FakeRobot(RobotAdapter):
         # torque noise shows in that time (exact binary steps, so a resumed session repeats itself).
         k = np.floor((t - self._t0) * 8.0)
         if k != self._grid:
-            self._grid, self._gravity = (
-                k,
-                gravity_torques(self.truth, self._kinematics(self._t0 + k / 8.0)[0][None])[0],
-            )
+            self._grid, self._gravity = k, self.effects.torques(self._links_at(self._t0 + k / 8.0))[0]
         tau = self._gravity + self._noise.normal(0.0, self.motion.tau_noise, q.shape)
         return JointState(q, dq, tau, t, {"robot_mode": self._mode})
 
@@ -247,12 +258,17 @@ class FakeRobot(RobotAdapter):
     def move_to(self, q: np.ndarray) -> None:
         """Move to q like a position-controlled arm; returns on arrival (the jiggle follows; with
         ``repeat_sigma`` none: the arm holds the pose it reached, the repeatability's draw off q)."""
-        self._attempts["move"] = self._attempts.get("move", 0) + 1
+        # a capture session's moves (the operator's arm) are keyed by the pose they go to and how often it
+        # was gone to, not by a count of moves a killed process forgets: its resumed session draws what the
+        # unbroken one drew; a validation's keep their count (its figures are measured with it)
+        pose = () if self.operator is None else (zlib.crc32(np.asarray(q, dtype=float).tobytes()),)
+        key = ("move", *pose)
+        self._attempts[key] = self._attempts.get(key, 0) + 1
         q_now, _ = self._kinematics(self.clock.now())
         duration = max(
             1.875 * np.abs(np.asarray(q) - q_now).max() / self.motion.speed, 0.5
         )  # 1.875: min-jerk peak/mean speed
-        self._start(q, "Move", (0x30FE, self._attempts["move"]), duration)
+        self._start(q, "Move", (0x30FE, *pose, self._attempts[key]), duration)
         if self.repeat_sigma:  # an honest arm: position control holds the pose, off by its repeatability only
             self._v0 = np.zeros_like(self._v0)
         self.clock.sleep(self._T)
@@ -265,22 +281,37 @@ class FakeRobot(RobotAdapter):
         at = None if spot is None else self.place(np.asarray(spot, dtype=float)[None])[0]
         q = self.operator.configuration(name, index, attempt, self._suggested, at)
         self._suggested = None
-        key = (self.operator.key(name), index, attempt)
-        # the operator aims the true beam: the encoders report that pose off by the repeatability's delta
-        self._start(q - self._repeat(key, q.shape), "Guiding", key)
+        # the operator aims the true beam: the encoders report that pose through the effects, off by the
+        # repeatability's delta
+        self._start(q, "Guiding", (self.operator.key(name), index, attempt), aimed=True)
 
     def suggest_pose(self, q: np.ndarray) -> None:
         """The simulated operator starts the next hand-guiding from q (rad)."""
         self._suggested = np.asarray(q, dtype=float)
+
+    def resume_at(self, q: np.ndarray, t: float) -> None:
+        """A resumed session's arm: at rest at q (rad, the last capture's reported pose) with the clock at
+        the session's time t (s) -- as the killed session's arm and clock were when it logged that capture,
+        so the transits that follow (their durations from the start pose) are the unbroken session's."""
+        self.clock.t = float(t)
+        self._q0 = self._q1 = np.array(q, dtype=float)
+        self._t0, self._T, self._v0, self._grid = self.clock.t, 0.0, np.zeros_like(self._q1), None
+        self._delta = np.zeros_like(self._q1)
 
     def prompt_configuration(self, q: np.ndarray) -> None:
         self._attempts["guide"] = self._attempts.get("guide", 0) + 1
         self._start(q, "Guiding", (0x6D1E, self._attempts["guide"]))
 
     # ------------------------------------------------------------ truth, for the fake camera and rangefinder
+    def _links_at(self, t: float) -> np.ndarray:
+        """Where the links stand at clock time t, (1, n) rad: the encoders' pose plus the repeatability's
+        delta, through the truth's effects."""
+        return self.effects.links((self._kinematics(t)[0] + self._delta)[None], t)
+
     def true_q(self) -> np.ndarray:
-        """The configuration the arm truly is in now (the reported one plus the repeatability's), rad."""
-        return self._kinematics(self.clock.now())[0] + self._delta
+        """The configuration the arm truly is in now (the reported one plus the repeatability's, through the
+        truth's effects), rad."""
+        return self._links_at(self.clock.now())[0]
 
     def true_spot(self, z: float) -> tuple[np.ndarray, float]:
         """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""

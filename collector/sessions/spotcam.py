@@ -267,6 +267,10 @@ def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_fi
         crosses = np.array([p[:2] for p in layout.points.values()])
         cam = SheetCamera(arm, markers, crosses, layout.sheet, layout.plane_z, world, cfg["seed"])
         return cam, lambda img, name: measure_spot(img, name, markers, cam.lens)
+    if spec == "mujoco":  # the MuJoCo world's camera: photos measured as a real camera's are
+        from lasercal.collector.hardware.mujoco import mujoco_camera
+
+        return mujoco_camera(robot), lambda img, name: measure_spot(img, name, markers)
     from lasercal.collector.sessions.cameras import OpenCVCamera
 
     camera = OpenCVCamera(int(spec) if spec.isdigit() else spec)
