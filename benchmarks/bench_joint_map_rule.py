@@ -21,16 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.solver.analysis.diagnose import diagnose, session_torques
-from lasercal.solver.analysis.simulate import random_configs, simulate_positions
 from lasercal.solver.formats.positions import position_meta, write_position_session
 from lasercal.solver.formats.session import load_session
-from lasercal.solver.formats.urdf import load_urdf
 from lasercal.solver.identify.measurement import fit, residuals
 from lasercal.solver.kinematics.joint_map import POSITION_STEP_RAD, JointMap, split_joint_map, with_joint_map
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from tests.conftest import perturbed  # noqa: E402  (the tests' perturbed robot)
+from tests.conftest import angle_error_positions  # noqa: E402  (the tests' session with an angle error)
 
 URDF = ROOT / "tests" / "data" / "ur5.urdf"
 NEW = 200
@@ -40,14 +38,7 @@ GRID = [(0.0, 60, range(10)), (0.0, 600, range(6)), (1e-5, 200, range(5)), (3e-5
 
 def one(amp: float, m: int, seed: int) -> tuple[bool, bool, float]:
     """(kept by the pooled RMS, kept by the CI rule, the map's gain on the new configurations %)."""
-    nominal = load_urdf(URDF)
-    rng = np.random.default_rng(seed)
-    truth = perturbed(nominal, rng)
-    q = np.repeat(random_configs(nominal, m + NEW, rng), 3, axis=0)
-    names = np.tile(np.array(list(truth.targets), dtype=object), m + NEW)
-    qt = q.copy()
-    qt[:, 1] += amp * np.sin(np.pi * q[:, 1] / 2)
-    y = simulate_positions(truth, qt, names, 0.02, rng)
+    truth, q, names, y = angle_error_positions(amp, m + NEW, seed)
     folder = Path(tempfile.mkdtemp()) / "S"
     write_position_session(folder, position_meta(str(URDF), truth.targets), q, y, names)
     s = load_session(folder)

@@ -22,7 +22,7 @@ from lasercal.solver.formats.tolerances import robot_tolerances
 from lasercal.solver.formats.urdf import calibrated_urdf, load_urdf
 from lasercal.solver.identify.measurement import fit
 from lasercal.solver.identify.position import sensor_points
-from tests.conftest import perturbed
+from tests.conftest import angle_error_positions, perturbed
 
 DATA = Path(__file__).parent / "data"
 
@@ -335,22 +335,9 @@ def test_joint_compliance_without_inertias_is_found_by_extend_auto(tmp_path, cap
 
 
 def angle_error_session(folder: Path, amp: float, m: int, new: int, seed: int):
-    """The perturbed UR5 whose joint 2 is off by ``amp`` sin(pi q2 / 2) rad -- an error over the joint's own
-    angle (a gear's, an encoder's), 8 of the map's 0.5 rad knots a period -- ``m`` configurations x 3 targets
-    written to ``folder`` and ``new`` more held back, 0.02 mm noise.
-
-    Returns
-    -------
-    (3 new,) q rows (3 new, 6) rad, target names, their measured positions (3 new, 3) mm
-    """
-    nominal = load_urdf(DATA / "ur5.urdf")
-    rng = np.random.default_rng(seed)
-    truth = perturbed(nominal, rng)
-    q = np.repeat(random_configs(nominal, m + new, rng), 3, axis=0)
-    names = np.tile(np.array(list(truth.targets), dtype=object), m + new)
-    qt = q.copy()
-    qt[:, 1] += amp * np.sin(np.pi * q[:, 1] / 2)
-    y = simulate_positions(truth, qt, names, SIGMA, rng)
+    """:func:`~tests.conftest.angle_error_positions` at ``m`` + ``new`` configurations: the first ``m``
+    written to ``folder`` as a session, the ``new`` returned: q (3 new, 6) rad, names, positions mm."""
+    truth, q, names, y = angle_error_positions(amp, m + new, seed, SIGMA)
     meta = position_meta(str(DATA / "ur5.urdf"), truth.targets)
     write_position_session(folder, meta, q[: 3 * m], y[: 3 * m], names[: 3 * m])
     return q[3 * m :], names[3 * m :], y[3 * m :]

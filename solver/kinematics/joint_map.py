@@ -163,7 +163,7 @@ class JointMap:
 
     logged_q = Extension.logged_q
 
-    def target_offset(self, point_names: np.ndarray) -> np.ndarray:
+    def target_offset(self, point_names: np.ndarray, aimed: np.ndarray | None = None) -> np.ndarray:
         return np.zeros((len(point_names), 2))
 
     def to_dict(self) -> dict:
