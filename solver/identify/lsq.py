@@ -36,6 +36,8 @@ from lasercal.solver.errors import IdentificationError
 from lasercal.solver.identify.prior import Prior, noise_sigma
 
 RANK_RTOL = 1e-6
+# 1 - leverage below which a capture's residual direction is the fit's alone (its residual: round-off)
+LEVERAGE_RTOL = 1e-10
 # Family-wise false-flag rate of the outlier test. Strict on purpose: the test exists for gross mistakes
 # (a capture logged against the wrong point or socket: tens of noise sigmas, flagged at any level), while
 # real captures have heavier tails than the Gaussian noise model -- at 0.01 the four MUKCa Pandas lose
@@ -191,7 +193,10 @@ def studentised_outliers(
     H = Ui @ np.swapaxes(Ui, 1, 2)  # (m, d, d) leverage blocks
     A = J_left @ (Vt.T / s)  # (m, d, r): J_i V S^-1
     C = np.where(fitted[:, None, None], eye - H, eye + A @ np.swapaxes(A, 1, 2))
-    qi = np.einsum("md,md->m", res, np.linalg.solve(C, res[..., None])[..., 0])
+    # a direction of leverage 1 (a parameter only this capture sees, e.g. a joint map's knot) has a
+    # residual of 0 whatever the noise: untestable, left out of q_i (pseudo-inverse, not a singular solve)
+    Cp = np.linalg.pinv(C, rcond=LEVERAGE_RTOL, hermitian=True)
+    qi = np.einsum("md,md->m", res, (Cp @ res[..., None])[..., 0])
     groups = np.zeros(m, int) if groups is None else np.asarray(groups)
     flags = np.zeros(m, bool)
     for g in dict.fromkeys(groups):
