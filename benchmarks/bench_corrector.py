@@ -1,6 +1,6 @@
-"""The corrector for a control loop (``lasercal.Corrector``): latency per goal along continuous paths at 1 kHz,
-speed by speed up to Franka's Cartesian limits (1.7 m/s, 2.5 rad/s), how many goals went to the full solver,
-and its commands against ``lasercal correct`` (``Robot.correct``) on the same goals.
+"""The corrector for a control loop (``lasercal.Corrector``): latency per goal along continuous paths at
+1 kHz, speed by speed up to Franka's Cartesian limits (1.7 m/s, 2.5 rad/s), how many goals went to the full
+solver, and its commands against ``lasercal correct`` (``Robot.correct``) on the same goals.
 
 The robot: the thesis's identified Panda with a joint compliance (joint 2) and an encoder eccentricity
 (joint 4), a TCP 103.4 mm along the flange's z (Franka's hand). Two paths from the ready pose, 10,000
@@ -58,7 +58,7 @@ def robot():
 
 
 def path(start: np.ndarray, speed: float, kind: str) -> np.ndarray:
-    """Goals (STEPS, 4, 4) mm 1 ms apart from the frame ``start``: a circle at ``speed`` m/s, the tool rocking."""
+    """Goals (STEPS, 4, 4) mm 1 ms apart from ``start``: a circle at ``speed`` m/s, the tool rocking."""
     t = np.arange(STEPS) * 1e-3
     goals = np.tile(start, (STEPS, 1, 1))
     if kind == "ahead":
@@ -129,14 +129,17 @@ def main() -> None:
     rob = robot()
     start = rob.fk(rob.model.home, tool=TCP)[0]
     print(
-        f"{STEPS} goals 1 ms apart per row, full poses, Panda (thesis) with a compliance and an eccentricity, TCP"
+        f"{STEPS} goals 1 ms apart per row, full poses, Panda (thesis) with a compliance and an "
+        "eccentricity, TCP"
     )
     print(
-        f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start; one BLAS thread"
+        f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start; "
+        "one BLAS thread"
     )
     head = (
-        f"{'path':7} {'m/s':>4} {'rad/s':>5} | {'CPU ms: median':>14} {'p99':>6} {'worst':>6} | {'wall p99':>8} | "
-        f"{'fallbacks':>9} | {'Newton steps 1/2/3/>3':>21} | {'vs correct rad':>14} | {'joint rad/s':>11} | at limit"
+        f"{'path':7} {'m/s':>4} {'rad/s':>5} | {'CPU ms: median':>14} {'p99':>6} {'worst':>6} | "
+        f"{'wall p99':>8} | {'fallbacks':>9} | {'Newton steps 1/2/3/>3':>21} | {'vs correct rad':>14} | "
+        f"{'joint rad/s':>11} | at limit"
     )
     print(head)
     worst_mm = worst_rad = 0.0
@@ -147,8 +150,9 @@ def main() -> None:
                 s = r["steps"]
                 print(
                     f"{kind:7} {v:4.2f} {W_MAX * v / V_MAX:5.2f} | {np.median(r['cpu']):14.3f} "
-                    f"{np.percentile(r['cpu'], 99):6.3f} {r['cpu'].max():6.3f} | {np.percentile(r['wall'], 99):8.3f} | "
-                    f"{r['fallbacks']:9d} | {f'{s[1]}/{s[2]}/{s[3]}/{s[4:].sum()}':>21} | {r['diff']:14.2g} | "
+                    f"{np.percentile(r['cpu'], 99):6.3f} {r['cpu'].max():6.3f} | "
+                    f"{np.percentile(r['wall'], 99):8.3f} | {r['fallbacks']:9d} | "
+                    f"{f'{s[1]}/{s[2]}/{s[3]}/{s[4:].sum()}':>21} | {r['diff']:14.2g} | "
                     f"{r['joint_speed']:11.2f} | {r['at_limit']}  (peak {r['peak_speed']:.2f} m/s)"
                     + ("" if r["ref_ok"] else "  (correct: not ok)")
                 )
@@ -163,11 +167,13 @@ def main() -> None:
 
         _, cwall, ccpu = timed(correct_one, path(start, 0.06, "ahead")[:CORRECT_STEPS])
     print(
-        f"correct, one goal at a time ({CORRECT_STEPS} goals, ahead, 0.06 m/s): CPU median {np.median(ccpu):.3f}  "
-        f"p99 {np.percentile(ccpu, 99):.3f}  worst {ccpu.max():.3f} ms; wall p99 {np.percentile(cwall, 99):.3f} ms"
+        f"correct, one goal at a time ({CORRECT_STEPS} goals, ahead, 0.06 m/s): "
+        f"CPU median {np.median(ccpu):.3f}  p99 {np.percentile(ccpu, 99):.3f}  worst {ccpu.max():.3f} ms; "
+        f"wall p99 {np.percentile(cwall, 99):.3f} ms"
     )
     print(
-        f"accuracy: the calibrated robot's miss at the commands, worst of all rows: {worst_mm:.2g} mm, {worst_rad:.2g} rad"
+        "accuracy: the calibrated robot's miss at the commands, worst of all rows: "
+        f"{worst_mm:.2g} mm, {worst_rad:.2g} rad"
     )
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
 
