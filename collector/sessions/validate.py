@@ -139,8 +139,8 @@ def make_camera(
     point: str,
     layout_path,
     sheet=None,
-    placed=None,
-    sheet_dz: float = 0.0,
+    paper=None,
+    world=None,
 ):
     """The camera a validation photographs with, and how its photos are measured.
 
@@ -153,9 +153,10 @@ def make_camera(
     layout : Layout (base frame); point : str, the validation point
     layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
     sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
-    placed : SheetPose or None, where the simulated table holds that sheet (the fake camera's spots,
-        in the simulated robot's frame, go to the sheet through it and to the model's frame through ``sheet``)
-    sheet_dz : float, the simulated sheet's height above the layout's plane, mm (the true beam meets it there)
+    paper : collector.hardware.truesheet.PaperSheet or None, where the simulated table holds that sheet: the
+        fake camera looks down at the point on it (:class:`~collector.sessions.spotcam.PaperTopCamera`), its
+        spots read in the sheet's printed mm and go to the model's frame through ``sheet``
+    world : collector.hardware.fakeworld.World or None, the simulated world's effects on the spot
 
     Returns
     -------
@@ -166,15 +167,20 @@ def make_camera(
     if spec == "fake":
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
+        if paper is not None:  # a simulated sheet: the spot read in its printed mm, then the model's frame
+            from lasercal.collector.sessions.spotcam import PaperTopCamera
+
+            centre = sheet.from_base(layout.points[point][None])[0]
+            cam = PaperTopCamera(robot, paper, centre, world, cfg["seed"], FAKE_VIEW_PX, FAKE_MM_PER_PX)
+
+            def on_sheet(img, name):
+                xy, advice = measure_known_view(img, name, cam.view)
+                return sheet.to_base(xy[None], layout.plane_z)[0, :2], advice
+
+            return cam, on_sheet
         view = fake_view(layout.points[point][:2], layout.plane_z, FAKE_VIEW_PX, FAKE_MM_PER_PX)
-
-        def measure(img, name):
-            xy, advice = measure_known_view(img, name, view)
-            if placed is not None:
-                xy = sheet.to_base(placed.from_base(xy[None]), layout.plane_z)[0, :2]
-            return xy, advice
-
-        return FakeCamera(robot, view, layout.plane_z + sheet_dz, seed=cfg["seed"]), measure
+        camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
+        return camera, lambda img, name: measure_known_view(img, name, view)
     if spec is None:
         raise SessionError(
             "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"
