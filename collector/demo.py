@@ -12,8 +12,8 @@ not model hidden in the robot:
    name the hidden effect and fit it with the geometry: :func:`lasercal.calibrate`, as ``lasercal solve``.
 4. Validation at P4 (``collector.validate.run_validation``): each model computes the
    configurations, the fake robot goes there, a fake camera photographs the true spot and
-   ``vision`` measures the photo. The extended model is validated behind a controller
-   that applies its correction (:class:`Compensated`).
+   ``vision`` measures the photo. The extended model's commands carry its correction
+   (``validation_commands``: the angles whose true pose, under its compliance, is the aimed one).
 5. The report: :meth:`lasercal.Calibration.report`, as ``lasercal report``.
 6. The payoff: a program planned with the nominal model, commanded as planned and as ``lasercal correct``
    corrects it with the best model (:func:`correction_payoff`), measured at the true robot's flange.
@@ -32,7 +32,7 @@ import numpy as np
 
 from lasercal.calibration import calibrate
 from lasercal.collector.errors import SessionError
-from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
+from lasercal.collector.hardware.base import FakeClock, JointState
 from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 from lasercal.collector.hardware.triggers import AutoTrigger
 from lasercal.collector.report.html import load_validation
@@ -161,41 +161,6 @@ def link_angles(truth: RobotModel, effect: Extension, q: np.ndarray, t: float = 
     return link
 
 
-class Compensated(RobotAdapter):
-    """A robot behind a controller that applies a model's non-geometric correction.
-
-    Asked to go to the configuration the model's geometry computed, it commands the
-    encoder angles that the model's extension maps onto it (compliance: with the model's
-    gravity torques at that pose). Everything else passes through.
-
-    Parameters
-    ----------
-    robot : RobotAdapter that can move
-    model : RobotModel, the model under test (its gravity model gives the torques)
-    extension : Extension, its fitted joint effect
-    """
-
-    def __init__(self, robot: RobotAdapter, model: RobotModel, extension: Extension):
-        self.robot, self.model, self.extension = robot, model, extension
-        self.name, self.can_move, self.clock = robot.name, robot.can_move, robot.clock
-        self.guidance, self.extra_columns = robot.guidance, robot.extra_columns
-
-    def connect(self) -> None:
-        self.robot.connect()
-
-    def read(self) -> JointState:
-        return self.robot.read()
-
-    def close(self) -> None:
-        self.robot.close()
-
-    def move_to(self, q: np.ndarray) -> None:
-        q = np.asarray(q, dtype=float)
-        self.robot.move_to(
-            encoder_reading(self.extension, q, self.clock.now(), gravity_torques(self.model, q[None])[0])
-        )
-
-
 class _Ticking(AutoTrigger):
     """The simulated operator's trigger, reporting each capture to a progress callback."""
 
@@ -264,7 +229,6 @@ def validate_model(
     truth: RobotModel,
     layout: Layout,
     opts: DemoOptions,
-    extension: Extension | None = None,
     tick=lambda: None,
 ) -> ValidationResult:
     """A validation session at the layout's validation point on the hidden-effect robot, photos measured by
@@ -273,8 +237,8 @@ def validate_model(
     Parameters
     ----------
     folder : new folder (validation.yaml, validation.csv, photos/)
-    model : RobotModel under test; ``extension`` its fitted joint effect, applied by a :class:`Compensated`
-    controller
+    model : RobotModel under test (its robot effects applied by the validation's commands,
+    :func:`collector.sessions.validate.validation_commands`)
     model_ref : str, how validation.yaml names the model
     truth, layout, opts : as for :func:`capture_session`
     """
@@ -282,14 +246,13 @@ def validate_model(
     robot = EffectRobot(truth, FakeClock(), opts.effect, seed=opts.seed)
     view = fake_view(layout.points[point][:2], layout.plane_z, size=(opts.view_px, opts.view_px))
     camera = _TickingCamera(tick, robot, view, layout.plane_z, seed=opts.seed)
-    arm = Compensated(robot, model, extension) if extension is not None else robot
     return run_validation(
         folder,
         model,
         model_ref,
         layout,
         point,
-        arm,
+        robot,
         camera,
         ValidateOptions(opts.n_validation, opts.seed, keep_photos=opts.keep_photos),
         measure=lambda img, name: measure_known_view(img, name, view),
@@ -385,15 +348,15 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     step("diagnose")
     d = extended.diagnosis
     candidates = {
-        "nominal": (session.robot, NOMINAL, None),
-        "lm": (cals["lm"].model, "model_lm.yaml", None),
-        "thesis": (cals["thesis"].model, "model_thesis.yaml", None),
+        "nominal": (session.robot, NOMINAL),
+        "lm": (cals["lm"].model, "model_lm.yaml"),
+        "thesis": (cals["thesis"].model, "model_thesis.yaml"),
     }
     if d.extended is not None:
         extended.save(out / "model_extended.yaml")
-        candidates["extended"] = (extended.model, "model_extended.yaml", d.extension)
+        candidates["extended"] = (extended.model, "model_extended.yaml")
     validations = []
-    for name, (model, ref, ext) in candidates.items():
+    for name, (model, ref) in candidates.items():
         folder = out / "validation" / name
         timed(
             f"validate {name}",
@@ -404,7 +367,6 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
             truth,
             layout,
             opts,
-            ext,
             partial(step, f"validate {name}"),
         )
         validations.append(load_validation(folder))

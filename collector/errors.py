@@ -32,3 +32,8 @@ class SessionError(LasercalError):
 
 class DeviceError(LasercalError):
     """A trigger device, rangefinder or camera cannot be opened or read."""
+
+
+class InputEnded(LasercalError):
+    """The trigger's input ended (standard input at its end: no one at the keyboard). Not a
+    :class:`DeviceError`: the command that ran the session says what was kept and how to resume it."""

@@ -18,7 +18,25 @@ from lasercal.solver.formats.session import load_layout, load_session, session_m
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim
 
-MUKCA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mukca"
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+MUKCA = SHARED / "mukca"
+# What a skip for want of ../shared/data names (each test file says it its own way: a path, a data set's
+# folder, "real photos"); CI sets LASERCAL_REQUIRE_SHARED=1 (.ci/run), where such a skip is a failure
+SHARED_WORDS = (
+    "shared/data",
+    "../shared",
+    "mukca",
+    "justin",
+    "ur10-tracker",
+    "fr3-camera",
+    "franka_description",
+    "real-photos",
+    "real photos",
+)
+SHARED_SKIP = (
+    f"these tests read the real data in {SHARED} (PROVENANCE.md there), which is not beside this clone or "
+    "lacks the data set they read; CI (LASERCAL_REQUIRE_SHARED=1) fails instead"
+)
 
 # The files that take longest, longest first (``--durations`` with two workers), run before the rest: with
 # whole files handed to idle workers in this order (``pytest -n auto``, the README's command, with
@@ -42,6 +60,43 @@ RUN_FIRST = (
     "test_capture_coach.py",
     "test_docs_api.py",
 )
+
+
+def shared_skip(reason: str) -> bool:
+    """Whether a skip's reason is the shared data's absence (:data:`SHARED_WORDS`)."""
+    return any(w in reason.lower() for w in SHARED_WORDS)
+
+
+_SHARED_LINE = shared_skip.__code__.co_firstlineno  # where the summary's one line points
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A skip for want of ../shared/data: a failure under ``LASERCAL_REQUIRE_SHARED=1`` (CI: the data
+    vanishing must not pass unseen), else one reason for them all, so the summary says it once."""
+    report = (yield).get_result()
+    if not report.skipped or hasattr(report, "wasxfail") or not isinstance(report.longrepr, tuple):
+        return
+    path, line, reason = report.longrepr
+    if not shared_skip(reason):
+        return
+    if os.environ.get("LASERCAL_REQUIRE_SHARED") == "1":
+        report.outcome = "failed"
+        why = reason.removeprefix("Skipped: ")
+        report.longrepr = f"LASERCAL_REQUIRE_SHARED=1, and this test skipped for want of shared data: {why}"
+    else:
+        report.longrepr = (str(Path(__file__)), _SHARED_LINE, f"Skipped: {SHARED_SKIP}")
+
+
+def pytest_terminal_summary(terminalreporter):
+    """One line, whatever the verbosity, when tests skipped for want of ../shared/data."""
+    n = sum(
+        1
+        for r in terminalreporter.stats.get("skipped", ())
+        if isinstance(r.longrepr, tuple) and SHARED_SKIP in r.longrepr[2]
+    )
+    if n:
+        terminalreporter.write_line(f"{n} test{'s' if n > 1 else ''} skipped: {SHARED_SKIP}", yellow=True)
 
 
 def pytest_collection_modifyitems(items):

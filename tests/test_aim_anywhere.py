@@ -4,6 +4,7 @@ anywhere on the sheet's white paper, and the session records where it was aimed.
 from __future__ import annotations
 
 import io
+import re
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from lasercal.solver.analysis.design import Coach
 from lasercal.solver.errors import FormatError, LasercalError
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session
+from lasercal.solver.identify.spot import predict_spots
 from lasercal.vision.sheet import ARM, LINE, blank_spots, design_sheet, page_to_sheet
 
 
@@ -95,6 +97,17 @@ def test_a_camera_session_aims_where_the_coach_planned_and_records_it(sheet, tmp
     assert miss.max() < 4.5 * 3.0 * np.sqrt(2), miss
     np.testing.assert_allclose(session.target[~m, :2], aim[~m])  # an unmeasured one: fitted to its aim
     assert "mm on the sheet (" in out.getvalue() and "mm off P" in out.getvalue()
+    # the capture check measures from the aim and says so (issue 45 item 4): the distance it prints is the
+    # nominal model's spot's from the aim, computed here on its own; it never names the cell's cross
+    said = re.findall(r"nominal model: the beam lands ([\d.]+) mm from (.*?) \(dx", out.getvalue())
+    assert len(said) == session.m and not any(w.startswith("P") for _, w in said), said
+    nominal = load_model("panda")
+    aim_base = layout.sheet.to_base(aim, layout.plane_z)
+    spot = predict_spots(nominal, session.q, layout.plane_z)[0]
+    np.testing.assert_allclose(
+        [float(d) for d, _ in said], np.linalg.norm(spot[:, :2] - aim_base[:, :2], axis=1), atol=0.051
+    )
+    assert [w for _, w in said] == [f"the aim ({x:.0f}, {y:.0f}) mm on the sheet" for x, y in aim]
 
 
 def test_aim_anywhere_needs_a_camera_the_coach_and_a_printed_sheet(sheet, tmp_path):

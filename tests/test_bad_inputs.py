@@ -82,8 +82,8 @@ def ipa_text(m: int = 30) -> str:
 def base(tmp_path_factory):
     """Valid inputs, made once: sess/, model.yaml, layout.yaml, configs.csv, val/, fp.csv, mukca/, pos/
     (a position session of the UR5 URDF, which it names as 'robot: arm.urdf' beside its captures),
-    goals.csv, prior.yaml, sheet/ (a printed sheet and its layout, frame: sheet) and shs/ (a session on
-    that sheet, displaced from its placement)."""
+    goals.csv, prior.yaml, sheet/ (a printed sheet and its layout, frame: sheet), shs/ (a session on
+    that sheet, displaced from its placement) and shm.yaml (its model, the sheet found)."""
     d = tmp_path_factory.mktemp("valid")
     layout = yaml.safe_load((Path(__file__).resolve().parents[1] / "data/layouts/thesis.yaml").read_text())
     (d / "layout.yaml").write_text(dump_yaml(layout))  # as lasercal writes it: a whole file
@@ -123,6 +123,7 @@ def base(tmp_path_factory):
         (d / "sheet" / drawing).unlink()
     assert main(["simulate", "panda_thesis_identified", "--layout", str(d / "sheet" / "layout.yaml"),
                  "--per-point", "4", "--sheet-pose", "455", "5", "2", "-o", str(d / "shs")]) == 0  # fmt: skip
+    assert main(["solve", str(d / "shs"), "-o", str(d / "shm.yaml"), "--folds", "0"]) == 0
     return d
 
 
@@ -528,6 +529,27 @@ for cid, spoil in JUSTIN_BAD.items():
     case(f"import-justin: {cid}", JUSTIN_IMPORT + ["-o", "{o}"], _justin_record(*spoil), "justin.csv")
 
 
+def _justin_units(deg: bool):
+    """The DLR file as a converter would spoil it whole: every joint in degrees (poses across the joints'
+    range, not the fixture's 0.1 rad, whose degrees 5.7 pass for radians), or every marker in mm."""
+
+    def fn(d: Path):
+        q = np.random.default_rng(7).uniform(-2.5, 2.5, (3, 19))
+        mm = 1000.0 if not deg else 1.0
+        records = [(k, "[" + " ".join(f"{v:.6e}" for v in (np.degrees(q[k]) if deg else q[k])) + "]",
+                    f'"[[{-1.8 * mm:g}  {2.2 * mm:g}  {(1 + k / 10) * mm:g}]\n [{-3 * mm:g}  {1.6 * mm:g}  '
+                    f'{1.8 * mm:g}]]"') for k in range(3)]  # fmt: skip
+        (d / "justin.csv").write_text(justin_text(records))
+
+    return fn
+
+
+case("import-justin: joints in degrees", JUSTIN_IMPORT + ["-o", "{o}"], _justin_units(True),
+     "justin.csv, line 2, column 'joints'", "silent")  # fmt: skip
+case("import-justin: markers in millimetres", JUSTIN_IMPORT + ["-o", "{o}"], _justin_units(False),
+     "justin.csv, line 2, column 'markers'", "silent")  # fmt: skip
+
+
 def _ipa_cell(row: int, col: str, text: str):
     """The series file with one cell replaced (data row ``row``, 0-based)."""
 
@@ -794,12 +816,16 @@ BASE = {  # an argv of every command that parses and runs on the valid inputs (o
     "study-mukca": STUDY,
     "sheet": ["sheet"],
     "correct": ["correct", "{d}/model.yaml", "{d}/goals.csv"],
+    "mujoco-scene": ["mujoco-scene", "--layout", "{d}/sheet/layout.yaml"],
+    "new-session": ["new-session", "--layout", "{d}/sheet/layout.yaml"],
+    "configurations": ["configurations", "{d}/model.yaml", "--layout", "{d}/layout.yaml"],
 }
 OUT = {"demo": "-o", "capture": "-o", "solve": "-o", "plan": "-o", "validate": "-o", "report": "-o",
        "export": "-o", "simulate": "-o", "diagnose": "--report", "camera-calibrate": "-o", "fullpose": "-o",
        "simulate-fullpose": "-o", "import-mukca": "-o", "import-justin": "-o", "study-mukca": "-o",
        "import-ipa": "-o", "register": "-o",
-       "spots": "--overlay", "beam-check": "--overlay", "sheet": "-o", "correct": "-o"}  # fmt: skip
+       "spots": "--overlay", "beam-check": "--overlay", "sheet": "-o", "correct": "-o",
+       "mujoco-scene": "-o", "new-session": "-o", "configurations": "-o"}  # fmt: skip
 
 
 def _argv(cmd: str) -> list:
@@ -1313,7 +1339,7 @@ PRIOR_BAD = [
     ("noise_mm of an unknown measurement", "format: lasercal-prior/1\nprior: {noise_mm: {tracker: 0.1}}\n",
      "field 'prior.noise_mm'", "culprit"),
     ("noise_mm infinite", "format: lasercal-prior/1\nprior: {noise_mm: {laser: .inf}}\n",
-     "field 'prior.noise_mm'", "culprit"),
+     "field 'prior.noise_mm.laser'", "culprit"),
     ("noise_dof infinite", "format: lasercal-prior/1\nprior: {noise_dof: .inf}\n", "field 'prior.noise_dof'",
      "culprit"),
     ("prior a list", "format: lasercal-prior/1\nprior: [4.0, 0.01]\n", "field 'prior'", "culprit"),
@@ -1398,10 +1424,82 @@ MODEL_SHEET_BAD = [
 ]  # fmt: skip
 for cid, edit, field in MODEL_SHEET_BAD:
     case(f"export: model {cid}", _argv("export"), _yaml("model.yaml", edit), f"model.yaml, field '{field}'")
+VALIDATE_SHM = ["validate", "{d}/shm.yaml"] + VALIDATE_SHEET[2:]  # the model solved on shs (sheet ~455 5 2)
+case("validate: --sheet-pose 5 m from where the model found the sheet (metres for mm, a slip)",
+     VALIDATE_SHM + ["--sheet-pose", "5455", "5", "2"], None, "--sheet-pose 5455 5 2", "silent")  # fmt: skip
 STD_NEGATIVE = _yaml("model.yaml", _set("sheet", SHEET_POSE), _set("sheet_std", SHEET_POSE | {"y_mm": -1.0}))
 case("export: model sheet_std negative", _argv("export"), STD_NEGATIVE, "model.yaml, field 'sheet_std.y_mm'")
 case("spots --model: a model's sheet_std negative", ["spots", "{d}/val/photos/0000.png", "--layout",
      "{d}/sheet/layout.yaml", "--model", "{d}/model.yaml"], STD_NEGATIVE, "sheet_std.y_mm")  # fmt: skip
+
+# issue 46: the MuJoCo world, an empty session, a model's configurations
+MUJOCO_CAPTURE = ["capture", "--layout", "{d}/sheet/layout.yaml", "--backend", "mujoco", "--per-point", "3"]
+case("capture --backend mujoco without --world", MUJOCO_CAPTURE + ["-o", "{o}"], None, "--world")
+case("capture --world a torn MJCF", MUJOCO_CAPTURE + ["--world", "{d}/w.xml", "-o", "{o}"],
+     _touch("w.xml", "<mujoco><worldbody><body name='a'>"), "w.xml")  # fmt: skip
+case("capture --world on --backend fake", FAKE_CAPTURE + ["--world", "{d}/layout.yaml", "-o", "{o}"], None,
+     "--world")  # fmt: skip
+case("mujoco-scene: no sheet.pdf beside the layout", _argv("mujoco-scene"), None, "sheet.pdf")
+case("mujoco-scene --spring after joint 9", _argv("mujoco-scene") + ["--spring", "9:1e-4"], None, "--spring")
+case("mujoco-scene --spring without a value", _argv("mujoco-scene") + ["--spring", "2"], None, "--spring")
+case("mujoco-scene --friction with no passive joint", _argv("mujoco-scene") + ["--friction", "2:0.5"], None,
+     "--friction")  # fmt: skip
+case("mujoco-scene -o the layout's folder", ["mujoco-scene", "--layout", "{d}/sheet/layout.yaml", "-o",
+     "{d}/sheet", "--force"], None, "-o")  # fmt: skip
+case("new-session --aim without --camera", _argv("new-session") + ["--aim", "anywhere"], None, "--aim")
+case("new-session --aim anywhere on a layout no sheet printed", ["new-session", "--layout", "{d}/layout.yaml",
+     "--camera", "--aim", "anywhere", "-o", "{o}"], None, "layout.yaml")  # fmt: skip
+case("new-session -o the layout's folder", ["new-session", "--layout", "{d}/sheet/layout.yaml", "-o",
+     "{d}/sheet"], None, "-o")  # fmt: skip
+case("configurations: a sheet layout, a model without a sheet pose", ["configurations", "panda", "--layout",
+     "{d}/sheet/layout.yaml", "-o", "{o}"], None, "sheet")  # fmt: skip
+case("configurations: no such point", _argv("configurations") + ["--point", "P9"], None, "P9")
+case("configurations -o the model", ["configurations", "{d}/model.yaml", "--layout", "{d}/layout.yaml", "-o",
+     "{d}/model.yaml", "--force"], None, "-o")  # fmt: skip
+
+
+# --- 10. issue 47's sweep: corrupted copies of files lasercal wrote, where each used to pass or write ------
+# a NaN in a field the command does not read is a corruption too (every YAML lasercal reads is checked whole)
+UNREAD_NAN = [
+    ("export", EXPORT + ["-o", "{o}"], "model.yaml", ("identification", "fit_rms_mm")),
+    ("predict", PREDICT, "model.yaml", ("identification", "prior", "tolerances", "offset_mm")),
+    ("solve", SOLVE + ["-o", "{o}"], "sess/session.yaml", ("simulated", "aim_noise_mm")),
+    ("report", REPORT + ["-o", "{o}"], "val/validation.yaml", ("collector", "settings", "hold")),
+    ("register", REGISTER + ["-o", "{o}"], "pmodel.yaml", ("identification", "sigma_mm")),
+    ("capture", CAPTURE_SHEET, "sheet/layout.yaml", ("paper", "width_mm")),
+    ("solve", ["solve", "{d}/shs", "--folds", "0", "-o", "{o}"], "shs/session.yaml",
+     ("simulated", "sheet", "pose", "x_mm")),
+]  # fmt: skip
+for cmd, argv, rel, keys in UNREAD_NAN:
+    field = ".".join(keys)
+    case(f"{cmd}: {rel} NaN in {field}, a field it does not read", argv, _yaml(rel, _set(*keys, nan)),
+         f"{rel.split('/')[-1]}, field '{field}'")  # fmt: skip
+case("validate: a sheet layout's marker corner NaN", VALIDATE_SHM,
+     _yaml("sheet/layout.yaml", lambda d: d["markers"]["ids"][0][0].__setitem__(0, nan)),
+     "layout.yaml, field 'markers.ids.0'")  # fmt: skip
+case("report: validation.csv a logged angle NaN", REPORT + ["-o", "{o}"],
+     _cell("val/validation.csv", 0, "q3", "nan"), "validation.csv, line 3, column 'q3'")  # fmt: skip
+# a simulated sheet session's truth file spoiled: refused before the model is written (it was written, exit 2)
+case("solve: a sheet session's truth.yaml cut short", ["solve", "{d}/shs", "--folds", "0", "-o", "{o}"],
+     _torn("shs/truth.yaml"), "truth.yaml", "torn")  # fmt: skip
+
+
+# a pose session's session.yaml is a whole file: cut at a line end, it says so (it was read as complete)
+def _last_line_lost(rel: str):
+    """A YAML file cut at the line end before its last line of content (and its end line '...', if any)."""
+
+    def fn(d: Path):
+        lines = [ln for ln in (d / rel).read_text().splitlines() if ln.strip() != "..."]
+        (d / rel).write_text("\n".join(lines[:-1]) + "\n")
+
+    return fn
+
+
+case("solve: a pose session.yaml truncated at a line end", ["solve", "{d}/ps", "--folds", "0", "-o", "{o}"],
+     _last_line_lost("ps/session.yaml"), "ps/session.yaml", "torn")  # fmt: skip
+# --report into the session it reads (it wrote its plots there)
+case("diagnose --report the input session folder", DIAGNOSE + ["--report", "{d}/sess"], None, "would replace",
+     "output")  # fmt: skip
 
 
 @pytest.fixture
@@ -1518,6 +1616,18 @@ def _dup_row(rel: str, row: int):
     return fn
 
 
+def _only_point(rel: str, name: str):
+    """Keep the captures at one point of a session's captures.csv."""
+
+    def fn(d: Path):
+        lines = (d / rel).read_text().splitlines()
+        (d / rel).write_text(
+            "\n".join(lines[:1] + [ln for ln in lines[1:] if ln.startswith(name + ",")]) + "\n"
+        )
+
+    return fn
+
+
 def _limits_rounded(rel: str, j: int, excess: float):
     """model.yaml's upper limit of joint j (0-based) rounded to ``excess`` rad below the largest angle
     measured in ``rel`` (a CSV with a q<j+1> column)."""
@@ -1584,6 +1694,11 @@ WARNINGS = [
     ("diagnose", DIAGNOSE + ["--prior", "{d}/prior.yaml"], "a prior angle in degrees",
      _touch("prior.yaml", "format: lasercal-prior/1\nprior: {eccentricity_rad: 5.0}\n"),
      "field 'prior.eccentricity_rad'"),
+    # issue 47 (item 15): on stderr, not on stdout
+    ("validate", VALIDATE_SHM + ["--sheet-pose", "480", "5", "2"], "a --sheet-pose 25 mm from where the "
+     "model found the sheet", None, "--sheet-pose 480 5 2: lays P6"),
+    ("solve", SOLVE + ["-o", "{o}"], "every capture at one point", _only_point("sess/captures.csv", "P1"),
+     "every capture is at one point, P1"),
 ]  # fmt: skip
 
 

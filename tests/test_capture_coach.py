@@ -106,22 +106,43 @@ def test_guide_move_takes_the_fake_arm_to_each_suggestion_in_bounded_steps(tmp_p
     assert "refine the aim by hand" in out
 
 
+class CtrlC(Trigger):
+    hint = "two captures, then Ctrl-C"
+
+    def __init__(self):
+        self.n = 0
+
+    def wait(self):
+        self.n += 1
+        if self.n > 2:
+            raise KeyboardInterrupt
+        return "capture"
+
+
+def test_ctrl_c_says_the_arm_was_stopped_only_where_lasercal_moves_it(tmp_path):
+    said = {}
+    for move in (True, False):
+        op = FakeOperator(TRUTH, {k: LAYOUT.points[k] for k in LAYOUT.calibration}, 3, 1.0, 5)
+        robot = Recording(TRUTH, FakeClock(), op, seed=5)
+        store = CaptureStore.create(
+            tmp_path / str(move), session_meta("panda", LAYOUT, 825.0), 7, robot.extra_columns
+        )
+        out = io.StringIO()
+        with pytest.raises(KeyboardInterrupt):
+            run_capture(store, robot, CtrlC(), NOMINAL, CaptureOptions(3, auto_discard=True, move=move), out,
+                        coach=Coach(NOMINAL, LAYOUT, 5, per_point=30), confirm_moves=False)  # fmt: skip
+        store.close()
+        said[move] = out.getvalue()
+    assert "interrupted: the arm was stopped; " in said[True]
+    assert (
+        "interrupted: " in said[False] and "the arm was stopped" not in said[False]
+    )  # the operator holds it
+
+
 def test_guide_move_refuses_without_confirmation_and_stops_the_arm_on_ctrl_c(tmp_path):
     with pytest.raises(MotionRefused, match="no terminal to ask; pass --yes"):
         guided_session(tmp_path / "refused", confirm_moves=True)
     assert not load_session(tmp_path / "refused").m
-
-    class CtrlC(Trigger):
-        hint = "two captures, then Ctrl-C"
-
-        def __init__(self):
-            self.n = 0
-
-        def wait(self):
-            self.n += 1
-            if self.n > 2:
-                raise KeyboardInterrupt
-            return "capture"
 
     trig = CtrlC()
     with pytest.raises(KeyboardInterrupt):

@@ -10,7 +10,7 @@ import time
 import pytest
 import serial
 
-from lasercal.collector.errors import DeviceError
+from lasercal.collector.errors import DeviceError, InputEnded
 from lasercal.collector.hardware.base import FakeClock
 from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 from lasercal.collector.hardware.franky import FrankyPilot
@@ -120,7 +120,8 @@ def test_enter_trigger_keys_and_eof():
     out = io.StringIO()
     trig = EnterTrigger(read_line, out)
     assert [trig.wait() for _ in range(4)] == ["capture", "capture", "discard", "quit"]
-    assert trig.wait() == "quit"  # 'what' is explained, then EOF quits
+    with pytest.raises(InputEnded, match="standard input ended"):  # 'what' is explained, then the EOF:
+        trig.wait()  # no operator quit, a stop the command reports (issue 47, item 8)
     assert "'what'" in out.getvalue()
 
 

@@ -6,6 +6,7 @@ is inside the limits; and bad input is one line."""
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 
 import numpy as np
@@ -368,4 +369,15 @@ def test_an_unreachable_goal_is_written_with_its_reason_and_exit_code_1(tmp_path
     head, rows = read_out(tmp_path / "out.csv")
     assert [r[head.index("ok")] for r in rows] == ["true", "false"]
     assert rows[1][head.index("reason")].startswith("unreachable: the best of 9 starts misses by")
-    assert "line 3: unreachable" in capsys.readouterr().err
+    out, err = capsys.readouterr()
+    assert "line 3: unreachable" in err
+    # the summary's residual is the miss the row reports, not 0 (the reached goals' alone)
+    miss, hit = (float(r[head.index("residual_mm")]) for r in (rows[1], rows[0]))
+    assert miss > 1000 and hit < 0.01
+    said = re.search(r"1 of 2 goals reached; residual (\S+) mm max \((\S+) mm over the 1 reached\)", out)
+    assert said and abs(float(said[1]) - miss) < 0.05 and float(said[2]) < 0.01, out
+    goals.write_text("x,y,z\n3000,0,0\n")
+    assert main(["correct", "panda", str(goals), "-o", str(tmp_path / "out.csv"), "--force"]) == 1
+    head, rows = read_out(tmp_path / "out.csv")
+    miss = float(rows[0][head.index("residual_mm")])
+    assert f"0 of 1 goals reached; residual {miss:.1f} mm max\n" in capsys.readouterr().out

@@ -11,7 +11,6 @@ from lasercal.collector.cli.main import main
 from lasercal.collector.demo import (
     COMPLIANCE,
     TRUTH,
-    Compensated,
     DemoOptions,
     EffectRobot,
     encoder_reading,
@@ -23,7 +22,6 @@ from lasercal.solver.analysis.stats import spot_stats
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.effects import Extension
-from lasercal.solver.kinematics.gravity import gravity_torques
 
 
 @pytest.fixture(scope="module")
@@ -62,22 +60,6 @@ def test_effect_robot_encoders_reach_the_command_while_the_links_bend():
         np.linalg.norm(seen - bent) < 0.02
     )  # ... the links are where compliance puts them (c tau noise: 6e-6 rad)
     assert np.linalg.norm(seen - rigid) > 0.3  # mm: the hidden effect moves the spot (0.5 mm here)
-
-
-def test_compensated_controller_puts_the_links_where_the_model_wants():
-    truth = load_model(TRUTH)
-    robot = EffectRobot(truth, FakeClock(), COMPLIANCE, seed=2)
-    arm = Compensated(robot, truth, COMPLIANCE)  # a model that knows the effect exactly
-    arm.connect()
-    q = np.asarray(truth.home) + np.r_[0.2, 0.3, 0, 0.2, 0, 0.1, 0]
-    arm.move_to(q)
-    arm.clock.sleep(5.0)
-    spot = robot.true_spot(-8.0)[0]
-    assert np.linalg.norm(spot - predict_spots(truth, q[None], -8.0)[0][0]) < 0.02
-    assert np.abs(arm.read().q - q).max() > 1e-3  # the encoders were told otherwise
-    assert np.allclose(
-        gravity_torques(truth, q[None])[0][1] * COMPLIANCE.params[0], q[1] - arm.read().q[1], atol=1e-5
-    )
 
 
 def test_demo_finds_the_hidden_effect(demo):

@@ -226,3 +226,18 @@ def test_the_command_writes_the_file_and_warns(tmp_path, capsys):
     origins = franka_origins(saved)
     for i, v in enumerate(d.values()):
         assert abs(v["kinematic"]["z"] * 1000.0 - origins[i][2, 3]) < 1e-9
+
+
+@needs_fd
+def test_the_fr3s_gravity_model_is_franka_descriptions(tmp_path):
+    # the built-in fr3's links (masses and centres of mass, mm in the base frame at q = 0) give the gravity
+    # torques pinocchio computes from franka_description's URDF inertials (the FR3 has no Gaz et al. table)
+    pin = pytest.importorskip("pinocchio")
+    from lasercal.solver.kinematics.gravity import gravity_torques
+
+    model = load_model("fr3")
+    urdf = pin.buildModelFromXML(xacro_urdf(tmp_path, "fr3"))
+    data = urdf.createData()
+    q = random_q(model, 50, 4)
+    tau = np.array([pin.computeGeneralizedGravity(urdf, data, qi) for qi in q])
+    assert np.abs(gravity_torques(model, q) - tau).max() < 2e-3 * np.abs(tau).max()  # COMs rounded to um

@@ -168,3 +168,21 @@ def test_cross_validation_is_held_out(panda_noisy):
     rms = np.sqrt(np.mean(cv.errors**2))
     assert rms > fit.rms_mm  # predicting unseen captures is harder than fitting them
     assert rms < 3.0 and np.sqrt(np.mean(cv.nominal_errors**2)) > 5
+
+
+@pytest.mark.parametrize("name", ["panda", "panda_thesis_identified", "puma560"])
+def test_no_beam_lands_beyond_the_reach_bound_and_a_far_point_is_refused_at_once(name):
+    # the bound on how far a beam reaches (joint axis points' chain, triangle inequality) holds at random
+    # in-limit angles and random tilts; a point beyond it is refused without the aiming IK
+    from lasercal.solver.errors import AimingError
+    from lasercal.solver.kinematics.aim import aim, beam_reach
+    from lasercal.solver.kinematics.laser import beam
+
+    model = load_model(name)
+    p1, bound = beam_reach(model, 600.0)
+    q = np.random.default_rng(3).uniform(model.limits[:, 0], model.limits[:, 1], (20000, model.n))
+    b = beam(model.screws, model.laser_dir, model.aperture, q)
+    assert np.linalg.norm(b.aperture + 600.0 * b.direction - p1, axis=1).max() <= bound
+    far = p1 + np.array([bound + 1.0, 0.0, 0.0])
+    with pytest.raises(AimingError, match="beyond what the arm and a beam of 600 mm can reach"):
+        aim(model, far, 3, 0)

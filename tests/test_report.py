@@ -316,9 +316,10 @@ def test_report_says_what_it_is(experiment):
             data = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
         err[name] = np.mean([np.hypot(float(r["x_mm"]) - 441, float(r["y_mm"]) - 160) for r in data])
     n = OPTS.n_validation
+    assert err["nominal"] >= 1 > err["calibrated"]  # two decimals from 1 mm up, three below
     held = [d["combination"] for d in solve_report(session, ident)["determined_by"]["from_prior"]]
     assert _paragraph(text, "verdict") == (
-        f"calibrated: {err['nominal']:.2g} → {err['calibrated']:.2g} mm at P4, {n} of {n} configurations"
+        f"calibrated: {err['nominal']:.2f} → {err['calibrated']:.3f} mm at P4, {n} of {n} configurations"
         + (f"; from the prior, not calibrated by the data: {', '.join(held)}" if held else "")
     )
     # corrections per joint: angle between axis directions (deg) and distance of the identified axis from the

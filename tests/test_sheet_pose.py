@@ -22,14 +22,38 @@ from lasercal.solver.kinematics.laser import beam
 from lasercal.solver.kinematics.sheet import SheetPose
 
 NOMINAL = load_model("panda")
+TRUE_POSE = {"x_mm": 5.0, "y_mm": -3.0, "yaw_deg": 1.5}
+# The spread of the identified pose about the truth, RMS over noise draws (seeds 10-49, not the tests' 3:
+# ``python tests/test_sheet_pose.py`` measures it): issue 23's sheet, 45 captures at 0.5 mm. x's reported
+# sigma is 1.45x its spread: the print's scale, unknown to the fit, moves points ~500 mm from the sheet's
+# origin as a shift of x would, but the simulated print is exact, at the prior's mean
+SPREAD = {"x_mm": 0.63, "y_mm": 0.31, "yaw_deg": 0.041}
+
+
+def simulate_displaced(out, seed: int) -> None:
+    args = ["simulate", "panda_thesis_identified", "--layout", "thesis", "--sheet-pose", "5", "-3", "1.5"]
+    assert main(args + ["--aim-noise", "0.5", "--seed", str(seed), "-o", str(out)]) == 0
+
+
+def without_placement(folder, into):
+    """The session in ``folder`` without its ``sheet:`` placement, written to ``into``."""
+    meta = yaml.safe_load((folder / "session.yaml").read_text())
+    meta.pop("sheet")
+    into.mkdir()
+    (into / "session.yaml").write_text(yaml.safe_dump(meta))
+    (into / "captures.csv").write_text((folder / "captures.csv").read_text())
+    return into
+
+
+def pose_error(model) -> dict:
+    return {k: getattr(model.sheet, k) - v for k, v in TRUE_POSE.items()}
 
 
 @pytest.fixture(scope="module")
 def displaced(tmp_path_factory):
     """Issue 23's case: the thesis layout's sheet 5 mm / -3 mm / 1.5 deg away from where it says."""
     out = tmp_path_factory.mktemp("sheet") / "s"
-    args = ["simulate", "panda_thesis_identified", "--layout", "thesis", "--sheet-pose", "5", "-3", "1.5"]
-    assert main(args + ["--aim-noise", "0.5", "--seed", "3", "-o", str(out)]) == 0
+    simulate_displaced(out, 3)
     return out
 
 
@@ -59,15 +83,15 @@ def test_simulate_writes_a_sheet_session_and_solve_finds_the_sheet(displaced, tm
     assert main(["solve", str(displaced), "-o", str(out), "--folds", "0"]) == 0
     assert "the sheet lies at x" in capsys.readouterr().out
     model = load_model(out)
-    # within 3 of its reported sigmas (0.3 mm and 0.05 deg with 45 captures at 0.5 mm: the issue's 0.5 mm and
-    # 0.1 deg are 1.6-2 sigma, benchmarks/bench_sheet_pose.py; z-scores over 12 seeds: RMS 0.82-1.03)
     sd = model.sheet_std
     assert set(sd) == {"x_mm", "y_mm", "yaw_deg", "scale_x", "scale_y", "tilt_x_rad", "tilt_y_rad"}
-    # this layout's points lie ~500 mm from the sheet's origin, where the print's scale moves them as a shift
-    # would: x's sigma grows from 0.3 mm (pose alone) to ~1 mm; a printed sheet's origin is its centre cross
-    assert 0 < sd["x_mm"] < 1.5 and 0 < sd["yaw_deg"] < 0.1
-    err = (model.sheet.x_mm - 5, model.sheet.y_mm + 3, model.sheet.yaw_deg - 1.5)
-    assert all(abs(e) < 3 * sd[k] for e, k in zip(err, ("x_mm", "y_mm", "yaw_deg")))
+    # found within 3 times the spread of the pose over noise draws (SPREAD: 1 in 370 per axis)
+    err = pose_error(model)
+    assert all(abs(err[k]) < 3 * SPREAD[k] for k in SPREAD), err
+    # and the sigma it reports is that spread (y, yaw; over the seeds 0.77-1.32x) or, for x, the spread with
+    # the print's scale unknown (1.2-1.6x; SPREAD's note): a sigma 1.5x too large fails
+    ratio = {k: sd[k] / SPREAD[k] for k in SPREAD}
+    assert 0.7 < ratio["y_mm"] < 1.4 and 0.7 < ratio["yaw_deg"] < 1.4 and 1.1 < ratio["x_mm"] < 2.0, ratio
     # the robot's own frame: joint 1 exactly the nominal's, joint 2 in the nominal's direction
     assert np.allclose(model.screws[0], NOMINAL.screws[0], atol=1e-12) and abs(model.screws[1, 0]) < 1e-12
     # against the truth in its own frame (written beside the session): spots off the table
@@ -82,21 +106,16 @@ def test_simulate_writes_a_sheet_session_and_solve_finds_the_sheet(displaced, tm
 
 
 def test_without_a_placement_the_pose_starts_from_the_data(displaced, tmp_path):
-    """No ``sheet:`` placement: no prior on the pose, the fit starts from the nominal spots (closed form)."""
-    meta = yaml.safe_load((displaced / "session.yaml").read_text())
-    meta.pop("sheet")
-    folder = tmp_path / "s"
-    folder.mkdir()
-    (folder / "session.yaml").write_text(yaml.safe_dump(meta))
-    (folder / "captures.csv").write_text((displaced / "captures.csv").read_text())
-    session = load_session(folder)
+    """No ``sheet:`` placement: no prior on the pose, the fit starts from the nominal spots (closed form),
+    and ends where the fit with the placement ends: the placement's prior moves the pose by micrometres
+    (over seeds 10-49 at most 3 um and 0.001 deg), far below its spread; both within 3 spreads of the
+    truth."""
+    session = load_session(without_placement(displaced, tmp_path / "s"))
     assert session.frame == "sheet" and session.sheet is None
-    model = fit(session).model
-    pose, sd = model.sheet, model.sheet_std
-    # within 4 of its sigmas
-    for k, true in zip(("x_mm", "y_mm", "yaw_deg"), (5.0, -3.0, 1.5)):
-        assert abs(getattr(pose, k) - true) < 4 * sd[k], (k, getattr(pose, k), sd[k])
-    assert sd["x_mm"] < 1.5 and sd["y_mm"] < 1.5 and sd["yaw_deg"] < 0.1  # as above: a far origin
+    placed, free = fit(load_session(displaced)).model, fit(session).model
+    err, err_placed = pose_error(free), pose_error(placed)
+    assert all(abs(err[k] - err_placed[k]) < 0.05 * SPREAD[k] for k in SPREAD), (err, err_placed)
+    assert all(abs(err[k]) < 3 * SPREAD[k] for k in SPREAD), err
 
 
 def test_the_layout_read_as_base_frame_points_is_the_issue_s_silent_error(displaced):
@@ -184,3 +203,24 @@ def test_print_capture_solve_validate_on_the_simulated_robot(tmp_path, capsys):
                  "-o", str(val)]) == 0  # fmt: skip
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert last.startswith("P6: 4 spots measured") and float(last.split("error mean ")[1].split()[0]) < 2.0
+
+
+if __name__ == "__main__":  # SPREAD: the pose's RMS error over seeds 10-49 (python tests/test_sheet_pose.py)
+    import tempfile
+    from contextlib import redirect_stdout
+    from io import StringIO
+    from pathlib import Path
+
+    errors = []
+    for seed in range(10, 50):
+        folder = Path(tempfile.mkdtemp()) / "s"
+        with redirect_stdout(StringIO()):
+            simulate_displaced(folder, seed)
+        model = fit(load_session(folder)).model
+        errors.append([pose_error(model)[k] for k in SPREAD])
+        print(
+            seed,
+            " ".join(f"{k} {e:+.4f} (sigma {model.sheet_std[k]:.4f})" for k, e in zip(SPREAD, errors[-1])),
+        )
+    rms = np.sqrt(np.mean(np.square(errors), axis=0))
+    print("RMS error over the seeds:", ", ".join(f"{k} {v:.3f}" for k, v in zip(SPREAD, rms)))

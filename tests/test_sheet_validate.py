@@ -31,6 +31,11 @@ AIM_NOISE = 1.0  # mm per axis, simulate's default
 N = 6  # validation configurations per run
 
 
+def mm(x: float) -> str:
+    """The report's headline lengths: two decimals from 1 mm up, three below."""
+    return f"{x:.2f}" if x >= 1 else f"{x:.3f}"
+
+
 def _validation(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     """The measured joint positions (k, 7) rad and spots (k, 2) mm (base frame) of a validation.csv."""
     rows = csv_rows(folder / "validation.csv")
@@ -123,8 +128,8 @@ def test_report_shows_before_and_after_at_p6(walkthrough):
     p7 = spot_stats(_validation(walkthrough / "after_p7")[1], layout.points["P7"])
     verdict = _paragraph(text, "verdict")
     assert verdict == (  # a part per validation point, in the order the runs were given
-        f"calibrated: {stats['before'].error_mean:.2g} → {stats['after'].error_mean:.2g} mm at P6, "
-        f"{N} of {N} configurations; {p7.error_mean:.2g} mm at P7 (after_p7), 3 of 3 configurations"
+        f"calibrated: {mm(stats['before'].error_mean)} → {mm(stats['after'].error_mean)} mm at P6, "
+        f"{N} of {N} configurations; {mm(p7.error_mean)} mm at P7 (after_p7), 3 of 3 configurations"
     )
     assert 'id="validation-stats-P7"' in text and 'src="validation_spots_P7.png"' in text
     rows = re.findall(r"<tr><td>(before|after)</td><td>[^<]*</td><td>[^<]*</td>((?:<td>[^<]*</td>)+)", text)
@@ -179,8 +184,8 @@ def test_the_docs_recipe_runs_as_written_on_the_simulated_robot(tmp_path, monkey
     (capture's simulated operator triggers: --auto), fewer captures and configurations to keep it short."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "goals.csv").write_text("x,y,z\n450,0,300\n")
-    swap = {"--backend franky --host 172.16.0.2": "--backend fake", " --camera 0": "", "-n 60": f"-n {N}",
-            "--per-point 15": "--per-point 5 --auto"}  # fmt: skip
+    swap = {"--backend franky --host 172.16.0.2": "--backend fake", " --camera 0": " --camera fake",
+            "-n 60": f"-n {N}", "--per-point 9": "--per-point 5 --auto"}  # fmt: skip
     ran = []
     for line in recipe(DOCS):
         for a, b in swap.items():

@@ -71,6 +71,7 @@ def test_interrupted_validate_says_partial_and_resume_finishes(tmp_path, capsys,
     assert rc == 130
     done = len(_rows(out))
     assert f"partial: {done} of 6 configurations" in printed.out
+    assert "interrupted: the arm was stopped; " in printed.out  # the fake arm moves itself
     assert 0 < done < 6
     monkeypatch.setattr(FakeRobot, "move_to", real_move)
     assert main(["validate", "--resume", str(out)]) == 0

@@ -129,6 +129,63 @@ def hidden_effect(
     return Extension(effect, joints, None, params)
 
 
+def camera_aims(layout: Layout, per_point: int, radius: float, seed: int) -> dict:
+    """Where each capture of a simulated camera session aims: per calibration point, (per_point, 2) offsets
+    in the layout's frame drawn uniformly in a disc of ``radius`` mm (the coach's aim anywhere), mm."""
+    import numpy as np
+
+    from lasercal.solver.streams import stream
+
+    out = {}
+    for name in layout.calibration:
+        g = stream(seed, "camera aims", name)
+        r, phi = radius * np.sqrt(g.uniform(0, 1, per_point)), g.uniform(0, 2 * np.pi, per_point)
+        out[name] = np.c_[r * np.cos(phi), r * np.sin(phi)]
+    return out
+
+
+def turned(aims: dict | None, pose: SheetPose | None) -> dict | None:
+    """Aim offsets in a sheet's frame turned into the base frame by its yaw (a base layout's: as they are)."""
+    import numpy as np
+
+    if aims is None or pose is None:
+        return aims
+    c, s = np.cos(np.radians(pose.yaw_deg)), np.sin(np.radians(pose.yaw_deg))
+    return {k: v @ np.array([[c, -s], [s, c]]).T for k, v in aims.items()}
+
+
+def aim_columns(layout: Layout, aims: dict) -> dict:
+    """The aim_x, aim_y columns (mm, the layout's frame) of captures aimed at ``aims`` off their points."""
+    import numpy as np
+
+    xy = np.concatenate([np.asarray(layout.points[k][:2]) + v for k, v in aims.items()])
+    return {"aim_x": [f"{v:.3f}" for v in xy[:, 0]], "aim_y": [f"{v:.3f}" for v in xy[:, 1]]}
+
+
+def measured_columns(c, pose: SheetPose | None, share: float, sigma: float, seed: int) -> dict:
+    """The camera_x .. camera_note columns of a simulated camera session: a random ``share`` of the captures
+    measured, each the true spot (on the sheet at its true ``pose``, or in the base frame) plus Gaussian
+    noise of ``sigma`` mm per axis; the others empty (aimed), mm."""
+    import numpy as np
+
+    from lasercal.solver.streams import stream
+
+    g = stream(seed, "camera")
+    m = len(c.q)
+    meas = np.zeros(m, bool)
+    meas[g.permutation(m)[: int(round(share * m))]] = True
+    xy = pose.from_base(c.hit) if pose is not None else c.hit[:, :2]
+    xy = xy + g.normal(0.0, sigma, xy.shape)
+    cell = lambda v: [f"{x:.4f}" if ok else "" for x, ok in zip(v, meas)]  # noqa: E731
+    return {
+        "camera_x": cell(xy[:, 0]),
+        "camera_y": cell(xy[:, 1]),
+        "camera_sx": cell(np.full(m, sigma)),
+        "camera_sy": cell(np.full(m, sigma)),
+        "camera_note": ["" if ok else "simulated: aimed" for ok in meas],
+    }
+
+
 def sheet_world(truth: RobotModel, nominal: RobotModel, layout: Layout, pose: SheetPose):
     """A sheet simulation's world: the true robot in its own frame (eq. S2), the layout as a sheet (a base
     layout's points become sheet coordinates, placed where the layout says), the points where the sheet
@@ -181,6 +238,9 @@ def simulate(
     noise: float = 0.02,
     base_link: str | None = None,
     tip_link: str | None = None,
+    measured: float = 0.0,
+    spot_sigma: float = 0.03,
+    aim_radius: float | None = None,
 ) -> Simulation:
     """Write a synthetic session whose truth is ``truth`` into ``folder`` (``lasercal simulate``).
 
@@ -205,6 +265,12 @@ def simulate(
     targets : int, position: targets on the tool (when the truth has none)
     noise : float, position: sensor noise std per axis, mm
     base_link, tip_link : str, a URDF truth's chain ends
+    measured : float in [0, 1], laser: the share of captures whose spot a camera measured (camera_x ..
+        columns: the true spot on the sheet plus Gaussian noise of ``spot_sigma`` mm per axis); the others
+        are aimed, with ``aim_noise``, as an operator aims where the camera cannot see
+    spot_sigma : float, mm per axis, the camera's noise on a measured spot
+    aim_radius : float, mm: each capture aims at a random spot within this radius of its point (the
+        coach's aim anywhere; aim_x, aim_y columns); default 40 with measured captures, else 0 (the points)
 
     Returns
     -------
@@ -248,11 +314,20 @@ def simulate(
         )
     elif layout.frame == "sheet":
         aimed = layout.in_base()  # the sheet lies where its placement says
-    c = simulate_captures(model, aimed, per_point, aim_noise, rng, effect=hidden)
+    radius = (40.0 if measured > 0 else 0.0) if aim_radius is None else aim_radius
+    true_pose = (sheet_pose or layout.sheet) if layout.frame == "sheet" else None
+    aims = camera_aims(layout, per_point, radius, seed) if radius > 0 else None
+    offsets = turned(aims, true_pose)
+    c = simulate_captures(model, aimed, per_point, aim_noise, rng, effect=hidden, aims=offsets)
     if hidden is not None:
         sim["effect"] = {"name": hidden.effect, **hidden.to_dict()}
+    if measured > 0:
+        sim |= {"measured": measured, "spot_sigma_mm": spot_sigma}
     meta = session_meta(nominal_ref, layout, model.aperture[2], simulated=sim)
-    write_session(folder, meta, c.point, c.t, c.q, tau=c.tau)
+    extra = {} if aims is None else aim_columns(layout, aims)
+    if measured > 0:
+        extra = measured_columns(c, true_pose, measured, spot_sigma, seed) | extra
+    write_session(folder, meta, c.point, c.t, c.q, tau=c.tau, extra=extra)
     if sheet_pose is not None:
         model.save(Path(folder) / sim["sheet"]["truth_in_own_frame"])
     shown = ""

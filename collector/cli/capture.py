@@ -13,8 +13,13 @@ from lasercal.collector.cli.options import (
     motion_arguments,
     number,
     output_argument,
+    photo_arguments,
+    resume_or_another,
     unused,
+    view_arguments,
+    view_options,
 )
+from lasercal.collector.errors import InputEnded
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 
 
@@ -29,7 +34,9 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         kind="folder",
-        instead="resume it with --resume {path}",
+        instead=resume_or_another(
+            "capture", "session.yaml", "a capture session", {"validation.yaml": "a validation run"}
+        ),
         metavar="SESSION",
         help="new session folder",
     )
@@ -111,6 +118,8 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "operator only refines the aim",
     )
     motion_arguments(p, "with --guide move: ")
+    photo_arguments(p)
+    view_arguments(p)
     backend_arguments(p)
 
 
@@ -141,5 +150,28 @@ def cmd_capture(args) -> int:
                 "stopped"
             )
         print(f"resuming {store.folder}: {len(store.point)} captures on disk")
-    started.run(sys.stdout)
+    before = len(started.store.point)
+    try:
+        started.run(sys.stdout, view_options(args, settings.cfg))
+    except InputEnded as e:
+        return input_ended(started, before, e)
     return 0
+
+
+def input_ended(started, before: int, e) -> int:
+    """The trigger's standard input ended mid-session: a stop, not an operator's quit. Every capture stays
+    on disk, resumable (exit 1: the session is short); none at all (exit 2): a new session, still empty,
+    is not kept, a resumed one is."""
+    from lasercal.solver.errors import LasercalError
+
+    store = started.store
+    taken = len(store.point) - before
+    if not store.point and not started.settings.resume:
+        store.remove_empty()
+        raise LasercalError(f"{e}: nothing captured, and the new session {store.folder} is not kept")
+    k = len(store.point)
+    kept = f"{k} capture{'' if k == 1 else 's'} in {store.path}; resume with: {started.hint}"
+    if not taken:
+        raise LasercalError(f"{e}: nothing captured this run; {kept}")
+    print(f"lasercal: warning: stopped: {e}; {kept}", file=sys.stderr)
+    return 1

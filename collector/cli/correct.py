@@ -108,7 +108,7 @@ def cmd_correct(args) -> int:
         d = np.linalg.norm(before, axis=1)
         print(f"the program as planned misses by {d.mean():.3f} mm mean, {d.max():.3f} mm max (calibrated)")
     ok = int(c.ok.sum())
-    print(f"{ok} of {len(c.ok)} goals reached; residual {c.residual_mm[c.ok].max(initial=0):.2g} mm max")
+    print(reached_line(c.ok, c.residual_mm))
     print(f"wrote {args.output}")
     if ok < len(c.ok):
         bad = np.flatnonzero(~c.ok)
@@ -118,3 +118,23 @@ def cmd_correct(args) -> int:
         print(f"lasercal: {len(bad)} goal(s) not reached{more}: ok = false (see reason)", file=sys.stderr)
         return 1
     return 0
+
+
+def reached_line(ok, residual_mm) -> str:
+    """The summary of a run: goals reached and the largest residual over every goal, the ones not reached
+    included (a goal out of reach is its miss, not 0), and over the reached ones when they differ.
+
+    Parameters
+    ----------
+    ok : (m,) bool array, the goal is reached
+    residual_mm : (m,) array, each command's position residual on the calibrated robot, mm
+    """
+
+    def mm(v: float) -> str:
+        return f"{v:.2g}" if abs(v) < 10 else f"{v:.1f}"
+
+    k, m = int(ok.sum()), len(ok)
+    line = f"{k} of {m} goals reached; residual {mm(residual_mm.max(initial=0))} mm max"
+    if 0 < k < m:
+        line += f" ({mm(residual_mm[ok].max())} mm over the {k} reached)"
+    return line

@@ -87,6 +87,24 @@ COMMANDS = (
         "a printable reference sheet (PDF, SVG at 1:1: crosses, markers, scale bars) and its layout",
     ),
     Command(
+        "mujoco-scene",
+        "mujoco",
+        "cmd_mujoco_scene",
+        "a MuJoCo world for a printed sheet: a perturbed outside arm, the sheet, a laser, a camera",
+    ),
+    Command(
+        "new-session",
+        "outside",
+        "cmd_new_session",
+        "an empty capture session for a layout, for a robot script of your own to fill (docs/formats.md)",
+    ),
+    Command(
+        "configurations",
+        "outside",
+        "cmd_configurations",
+        "the configurations a model computes for a point (what validate would command), as CSV",
+    ),
+    Command(
         "spots",
         "vision",
         "spots_command",

@@ -144,6 +144,12 @@ def trigger(text: str) -> str:
     raise argparse.ArgumentTypeError(f"{text!r}: expected enter, serial:URL or pilot")
 
 
+def world_file(text: str) -> str:
+    """An argparse ``type`` for ``--world``: an existing file, kept as its absolute path (a resumed session
+    finds it from any folder, and compares equal)."""
+    return str(Path(existing("file")(text)).resolve())
+
+
 INFILE = existing("file")
 INFOLDER = existing("folder")
 ROBOT = existing("file", "robots")
@@ -168,7 +174,8 @@ def output_argument(
     flags : e.g. ``"-o", "--output"``
     kind : "file" (a new file), "folder" (a new or empty folder) or "into" (a folder written into,
         created if missing; files of the same names are replaced)
-    instead : what to do when the output exists ('{path}' is replaced); default: pass --force
+    instead : what to do when the output exists ('{path}' is replaced), or a function of the path giving
+        it (what the folder holds decides: a session resumes, another folder does not); default: pass --force
     writes : for ``kind="into"``: a function of the parsed arguments giving the names of the files
         written into the folder (each is checked not to be an input)
     kw : the other ``add_argument`` arguments (help, required, metavar, default)
@@ -252,8 +259,10 @@ def check_outputs(args) -> None:
                 raise SessionError(f"{flag} {value}: the same path as {seen[out]} (expected two outputs)")
             seen[out] = flag
             targets = [out / n for n in writes.get(dest, lambda a: ())(args)] if kind == "into" else [out]
+            if kind == "into":  # the folder itself an input, or inside one (not a folder of input files)
+                targets.insert(0, out)
             for target in targets:
-                hit = replaced_input(target, kind, inputs)
+                hit = replaced_input(target, "file" if kind == "into" and target == out else kind, inputs)
                 if hit is not None:
                     what = "" if target == out else f" ({target.name})"
                     raise SessionError(f"{flag} {value}{what}: would replace {hit} (expected another path)")
@@ -263,8 +272,36 @@ def check_outputs(args) -> None:
             into=kind == "into",
             force=bool(getattr(args, "force", False)),
             option=flag,
-            instead=(instead or "pass --force to replace it").replace("{path}", str(value)),
+            instead=(
+                instead(value) if callable(instead) else (instead or "pass --force to replace it")
+            ).replace("{path}", str(value)),
         )
+
+
+def resume_or_another(command: str, marker: str, what: str, others: dict):
+    """An ``instead`` of :func:`output_argument` for a folder ``lasercal COMMAND --resume`` continues: the
+    resume where the folder's ``marker`` file says ``command`` started it (its stored settings, the key
+    ``collector``), else choose another ``-o``, saying what the folder is (``others``: file name -> what a
+    folder holding it is)."""
+
+    def instead(path) -> str:
+        from lasercal.solver.errors import LasercalError
+        from lasercal.solver.formats.robots import load_yaml
+
+        folder, why = Path(path), f"not {what}, no {marker}"
+        if (folder / marker).is_file():
+            try:
+                meta = load_yaml(folder / marker)
+            except LasercalError:
+                meta = None
+            if isinstance(meta, dict) and meta.get("collector"):
+                return "resume it with --resume {path}"
+            why = f"its {marker} was not written by lasercal {command}"
+        else:
+            why = next((f"{v}, not {what}" for k, v in others.items() if (folder / k).is_file()), why)
+        return f"{why}: nothing to resume there, choose another -o"
+
+    return instead
 
 
 def unused(args, why: str, *dests: str) -> None:
@@ -423,7 +460,18 @@ def backend_arguments(p: argparse.ArgumentParser) -> None:
     from lasercal.collector.hardware import BACKENDS  # here: the commands without a robot skip its import
 
     g = p.add_argument_group("robot backend")
-    g.add_argument("--backend", choices=BACKENDS, help="fake (simulated Panda), franky, panda-py or ros")
+    g.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        help="fake (simulated Panda), mujoco (--world), franky, panda-py or ros",
+    )
+    g.add_argument(
+        "--world",
+        type=world_file,
+        metavar="SCENE.xml",
+        help="mujoco: the MuJoCo world file (MJCF; its contract: docs/formats.md; lasercal mujoco-scene "
+        "writes one)",
+    )
     g.add_argument(
         "--robot", type=ROBOT, help="nominal robot model: name under data/robots/ or YAML (default panda)"
     )
@@ -494,3 +542,55 @@ def motion_arguments(p: argparse.ArgumentParser, when: str = "") -> None:
         metavar="RAD",
         help=f"{when}largest joint change of one commanded move; larger moves are split (default {MAX_STEP})",
     )
+
+
+def photo_arguments(p: argparse.ArgumentParser) -> None:
+    """``--photos``, ``--photo-format`` (capture, validate): which photos are kept (every one is measured)."""
+    from lasercal.collector.sessions.photos import FORMATS, KEEP
+
+    p.add_argument(
+        "--photos",
+        choices=KEEP,
+        help="photos kept (each is measured as it is taken, its spot and sigma in the CSV): all (default), "
+        "first (the first at each point and every one whose spot could not be measured) or none",
+    )
+    p.add_argument(
+        "--photo-format",
+        choices=FORMATS,
+        help="png (default, lossless) or jpg (quality 95, a tenth of the size)",
+    )
+
+
+def view_arguments(p: argparse.ArgumentParser) -> None:
+    """``--view``, ``--view-host``, ``--view-port`` (capture, validate, beam-check): the live view."""
+    p.add_argument(
+        "--view",
+        action="store_const",
+        const=True,
+        help="serve a live view of the session on this machine (127.0.0.1): the camera's frames with what is "
+        "found, the coach's instruction, progress, problems; needs pip install 'lasercal[view]'",
+    )
+    p.add_argument(
+        "--view-host",
+        metavar="ADDR",
+        help="with --view: serve it on this address instead (another device, e.g. a tablet, can then open "
+        "it); a one-time token is printed that the page asks for",
+    )
+    p.add_argument(
+        "--view-port",
+        type=count(0, 65535),
+        metavar="PORT",
+        help="with --view: the port (default 8765; 0: any)",
+    )
+
+
+def view_options(args, stored: dict | None = None):
+    """The live view's options from the command line (and a resumed session's stored ``view``), or None."""
+    from lasercal.collector.view import DEFAULT_PORT, ViewOptions
+
+    stored = stored or {}
+    if not (args.view or stored.get("view")):
+        unused(args, "it places the live view (--view)", "view_host", "view_port")
+        return None
+    port = args.view_port if args.view_port is not None else stored.get("view_port", DEFAULT_PORT)
+    return ViewOptions(host=args.view_host or "127.0.0.1", port=port)

@@ -149,13 +149,16 @@ def solve_poses(args) -> int:
 
 def cmd_predict_pose(model, args) -> int:
     """``lasercal predict`` of a pose model: x, y, z (mm) and rx, ry, rz (rad, rotation vector) of the
-    frame in the sensor frame, each input row followed by them."""
-    from lasercal.solver.formats.poses import write_pose_rows
-    from lasercal.solver.formats.session import load_configs
+    frame in the sensor frame, each input row followed by them. A pose session's measured columns carried
+    from the input are renamed ``measured_x`` ... ``measured_rz`` (as a position session's): a name written
+    twice would leave a CSV reader one of the two."""
+    from lasercal.solver.formats.poses import POSE, write_pose_rows
+    from lasercal.solver.formats.session import header_beside, load_configs
     from lasercal.solver.identify.poses import model_effects, session_frames
 
     pose_model(args.model)
     cfg = load_configs(args.configs, model)
     T = session_frames(model, cfg.q, model.sensor_pose, model.ee_pose, model_effects(model, args.model))
-    write_pose_rows(sys.stdout, cfg.header, cfg.rows, T)
+    carried = header_beside(cfg.header, list(POSE))[: len(cfg.header)]
+    write_pose_rows(sys.stdout, carried, cfg.rows, T)
     return 0

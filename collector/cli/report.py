@@ -127,6 +127,12 @@ def cmd_export(args) -> int:
     else:
         text = export(model, args.format)
         unused(args, "it names the robot of --format franka", "robot_id")
+        if args.format == "urdf":  # a joint's origin cannot say it bends: said here, not only in a comment
+            from lasercal.solver.errors import warn
+            from lasercal.solver.formats.franka import effect_notes
+
+            for s in effect_notes(model):
+                warn(f"not in the URDF: {s}")
     if args.sensor_output:
         from lasercal.solver.formats.urdf import sensor_urdf
 

@@ -135,6 +135,25 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
         type=number(-100, 100),
         help="c (rad/Nm), eccentricity amplitude (rad), drift r (rad/s) or offset (mm)",
     )
+    p.add_argument(
+        "--measured",
+        type=number(0, 1),
+        default=0.0,
+        help="laser: the share of captures whose spot a camera measured (0..1, default 0: every capture "
+        "aimed by eye); the rest are aimed with --aim-noise",
+    )
+    p.add_argument(
+        "--spot-sigma",
+        type=number(1e-4, 10, "mm"),
+        default=0.03,
+        help="laser: the camera's noise on a measured spot, mm per axis (default 0.03)",
+    )
+    p.add_argument(
+        "--aim-radius",
+        type=number(0, 150, "mm"),
+        help="laser: each capture aims at a random spot within this radius of its point, mm (default 40 "
+        "with --measured, else 0: at the points)",
+    )
     output_argument(p, "-o", "--output", kind="folder", required=True, help="session folder to write")
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
@@ -158,7 +177,7 @@ def simulated_sheet(folder, session, model) -> str:
 def cmd_solve(args) -> int:
     from lasercal.calibration import calibrate
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.errors import LasercalError
+    from lasercal.solver.errors import LasercalError, warn
     from lasercal.solver.formats.poses import is_pose_session
     from lasercal.solver.formats.session import load_session
 
@@ -184,13 +203,16 @@ def cmd_solve(args) -> int:
         allow_partial=args.allow_partial,
         payload=parse_payload(args.payload),
     )
+    if "warning" in cal.statistics:  # on stderr, where a script (and the outside check) looks for it
+        warn(f"{args.session}: {cal.statistics['warning']}")
+    truth = simulated_sheet(args.session, session, cal.model)  # before writing: a bad truth file is exit 2
     with atomic_output(args.output) as tmp:
         cal.save(tmp)
     if args.json:
         print(cal.to_json())
     else:
         sys.stdout.write(cal.summary())
-        sys.stdout.write(simulated_sheet(args.session, session, cal.model))
+        sys.stdout.write(truth)
         print(f"\nwrote {args.output}")
     return 0
 
@@ -203,7 +225,19 @@ def cmd_predict(args) -> int:
     from lasercal.collector.sessions.store import atomic_output
 
     with atomic_output(args.output) as tmp, open(tmp, "w", newline="") as f, redirect_stdout(f):
-        return _predict(args)
+        code = _predict(args)
+    print(predicted_line(args.configs, args.output))
+    return code
+
+
+def predicted_line(configs, output) -> str:
+    """What ``predict -o`` wrote, one line: its rows and the columns it added after the input's (every
+    kind of model passes the input's columns through first, renamed where a predicted one takes a name)."""
+    from lasercal.solver.formats.table import read_csv
+
+    n_in = len(read_csv(configs)[0])
+    header, rows = read_csv(output)
+    return f"wrote {output}: {len(rows)} rows, the input's columns and {', '.join(header[n_in:])}"
 
 
 def _predict(args) -> int:
@@ -283,6 +317,8 @@ def cmd_simulate(args) -> int:
             "per_point",
             "aim_noise",
             "sheet_pose",
+            "measured",
+            "aim_radius",
         )
     elif args.layout:  # (without a layout the simulation refuses to run)
         unused(args, "an option of --measurement position", "configs", "targets", "noise")
@@ -310,6 +346,9 @@ def cmd_simulate(args) -> int:
             noise=args.noise,
             base_link=args.base_link,
             tip_link=args.tip_link,
+            measured=args.measured,
+            spot_sigma=args.spot_sigma,
+            aim_radius=args.aim_radius,
         )
     print(f"wrote {args.output}: {sim.summary}")
     return 0

@@ -13,8 +13,12 @@ from lasercal.collector.cli.options import (
     count,
     motion_arguments,
     output_argument,
+    photo_arguments,
+    resume_or_another,
     sheet_pose,
     sheet_pose_argument,
+    view_arguments,
+    view_options,
 )
 
 
@@ -28,7 +32,9 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         kind="folder",
-        instead="resume it with --resume {path}",
+        instead=resume_or_another(
+            "validate", "validation.yaml", "a validation run", {"session.yaml": "a capture session"}
+        ),
         metavar="DIR",
         help="new folder: validation.yaml, validation.csv, photos/",
     )
@@ -57,6 +63,8 @@ def args_validate(p: argparse.ArgumentParser) -> None:
         "put it, else the layout's placement)",
     )
     motion_arguments(p)
+    photo_arguments(p)
+    view_arguments(p)
     p.add_argument(
         "--camera",
         help="fake, or an OpenCV device: index, URL or frames/%%04d.png (default: fake with --backend fake)",
@@ -70,9 +78,11 @@ def args_validate(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_validate(args) -> int:
+    from lasercal.collector.errors import InputEnded
     from lasercal.collector.sessions.settings import given_settings, validate_settings
     from lasercal.collector.sessions.start import start_validation
     from lasercal.solver.analysis.stats import spot_stats
+    from lasercal.solver.errors import LasercalError
 
     settings = validate_settings(
         given_settings(vars(args)),
@@ -89,7 +99,19 @@ def cmd_validate(args) -> int:
         sheet_pose=sheet_pose(args.sheet_pose, "--sheet-pose") if args.sheet_pose else None,
     )
     started = start_validation(settings, yes=args.yes)
-    res = started.run(sys.stdout)
+    if args.sheet_pose:
+        try:
+            stated_sheet_check(started, args.sheet_pose)
+        except LasercalError:
+            started.camera.close()
+            raise
+    try:
+        res = started.run(sys.stdout, view_options(args, settings.cfg))
+    except InputEnded as e:  # the operator's trigger (a real robot guided by hand) read standard input
+        raise LasercalError(
+            f"{e}; what was measured is in {settings.folder}: continue with: lasercal validate --resume "
+            f"{settings.folder}"
+        ) from None
     print(f"wrote {res.path} ({res.photos} photos this run; {res.summary()})")
     if not res.complete:
         print(f"continue with: lasercal validate --resume {settings.folder}")
@@ -113,3 +135,44 @@ def cmd_validate(args) -> int:
         )
         return 1
     return 0
+
+
+SHEET_WARN_MM = 10.0  # a sheet found by solve lies within ~1 mm of the truth (0.3 mm sigma, docs/sessions.md)
+SHEET_OFF_MM = 100.0  # half an A4 sheet's short side: beyond, the model's spot falls off the stated sheet
+
+
+def stated_sheet_check(started, values) -> None:
+    """``--sheet-pose`` (where the simulated sheet truly lies) against where the model aims: the validation
+    point laid by the stated pose, seen from the model's spot at it (eq. S1, in the sheet's frame, mm).
+    Farther than :data:`SHEET_OFF_MM`, the validation would measure where the sheet was put, not the model:
+    refused; farther than :data:`SHEET_WARN_MM`, a warning (a sheet moved since the calibration, or a
+    typing slip).
+
+    Raises
+    ------
+    LasercalError
+        Naming the option, the point and both places.
+    """
+    import numpy as np
+
+    from lasercal.solver.errors import LasercalError, warn
+    from lasercal.solver.formats.session import load_layout
+
+    stated = started.world.sheet
+    aimed = started.layout.points[started.point]  # base frame, where the model's sheet pose puts the point
+    on_sheet = load_layout(started.settings.file("layout")).points[started.point][:2]
+    off = float(np.linalg.norm(stated.from_base(aimed[None])[0] - on_sheet))
+    if off <= SHEET_WARN_MM:
+        return
+    given = " ".join(f"{v:g}" for v in values)
+    true = stated.to_base(on_sheet[None], started.layout.plane_z)[0]
+    what = (
+        f"argument --sheet-pose {given}: lays {started.point} at ({true[0]:.1f}, {true[1]:.1f}) mm, "
+        f"{off:.1f} mm from where the model aims at it ({aimed[0]:.1f}, {aimed[1]:.1f}) mm"
+    )
+    if off > SHEET_OFF_MM:
+        raise LasercalError(
+            f"{what}: its spot would miss the sheet (expected the sheet's true pose, within mm of the one "
+            "the model's calibration found)"
+        )
+    warn(f"{what}: the validation measures the sheet's displacement, not the model")

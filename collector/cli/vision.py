@@ -20,7 +20,16 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasercal.collector.cli.options import INFILE, LAYOUT, count, number, output_argument, unused
+from lasercal.collector.cli.options import (
+    INFILE,
+    LAYOUT,
+    count,
+    number,
+    output_argument,
+    unused,
+    view_arguments,
+    view_options,
+)
 
 if TYPE_CHECKING:  # annotations only: the modules load when a command runs
     from lasercal.vision.measure import Options
@@ -157,7 +166,14 @@ def args_spots(p: argparse.ArgumentParser) -> None:
 
 def args_beam_check(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal beam-check``."""
-    p.add_argument("images", nargs="+", metavar="IMAGE")
+    p.add_argument("images", nargs="*", metavar="IMAGE")
+    p.add_argument(
+        "--device",
+        help="take the photos live instead (an OpenCV device index, URL or frames/%%04d.png): Enter at each "
+        "joint-7 angle, q when done; with --save",
+    )
+    p.add_argument("--save", metavar="FOLDER", help="with --device: a new or empty folder for the photos")
+    view_arguments(p)
     p.add_argument(
         "--laser-length",
         type=number(0, 1e4, "mm", lo_open=True, metres=True),
@@ -392,6 +408,10 @@ def beam_check_command(args) -> int:
 
     if args.expect != 1:
         raise VisionError("beam-check takes one spot per photo (--expect 1)")
+    if args.device:  # the photos taken live (sessions.beamphotos), then measured as given ones
+        args.images = _beam_photos(args)
+    elif not args.images:
+        raise VisionError("beam-check needs IMAGE... (or --device with --save to take them live)")
     measured, layout = _measure_all(args)
     results = [(e, r) for e, r in measured if r is not None]
     photo_warnings = [f"{e['image']}: {w}" for e, _ in results for w in e["warnings"]]  # already printed
@@ -470,6 +490,20 @@ def beam_check_command(args) -> int:
                 f"(laser length {args.laser_length:g} mm; an upper bound if the beam misses the axis)"
             )
     return lost_photos([e for e, _ in measured])
+
+
+def _beam_photos(args) -> list[str]:
+    """``beam-check --device``: the photos taken live, with the live view if asked."""
+    from lasercal.collector.errors import SessionError
+    from lasercal.collector.hardware.triggers import EnterTrigger
+    from lasercal.collector.sessions.beamphotos import take_beam_photos
+    from lasercal.collector.sessions.cameras import OpenCVCamera
+
+    if args.images or not args.save:
+        raise SessionError("beam-check --device takes its photos live: drop IMAGE..., give --save FOLDER")
+    view = view_options(args)
+    camera = OpenCVCamera(int(args.device) if args.device.isdigit() else args.device)
+    return take_beam_photos(camera, Path(args.save), EnterTrigger(), view, args.layout)
 
 
 def camera_calibrate_command(args) -> int:

@@ -1,16 +1,18 @@
 """Robot hardware: backends behind one small interface
 (:class:`~lasercal.collector.hardware.base.RobotAdapter`), and the factories that build them from settings.
 
-``fake`` (simulated Panda and operator), ``franky`` (franky-control), ``panda-py``
-(panda-python), ``ros`` (rosbridge /joint_states). Each backend module imports its SDK
-only when used; a missing SDK is a one-line error with the pip command.
+``fake`` (simulated Panda and operator), ``mujoco`` (a MuJoCo world file, its arm and camera driven
+as hardware is), ``franky`` (franky-control), ``panda-py`` (panda-python), ``ros`` (rosbridge
+/joint_states). Each backend module imports its SDK only when used; a missing SDK is a one-line error
+with the pip command.
 """
 
 from __future__ import annotations
 
 import os
 
-BACKENDS = ("fake", "franky", "panda-py", "ros")
+BACKENDS = ("fake", "mujoco", "franky", "panda-py", "ros")
+SIMULATED = ("fake", "mujoco")  # backends whose arm is simulated: their moves need no confirmation
 
 
 def _desk(cfg: dict):
@@ -67,6 +69,7 @@ def make_robot(
     points=None,
     repeat_sigma=0.0,
     place=None,
+    placement=None,
     printed: bool = False,
 ):
     """The robot adapter a settings mapping asks for.
@@ -83,6 +86,8 @@ def make_robot(
         (None: the layout's calibration points; :func:`fakeworld.table_points`)
     repeat_sigma : float, the fake arm's repeatability, rad (:mod:`collector.hardware.fakeworld`)
     place : callable or None, where the layout's spots truly are on the fake table (:class:`FakeRobot`)
+    placement : SheetPose or None, the layout's placement of its sheet (mujoco: the operator finds a point on
+        the world's sheet through it)
     printed : bool, the layout is a printed sheet (its crosses lie where it says: a truth's point offset
         is refused)
 
@@ -93,6 +98,12 @@ def make_robot(
     from lasercal.solver.errors import LasercalError
 
     backend = cfg["backend"]
+    if cfg.get("world") and backend != "mujoco":
+        raise LasercalError(f"--world is a MuJoCo world file: it needs --backend mujoco (not {backend})")
+    if backend == "mujoco":
+        from lasercal.collector.hardware.mujoco import make_mujoco_robot
+
+        return make_mujoco_robot(cfg, nominal, layout, per_point, placement)
     if backend == "fake":
         from lasercal.collector.hardware.base import FakeClock
         from lasercal.collector.hardware.fake import FakeOperator, FakeRobot

@@ -129,6 +129,11 @@ class RobotAdapter:
     def prompt_configuration(self, q: np.ndarray) -> None:
         """The operator is asked to guide the arm to configuration q (validation without motion)."""
 
+    def resume_at(self, q: np.ndarray, t: float) -> None:
+        """A resumed capture session starts: its last capture was at configuration q (rad), session time t
+        (s). A real arm is wherever it is (no-op); a simulated one is put back there, so that the resumed
+        session repeats the unbroken one."""
+
     def suggest_pose(self, q: np.ndarray) -> None:
         """The capture coach suggests configuration q (rad) for the next capture.
 

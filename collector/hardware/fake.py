@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -158,11 +159,6 @@ class FakeRobot(RobotAdapter):
         (:func:`collector.hardware.fakeworld.on_table`): the simulated operator aims at a planned spot there
     effects : ArmEffects or None, the truth's extensions (:mod:`collector.hardware.fakeeffects`; None:
         those of ``truth``, refused with its name when the fake arm cannot simulate them)
-
-    Attributes
-    ----------
-    t_offset : float, the session's time at clock 0, s (a resumed capture's last ``t``): a drift runs on
-        the session's clock, captures.csv's ``t``
     """
 
     name = "fake"
@@ -186,7 +182,6 @@ class FakeRobot(RobotAdapter):
         self.seed, self.disconnect_at, self.repeat_sigma = seed, disconnect_at, repeat_sigma
         self.place = place
         self.effects = arm_effects(truth) if effects is None else effects
-        self.t_offset = 0.0
         self._attempts: dict = {}
         self._connected = False
         home = np.array(truth.home if truth.home is not None else truth.limits.mean(axis=1), dtype=float)
@@ -218,7 +213,7 @@ class FakeRobot(RobotAdapter):
         self._noise = rng
         self._delta = self._repeat(key, q.shape)
         if aimed:
-            q = self.effects.encoders(q[None], self._session_t(self.clock.now() + self._T))[0] - self._delta
+            q = self.effects.encoders(q[None], self.clock.now() + self._T)[0] - self._delta
         self._q0, self._q1, self._t0, self._mode = q_now, q, self.clock.now(), mode
         self._grid = None
 
@@ -263,12 +258,17 @@ class FakeRobot(RobotAdapter):
     def move_to(self, q: np.ndarray) -> None:
         """Move to q like a position-controlled arm; returns on arrival (the jiggle follows; with
         ``repeat_sigma`` none: the arm holds the pose it reached, the repeatability's draw off q)."""
-        self._attempts["move"] = self._attempts.get("move", 0) + 1
+        # a capture session's moves (the operator's arm) are keyed by the pose they go to and how often it
+        # was gone to, not by a count of moves a killed process forgets: its resumed session draws what the
+        # unbroken one drew; a validation's keep their count (its figures are measured with it)
+        pose = () if self.operator is None else (zlib.crc32(np.asarray(q, dtype=float).tobytes()),)
+        key = ("move", *pose)
+        self._attempts[key] = self._attempts.get(key, 0) + 1
         q_now, _ = self._kinematics(self.clock.now())
         duration = max(
             1.875 * np.abs(np.asarray(q) - q_now).max() / self.motion.speed, 0.5
         )  # 1.875: min-jerk peak/mean speed
-        self._start(q, "Move", (0x30FE, self._attempts["move"]), duration)
+        self._start(q, "Move", (0x30FE, *pose, self._attempts[key]), duration)
         if self.repeat_sigma:  # an honest arm: position control holds the pose, off by its repeatability only
             self._v0 = np.zeros_like(self._v0)
         self.clock.sleep(self._T)
@@ -289,19 +289,24 @@ class FakeRobot(RobotAdapter):
         """The simulated operator starts the next hand-guiding from q (rad)."""
         self._suggested = np.asarray(q, dtype=float)
 
+    def resume_at(self, q: np.ndarray, t: float) -> None:
+        """A resumed session's arm: at rest at q (rad, the last capture's reported pose) with the clock at
+        the session's time t (s) -- as the killed session's arm and clock were when it logged that capture,
+        so the transits that follow (their durations from the start pose) are the unbroken session's."""
+        self.clock.t = float(t)
+        self._q0 = self._q1 = np.array(q, dtype=float)
+        self._t0, self._T, self._v0, self._grid = self.clock.t, 0.0, np.zeros_like(self._q1), None
+        self._delta = np.zeros_like(self._q1)
+
     def prompt_configuration(self, q: np.ndarray) -> None:
         self._attempts["guide"] = self._attempts.get("guide", 0) + 1
         self._start(q, "Guiding", (0x6D1E, self._attempts["guide"]))
 
     # ------------------------------------------------------------ truth, for the fake camera and rangefinder
-    def _session_t(self, t: float) -> float:
-        """The session's time (captures.csv's ``t``, s) at clock time t."""
-        return t + self.t_offset
-
     def _links_at(self, t: float) -> np.ndarray:
         """Where the links stand at clock time t, (1, n) rad: the encoders' pose plus the repeatability's
         delta, through the truth's effects."""
-        return self.effects.links((self._kinematics(t)[0] + self._delta)[None], self._session_t(t))
+        return self.effects.links((self._kinematics(t)[0] + self._delta)[None], t)
 
     def true_q(self) -> np.ndarray:
         """The configuration the arm truly is in now (the reported one plus the repeatability's, through the

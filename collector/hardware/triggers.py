@@ -15,7 +15,7 @@ from __future__ import annotations
 import sys
 import time
 
-from lasercal.collector.errors import DeviceError
+from lasercal.collector.errors import DeviceError, InputEnded
 from lasercal.collector.hardware.base import PilotButtons, import_extra
 
 COMMANDS = ("capture", "discard", "quit")
@@ -38,7 +38,8 @@ class EnterTrigger(Trigger):
 
     Parameters
     ----------
-    read_line : callable() -> str, e.g. ``input`` (EOF quits)
+    read_line : callable() -> str, e.g. ``input`` (its EOF raises :class:`InputEnded`: a script's or a
+        closed terminal's end is no operator's quit)
     out : text stream for the hint after an unknown answer
     """
 
@@ -53,7 +54,11 @@ class EnterTrigger(Trigger):
             try:
                 line = self.read_line()
             except EOFError:
-                return "quit"
+                raise InputEnded(
+                    "standard input ended: nothing can press Enter to trigger (run it at a terminal, or "
+                    "trigger with --trigger serial:URL or pilot; --auto: the simulated operator of --backend "
+                    "fake)"
+                ) from None
             key = line.strip().lower()[:1]
             if key in self.KEYS:
                 return self.KEYS[key]

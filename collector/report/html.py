@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.collector.report.plots import diagnosis_plots, pyplot, save
-from lasercal.collector.report.text import format_diagnosis, noise_by_kind_line
+from lasercal.collector.report.text import fit_by_kind_text, format_diagnosis, noise_by_kind_line
 from lasercal.solver.analysis.diagnose import Diagnosis
-from lasercal.solver.analysis.stats import SpotStats, solve_report, spot_stats
+from lasercal.solver.analysis.stats import SpotStats, carriers, solve_report, spot_stats
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.checks import metres_hint
 from lasercal.solver.formats.robots import load_yaml
@@ -116,13 +116,12 @@ def load_validation(folder) -> Validation:
     for ln, r in rows[1:]:
         for j in qcols:
             try:
-                big = abs(float(r[j])) > 2 * np.pi
+                v = float(r[j])
             except (ValueError, IndexError):
                 continue
-            if big:
-                raise FormatError(
-                    cpath, f"{r[j]} looks like degrees (expected rad)", line=ln, field=header[j]
-                )
+            if not abs(v) <= 2 * np.pi:  # NaN too: a logged angle is a number
+                what = "looks like degrees" if np.isfinite(v) else "is not a finite number"
+                raise FormatError(cpath, f"{r[j]} {what} (expected rad)", line=ln, field=header[j])
     spots = []
     for ln, r in rows[1:]:
         if len(r) != len(header):
@@ -291,13 +290,15 @@ def verdict(
         state += " (NOT converged)"
     if validations:
         text = f"{state}: " + "; ".join(_point_verdict(runs) for runs in by_point(validations).values())
-    else:
-        used = ident.weights > 0
+    else:  # a camera session's figure is its measured captures' (they carry the fit)
+        used = (ident.weights > 0) & carriers(session)
         r = spot_residuals(ident.nominal, session.q, base_targets(session, ident.nominal))[used]
         before = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        after = float(np.sqrt(np.mean(np.sum(ident.residuals[used] ** 2, axis=1))))
+        which = "measured " if session.measured.any() else ""
         text = (
-            f"{state}: {before:.2g} → {ident.rms_mm:.2g} mm RMS on the calibration captures, "
-            f"{int(used.sum())} of {session.m} captures (not validated at a point the fit did not see)"
+            f"{state}: {mm(before)} → {mm(after)} mm RMS on the calibration captures, "
+            f"{int(used.sum())} of {session.m} {which}captures (not validated at a point the fit did not see)"
         )
     if missing:
         text += "; not identified: " + ", ".join(d.combination for d in missing)
@@ -320,9 +321,14 @@ def _point_verdict(runs) -> str:
     """'9.2 → 0.54 mm at P4, 60 of 60 configurations' (first run to last), or one run's error."""
     b = runs[-1]
     if len(runs) == 1:
-        return f"{b.stats.error_mean:.2g} mm at {b.point} ({b.label}), {b.completeness} configurations"
+        return f"{mm(b.stats.error_mean)} mm at {b.point} ({b.label}), {b.completeness} configurations"
     before = runs[0].stats.error_mean
-    return f"{before:.2g} → {b.stats.error_mean:.2g} mm at {b.point}, {b.completeness} configurations"
+    return f"{mm(before)} → {mm(b.stats.error_mean)} mm at {b.point}, {b.completeness} configurations"
+
+
+def mm(x: float) -> str:
+    """A length for the headline: two decimals from 1 mm up, three below ('9.16', '0.075')."""
+    return f"{x:.2f}" if abs(x) >= 1 else f"{x:.3f}"
 
 
 def check_not_calibration_points(session: Session, ident: Identification, validations) -> None:
@@ -431,7 +437,9 @@ def residual_plots(session: Session, ident: Identification, path: Path) -> Path:
                         s=9 if kind else 16,
                         marker=marker,
                         c="tab:red" if row == 0 else colour,
-                        label=("measured by the camera" if kind else "aimed at the cross") if row else None,
+                        label=("measured by the camera" if kind else "aimed by the operator")
+                        if row
+                        else None,
                     )
                 if row:
                     ax.legend(fontsize=7)
@@ -611,8 +619,8 @@ def write_report(
 
     prows = []
     for nm, d in rep["points"].items():
-        for when in ("before", "after"):
-            s = d[when]
+        for when in ("before", "after", "aimed"):
+            s = d.get(when)
             if s is not None:
                 prows.append([nm, when, s["n"]] + [f"{s[k]:.3f}" for k in _STAT_KEYS])
     residual_plots(session, ident, out / "residuals.png")
@@ -621,7 +629,9 @@ def write_report(
         (
             '<p class="note">Where each model says the captured beams land, per reference point (before: '
             "nominal; after: "
-            "identified, outliers left out).</p>"
+            "identified, outliers left out; a camera session's rows count its measured captures, each "
+            "against its measured spot, and 'aimed' its aimed captures under the identified model, against "
+            "where they were aimed).</p>"
         ),
         _table(
             "points",
@@ -641,7 +651,8 @@ def write_report(
         ]
         parts += [
             '<p class="note">Each capture\'s residual (mm): a measured one is fitted to the spot the camera '
-            "measured, with its uncertainty; an aimed one to its cross, with the aiming noise.</p>",
+            "measured, with its uncertainty; an aimed one to where it was aimed (its cross, or the coach's "
+            "aim), with the aiming noise.</p>",
             _table(
                 "captures",
                 ["line", "point", "kind", "dx", "dy", "|r|", "uncertainty", "outlier"],
@@ -658,9 +669,15 @@ def write_report(
             else []
         ),
         ["condition number", f"{idf['condition']:.1f}"],
-        ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
-        ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
-        *([["noise by kind", noise_by_kind_line(rep["noise_by_kind"])]] if rep.get("noise_by_kind") else []),
+        *(
+            [["fit residual RMS", fit_by_kind_text(rep["fit_by_kind"], rep["noise_by_kind"])]]
+            + [["noise by kind", noise_by_kind_line(rep["noise_by_kind"])]]
+            if rep.get("noise_by_kind")  # a camera session: each kind of capture with its own figures
+            else [
+                ["fit residual RMS (mm)", f"{rep['fit_rms_mm']:.3f}"],
+                ["aiming noise estimate per axis (mm)", f"{rep['sigma_mm']:.3f}"],
+            ]
+        ),
         ["outliers", ", ".join(f"line {o['line']} ({o['point']})" for o in rep["outliers"]) or "none"],
     ]
     det = rep.get("determined_by")

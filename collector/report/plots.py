@@ -64,9 +64,13 @@ def diagnosis_plots(d, out) -> list[Path]:
         written.append(save(fig, out / DIAGNOSIS_PLOTS[1]))
 
     fig, ax = plt.subplots(figsize=(5, 5))
-    for key, c in (("geometric", "tab:red"), ("extended", "tab:blue")):
+    # the extension's (filled, below) and the geometry's (open rings, above): neither hides the other
+    for key, style in (
+        ("extended", {"c": "tab:blue"}),
+        ("geometric", {"facecolors": "none", "edgecolors": "tab:red"}),
+    ):
         r = d.residuals_holdout[key]
-        ax.scatter(r[:, 0], r[:, 1], s=8, c=c, label=f"{key}: RMS {d.holdout_rms[key]:.3f} mm")
+        ax.scatter(r[:, 0], r[:, 1], s=14, lw=0.8, label=f"{key}: RMS {d.holdout_rms[key]:.3f} mm", **style)
     ax.set_aspect("equal")
     ax.set_xlabel("held-out error x (mm)")
     ax.set_ylabel("held-out error y (mm)")

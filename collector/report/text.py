@@ -15,7 +15,8 @@ def format_diagnosis(d) -> str:
         best = "no candidate the data can see"
         if d.tests:
             best = f"best candidate {d.tests[0].label}, corrected p = {o['p_value']:.3g}"
-        lines.append(f"finding: none -- the geometric model and aiming noise explain the data ({best})")
+        what = "the noise" if d.geometric.extra.get("noise") else "aiming noise"
+        lines.append(f"finding: none -- the geometric model and {what} explain the data ({best})")
     else:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
         lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
@@ -28,6 +29,14 @@ def format_diagnosis(d) -> str:
                 + " -- only data that move them differently tell them apart: more varied configurations, "
                 "more reference points; none, when they share their axis and load)"
             )
+    noise = (d.extended or d.geometric).extra.get("noise")
+    if noise and noise["measured"]:  # a camera session: what remains beyond the camera, said plainly
+        lines.append(
+            f"remains: {noise['unseen_mm']:.3f} mm per axis beyond what the camera sees "
+            f"({noise['camera_mm']:.3f}), unexplained by the model -- the arm's repeatability (a Panda's: "
+            "about 0.05 mm at the spot), or an effect no candidate describes (backlash, friction, a sheet "
+            "that is not flat)"
+        )
     b = d.bootstrap
     if b:
         lines.append(
@@ -50,9 +59,18 @@ def format_diagnosis(d) -> str:
         ci = acc.get("gain_percent_ci95")
         h = acc["holdout_rms_mm"]
         cand = d.proposed.effect if d.proposed else "no extension"
+        kinds = acc.get("holdout_by_kind", {})
+        if kinds:  # a camera session: each kind of capture at its own noise
+            h = "; ".join(
+                f"{k} {v['geometric']:.3f} mm, with {cand} {v['extended']:.3f} mm"
+                for k, v in kinds.items()
+                if v["geometric"] is not None
+            )
+            h += "; decided in units of each capture's noise"
+        else:
+            h = f"geometric {h['geometric']:.3f} mm, with {cand} {h['extended']:.3f} mm"
         lines.append(
-            f"held-out ({acc['folds']} folds {acc['grouping']}): geometric {h['geometric']:.3f} mm, "
-            f"with {cand} {h['extended']:.3f} mm; gain per fold "
+            f"held-out ({acc['folds']} folds {acc['grouping']}): {h}; gain per fold "
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
             + f"  (torques: {d.torque_source})"
         )
@@ -145,6 +163,32 @@ def noise_by_kind_line(k: dict) -> str:
     )
 
 
+def fit_by_kind_text(fit: dict, noise: dict) -> str:
+    """A camera session's fit residuals per kind of capture: '42 measured, fit residual RMS 0.072 mm; 3
+    aimed, fit residual RMS 7.316 mm (their aim's error)'."""
+    m, a = fit["measured"], fit["aimed"]
+    text = f"{noise['measured']} measured, fit residual RMS {m['rms_mm']:.3f} mm"
+    if noise["aimed"]:
+        rms = "-" if a["rms_mm"] is None else f"{a['rms_mm']:.3f} mm"
+        text += f"; {noise['aimed']} aimed, fit residual RMS {rms} (their aim's error, not the model's)"
+    return text
+
+
+def _not_counted(rep: dict, det: dict) -> str:
+    """What the data/prior count leaves out of the parameters, e.g. ' of 30 (not counted: the beam's start
+    along itself, held by the aperture's height; the sheet's print scale and tilt, 4, on its line)'."""
+    counted = det["data"] + det["data_and_prior"] + det["prior"]
+    left = rep["identifiability"]["parameters"] - counted
+    if left <= 0:
+        return ""
+    what = []
+    if rep.get("measurement") not in ("point", "position"):
+        what.append("the beam's start along itself, held by the aperture's height")
+    if rep.get("sheet"):
+        what.append("the sheet's print scale and tilt, 4, on its line below")
+    return f" of {counted} ({left} not counted: {'; '.join(what) or 'held by convention'})"
+
+
 def format_solve(rep: dict) -> str:
     """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
     lines = []
@@ -155,13 +199,15 @@ def format_solve(rep: dict) -> str:
         f"{rep['iterations']} iterations, {rep['seconds']:.3f} s\n"
     )
     noise = "measurement" if rep.get("measurement") == "position" else "aiming"  # a tracker aims nothing
-    w(
-        f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, {noise} noise estimate "
-        f"{rep['sigma_mm']:.3f} mm per axis\n"
-    )
     kinds = rep.get("noise_by_kind")
-    if kinds:  # a camera session: each kind of capture with its own noise
+    if kinds:  # a camera session: each kind of capture with its own figures
+        w(f"captures {rep['captures']}: {fit_by_kind_text(rep['fit_by_kind'], kinds)}\n")
         w(noise_by_kind_line(kinds) + "\n")
+    else:
+        w(
+            f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, {noise} noise "
+            f"estimate {rep['sigma_mm']:.3f} mm per axis\n"
+        )
     w(
         f"{identifiable_text(idf['rank'], idf['parameters'], idf.get('possible'))}, condition number "
         f"{idf['condition']:.3g}\n"
@@ -178,8 +224,9 @@ def format_solve(rep: dict) -> str:
     else:
         w(
             f"determined by the data {det['data']}, by data and prior {det['data_and_prior']}, by the prior "
-            f"{det['prior']} (posterior / prior sigma < {det['thresholds']['data_below']:g}, between, "
-            f"> {det['thresholds']['prior_above']:g}; prior: the robot's tolerances, docs/formats.md)\n"
+            f"{det['prior']}{_not_counted(rep, det)} (posterior / prior sigma < "
+            f"{det['thresholds']['data_below']:g}, between, > {det['thresholds']['prior_above']:g}; prior: "
+            "the robot's tolerances, docs/formats.md)\n"
         )
         for d in det["from_prior"]:
             n = d["directions"]
@@ -232,23 +279,32 @@ def format_solve(rep: dict) -> str:
         _print_points(rep, w)
     cv = rep.get("cross_validation")
     if cv:
+        of = " of the measured captures" if "by_kind" in cv else ""
         w(
-            f"\n{cv['folds']}-fold cross-validated prediction error: RMS {cv['holdout_rms_mm']:.3f} mm, mean "
-            f"{cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS "
+            f"\n{cv['folds']}-fold cross-validated prediction error{of}: RMS {cv['holdout_rms_mm']:.3f} mm, "
+            f"mean {cv['holdout_mean_mm']:.3f}, max {cv['holdout_max_mm']:.3f} (nominal RMS "
             f"{cv['nominal_rms_mm']:.3f})\n"
         )
+        a = cv.get("by_kind", {}).get("aimed")
+        if a and a["captures"]:
+            w(
+                f"  aimed captures ({a['captures']}): held-out RMS {a['rms_mm']:.3f} mm, max "
+                f"{a['max_mm']:.3f} (their aim's error)\n"
+            )
     return "".join(lines)
 
 
 def _print_points(rep: dict, w) -> None:
-    """Per reference point: spot statistics before and after (laser sessions)."""
+    """Per reference point: spot statistics before and after (laser sessions); a camera session's over its
+    measured captures, its aimed ones apart."""
+    kinds = "; before, after: the measured captures; aimed: the aimed ones" if "fit_by_kind" in rep else ""
     w(
         f"\n{'point':8} {'':7} {'n':>4} {'scatter mean':>13} {'scatter std':>12} {'error mean':>11} "
-        f"{'error max':>10}   (mm)\n"
+        f"{'error max':>10}   (mm{kinds})\n"
     )
     for nm, d in rep["points"].items():
-        for lab in ("before", "after"):
-            s = d[lab]
+        for lab in ("before", "after", "aimed"):
+            s = d.get(lab)
             if s:
                 w(
                     f"{nm:8} {lab:7} {s['n']:4d} {s['scatter_mean']:13.3f} {s['scatter_std']:12.3f} "

@@ -58,6 +58,13 @@ class OpenCVCamera:
             raise DeviceError(f"camera {self.device!r}: no frame")
         return img
 
+    def frame(self) -> np.ndarray:
+        """One frame as it comes, no buffered frame dropped (the live view's), (h, w, 3) BGR uint8."""
+        ok, img = self._cap.read()
+        if not ok:
+            raise DeviceError(f"camera {self.device!r}: no frame")
+        return img
+
     def get(self, prop) -> float:
         """An OpenCV property's value (``cv2.CAP_PROP_*``; 0 when the device has none)."""
         return float(self._cap.get(prop))

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import datetime
 import sys
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -27,6 +28,8 @@ from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
+from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
 from lasercal.solver.formats.captures import AIM_XY
@@ -57,6 +60,7 @@ class CaptureOptions:
         ``max_step``) and the operator only refines the aim by hand
     yes : bool, the moves are confirmed in advance (``--yes``); otherwise typed ``yes`` on a terminal
     max_step : float, largest joint change of one commanded move, rad
+    photos : PhotoPolicy, which of a camera session's photos are written, and how
     """
 
     per_point: int
@@ -73,6 +77,7 @@ class CaptureOptions:
     move: bool = False
     yes: bool = False
     max_step: float = MAX_STEP
+    photos: PhotoPolicy = ALL_PNG
 
 
 @dataclass(frozen=True)
@@ -88,6 +93,8 @@ class Check:
     similar_to : int or None, 1-based number (at this point) of the most similar earlier capture
     distance : float, its joint-space distance, rad
     vary : tuple of int, 1-based joints whose spread over this point's captures is smallest
+    aim : (2,) array or None, the spot the coach planned off the point (layout frame, mm): ``offset`` is
+        then measured from it, not from the point
     """
 
     point: str
@@ -97,6 +104,14 @@ class Check:
     similar_to: int | None
     distance: float
     vary: tuple
+    aim: np.ndarray | None = None
+
+    @property
+    def target(self) -> str:
+        """What ``offset`` is measured from, in words: the point, or the aim the coach planned."""
+        if self.aim is None:
+            return self.point
+        return f"the aim ({self.aim[0]:.0f}, {self.aim[1]:.0f}) mm on the sheet"
 
 
 @dataclass(frozen=True)
@@ -110,7 +125,13 @@ class CaptureResult:
 
 
 def check_capture(
-    nominal: RobotModel, points: dict, name: str, q: np.ndarray, earlier: np.ndarray, opts: CaptureOptions
+    nominal: RobotModel,
+    points: dict,
+    name: str,
+    q: np.ndarray,
+    earlier: np.ndarray,
+    opts: CaptureOptions,
+    aim: tuple | None = None,
 ) -> Check:
     """The nominal-model check and the pose-diversity hint of a new capture.
 
@@ -122,26 +143,36 @@ def check_capture(
     q : (n,) array, the captured configuration, rad
     earlier : (k, n) array, earlier captures at this point, rad
     opts : CaptureOptions
+    aim : ((2,) array, (3,) array) or None, the spot the coach planned in the point's cell (layout frame,
+        base frame; mm): the beam is checked against it (``--aim anywhere``), not against the point
     """
-    p = points[name]
+    p = points[name] if aim is None else aim[1]
     spot, length = predict_spots(nominal, q[None], p[2])
+    mark = None if aim is None else np.asarray(aim[0], dtype=float)
     if length[0] <= 0:
         return Check(
-            name, np.full(2, np.nan), "", "the nominal beam points away from the table", None, np.nan, ()
+            name,
+            np.full(2, np.nan),
+            "",
+            "the nominal beam points away from the table",
+            None,
+            np.nan,
+            (),
+            mark,
         )
     offset = spot[0, :2] - p[:2]
-    names = list(points)
-    nearest = names[int(np.argmin([np.linalg.norm(spot[0, :2] - points[k][:2]) for k in names]))]
+    others = {**points, name: p}
+    nearest = min(others, key=lambda k: np.linalg.norm(spot[0, :2] - others[k][:2]))
     flag = ""
+    where = name if aim is None else "the aim"
     # within check_mm of its point the spot is the nominal model's error, even nearer another point (crosses
     # on a printed sheet lie 40-50 mm apart); beyond it, the nearer point names the likely mistake
     if np.linalg.norm(offset) > opts.check_mm and nearest != name:
-        flag = f"the beam lands nearest to {nearest}, not {name}: aimed at the wrong point?"
+        flag = f"the beam lands nearest to {nearest}, not {where}: aimed at the wrong point?"
     elif np.linalg.norm(offset) > opts.check_mm:
         flag = (
-            f"{np.linalg.norm(offset):.0f} mm from {name} by the nominal model (more than {opts.check_mm:g} "
-            "mm): "
-            "aimed at the wrong place, or the arm moved?"
+            f"{np.linalg.norm(offset):.0f} mm from {where} by the nominal model (more than "
+            f"{opts.check_mm:g} mm): aimed at the wrong place, or the arm moved?"
         )
     similar_to, distance, vary = None, np.nan, ()
     if len(earlier):
@@ -152,11 +183,11 @@ def check_capture(
             similar_to = k + 1
             spread = np.vstack([earlier, q]).std(axis=0) / np.ptp(nominal.limits, axis=1)
             vary = tuple(int(j) + 1 for j in np.argsort(spread)[:2])
-    return Check(name, offset, nearest, flag, similar_to, distance, vary)
+    return Check(name, offset, nearest, flag, similar_to, distance, vary, mark)
 
 
 def wait_still(
-    robot: RobotAdapter, threshold: float, hold: float, timeout: float, poll: float
+    robot: RobotAdapter, threshold: float, hold: float, timeout: float, poll: float, tick=None
 ) -> tuple[JointState | None, float]:
     """Poll the arm until every joint has been slower than ``threshold`` (rad/s) for ``hold`` s.
 
@@ -167,6 +198,8 @@ def wait_still(
     hold : float, s
     timeout : float, give up after this long, s
     poll : float, interval between reads, s
+    tick : callable(peak, held) or None, told after every read: the largest joint speed (rad/s) and how long
+        the arm has been still (s), for a countdown
 
     Returns
     -------
@@ -185,6 +218,8 @@ def wait_still(
                 return s, peak
         else:
             since = None
+        if tick is not None:
+            tick(peak, 0.0 if since is None else s.t - since)
         if s.t - start > timeout:
             return None, peak
         clock.sleep(poll)
@@ -210,8 +245,8 @@ def _report(check: Check, number: int, t: float, peak: float, length: float | No
     if np.all(np.isfinite(check.offset)):
         dx, dy = check.offset
         lines.append(
-            f"  nominal model: the beam lands {np.hypot(dx, dy):.1f} mm from {check.point} (dx {dx:+.1f}, dy "
-            f"{dy:+.1f} mm)"
+            f"  nominal model: the beam lands {np.hypot(dx, dy):.1f} mm from {check.target} (dx {dx:+.1f}, "
+            f"dy {dy:+.1f} mm)"
         )
     if check.flag:
         lines.append(f"  ! {check.flag} -- discard it?")
@@ -331,6 +366,8 @@ def new_session(
         }
         if world is not None and world.effects:
             extra["simulated"]["world"] = world.as_dict()
+    if cfg["backend"] == "mujoco":  # the report says simulated; the world file is named, never read for a fit
+        extra["simulated"] = {"world": cfg["world"], "aim_noise_mm": cfg["aim_noise"], "seed": cfg["seed"]}
     if camera is not None and cfg.get("aim") != "anywhere":  # beside each cross: a spot on ink is biased
         from lasercal.collector.sessions.spotcam import BESIDE_MM
 
@@ -340,15 +377,47 @@ def new_session(
     )
 
 
+@dataclass(frozen=True)
+class Seen:
+    """What the camera made of a capture (:func:`spot_cells`).
+
+    Attributes
+    ----------
+    cells : dict, the row's :data:`SPOT_COLUMNS` (``photo`` empty when the photo was not kept)
+    said : str, the line(s) said at once; without a final newline when the spot was not measured (the
+        caller says what becomes of the capture)
+    nbytes : int, the photo's size as encoded for its file, bytes (0 with ``--photos none``)
+    img : (h, w, 3) uint8 array, the photo
+    """
+
+    cells: dict
+    said: str
+    nbytes: int
+    img: np.ndarray
+
+    @property
+    def measured(self) -> bool:
+        return "camera_x" in self.cells
+
+
 def spot_cells(
-    folder: Path, camera, measure, t: float, point: np.ndarray, meta: dict, img=None
-) -> tuple[dict, str]:
-    """Photograph a capture, keep the photo and measure its spot: the row's :data:`SPOT_COLUMNS` and the
-    line(s) said at once.
+    folder: Path,
+    camera,
+    measure,
+    t: float,
+    point: np.ndarray,
+    meta: dict,
+    img=None,
+    policy: PhotoPolicy = ALL_PNG,
+    first: bool = True,
+) -> Seen:
+    """Photograph a capture, measure its spot and keep the photo as ``policy`` says: the row's
+    :data:`SPOT_COLUMNS` and the line(s) said at once.
 
     A spot that cannot be measured (hidden by the arm, outside the view, unreadable, two candidates)
-    leaves ``camera_x``..``camera_sy`` empty and its reason in ``camera_note``; the line said then has no
-    newline: the caller says what becomes of the capture.
+    leaves ``camera_x``..``camera_sy`` empty and its reason in ``camera_note``. The spot is measured from
+    the photo in memory: a photo not kept (:class:`~collector.sessions.photos.PhotoPolicy`) loses nothing
+    of the measurement.
 
     Parameters
     ----------
@@ -358,32 +427,40 @@ def spot_cells(
     point : (3,) array, where the spot was aimed, base frame at the placement (the message's distance), mm
     meta : dict, session.yaml (a sheet's placement maps the measured spot to the base frame)
     img : (h, w, 3) array or None, the photo if already taken (None: taken here)
+    policy : PhotoPolicy, which photos are written and how
+    first : bool, the first capture at its point (``--photos first`` keeps it)
     """
-    import cv2
-
     from lasercal.collector.sessions.store import write_atomic_bytes
     from lasercal.vision.errors import VisionError
 
     img = camera.photo() if img is None else img
-    name = f"photos/capture_{int(round(t * 1000)):09d}.png"
-    ok, png = cv2.imencode(".png", img)
-    if not ok:
-        raise DeviceError(f"cannot encode photo {name}")
-    (folder / "photos").mkdir(exist_ok=True)
-    write_atomic_bytes(folder / name, png.tobytes())  # before the row: a row never names a missing photo
+    name = f"photos/capture_{int(round(t * 1000)):09d}.{policy.fmt}"
     try:
         m = measure(img, name)
     except VisionError as e:
         why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
-        return {"photo": name, "camera_note": why}, f"  ! camera: the spot could not be measured ({why})"
-    cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
-    cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
-    layout = session_layout(meta, folder)
-    said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
-    if layout.frame != "sheet" or layout.sheet is not None:  # where the placement puts it: the cross's frame
-        where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
-        said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the aim"
-    return cells, said + "\n"
+        cells, said = (
+            {"photo": name, "camera_note": why},
+            f"  ! camera: the spot could not be measured ({why})",
+        )
+    else:
+        cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
+        cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
+        layout = session_layout(meta, folder)
+        said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
+        if (
+            layout.frame != "sheet" or layout.sheet is not None
+        ):  # where the placement puts it: the cross's frame
+            where = layout.sheet.to_base(m.xy[None], layout.plane_z)[0] if layout.frame == "sheet" else m.xy
+            said += f", {np.hypot(*(np.asarray(where)[:2] - point[:2])):.1f} mm from the aim"
+        said += "\n"
+    data = b"" if policy.keep == "none" else policy.encode(img, name)
+    if policy.kept(first, "camera_x" in cells):
+        (folder / "photos").mkdir(exist_ok=True)
+        write_atomic_bytes(folder / name, data)  # before the row: a row never names a missing photo
+    else:
+        cells["photo"] = ""
+    return Seen(cells, said, len(data), img)
 
 
 def aimed_layout(layout: Layout, offset) -> Layout:
@@ -416,6 +493,9 @@ def session_coach(
     return Coach(model, layout, cfg["seed"], tol, sheet=sheet is not None, anywhere=anywhere, pose=sheet)
 
 
+AIM_TOL_MM = 5.0  # the live view's circle around a hand-aimed target: a few mm is fine (a rough aim's 3 mm)
+
+
 def run_capture(
     store: CaptureStore,
     robot: RobotAdapter,
@@ -429,6 +509,7 @@ def run_capture(
     confirm_moves: bool = True,
     camera=None,
     measure=None,
+    state: SessionState | None = None,
 ) -> CaptureResult:
     """Run (or continue) a capture session until every requested point has its captures.
 
@@ -439,7 +520,7 @@ def run_capture(
     trigger : Trigger
     nominal : RobotModel, the model the session names (for the on-screen check)
     opts : CaptureOptions
-    out : text stream, the operator's screen
+    out : text stream, the operator's screen (None: only ``state``'s listeners see the lines)
     rangefinder : object with ``measure() -> mm`` or None
     resume_hint : str, the command that resumes this session (said when it stops early)
     coach : lasercal.solver.analysis.design.Coach or None: before the first capture and after every
@@ -450,6 +531,8 @@ def run_capture(
     camera : a camera (``photo()``) or None: after standstill each capture is photographed, the photo kept
         (photos/, written atomically before its row) and the spot measured (:func:`spot_cells`)
     measure : callable(img, name) -> spotcam.SpotMeasure, raising VisionError when it cannot
+    state : SessionState or None, what the session is doing, for the terminal and the live view (None: a
+        new one that writes to ``out``)
 
     A Ctrl-C or a lost link stops the arm (:meth:`RobotAdapter.stop`); every capture taken is on
     disk (appended durably one by one) and ``resume_hint`` continues the session.
@@ -465,213 +548,444 @@ def run_capture(
     MotionRefused
         ``opts.move`` and the moves were not confirmed: the arm did not move.
     """
-    meta = store.meta
-    # base frame: a sheet's points where its stated placement puts them (the check, the coach, the prompt),
-    # beside the crosses where a camera session aims
-    points = aimed_layout(session_layout(meta, store.path), meta.get("aim_offset")).in_base().points
-    requested = list(meta["requested"])
-    counts = store.counts(requested)
-    w = out.write
-    captured = discarded = 0
-    confirmed = [not confirm_moves]
+    state = SessionState("capture", out) if state is None else state
+    run = CaptureRun(
+        store, robot, trigger, nominal, opts, state, rangefinder, resume_hint, coach, camera, measure
+    )
+    run.confirmed = not confirm_moves
+    return run.run()
 
-    def saved() -> str:
-        k = len(store.point)
-        safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {store.path}"
-        return safe + (f"; resume with: {resume_hint}" if resume_hint else "")
 
-    layout = session_layout(meta, store.path)
-    beside = np.r_[np.asarray(meta.get("aim_offset") or (0.0, 0.0), dtype=float), 0.0]
-    # --aim anywhere: the coach plans each spot in its point's cell; the operator aims there (aim_x, aim_y)
-    anywhere = meta.get("collector", {}).get("aim") == "anywhere"
+class CaptureRun:
+    """A capture session as a state machine: each step is a method that does one thing, writes what the
+    operator should know into :class:`SessionState` and returns the next step (None: the session ended).
 
-    def spots_in_base(targets) -> np.ndarray:
+    ``next_capture`` (the point, the coach's aim, the move there) -> ``trigger`` (the operator's command;
+    hands-free: none) -> ``settle`` (standstill) -> ``record`` (photo, spot, check, the row) -> ``coached``
+    (the coach's refit, the stop rule) -> ``next_capture`` ... -> ``complete`` or ``stopped``.
+    Parameters as :func:`run_capture`'s.
+    """
+
+    def __init__(
+        self, store, robot, trigger, nominal, opts, state, rangefinder, hint, coach, camera, measure
+    ):
+        self.store, self.robot, self.trigger, self.nominal, self.opts = store, robot, trigger, nominal, opts
+        self.state, self.rangefinder, self.hint, self.coach = state, rangefinder, hint, coach
+        self.camera, self.measure = camera, measure
+        meta = store.meta
+        self.meta = meta
+        self.layout = session_layout(meta, store.path)
+        # base frame: a sheet's points where its stated placement puts them (the check, the coach, the
+        # prompt), beside the crosses where a camera session aims
+        self.points = aimed_layout(self.layout, meta.get("aim_offset")).in_base().points
+        self.beside = np.r_[np.asarray(meta.get("aim_offset") or (0.0, 0.0), dtype=float), 0.0]
+        # --aim anywhere: the coach plans each spot in its point's cell; the operator aims there (aim_x,
+        # aim_y)
+        self.anywhere = meta.get("collector", {}).get("aim") == "anywhere"
+        self.requested = list(meta["requested"])
+        self.counts = store.counts(self.requested)
+        self.captured = self.discarded = 0
+        self.confirmed = False
+        # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the
+        # camera measures each; a pose whose spot it cannot measure is guided by hand once (then aimed)
+        self.hands_free = opts.move and camera is not None
+        self.settled = False  # the camera's exposure, set on the first photo (sessions.exposure)
+        self.by_hand = False
+        self.status = None  # the coach's last status
+        self.name, self.aim, self.cmd = "", None, ""  # the capture under way: its point, the coach's aim
+        self.t_shift = 0.0
+
+    # ------------------------------------------------------------------ what the terminal and page show
+    def say(self, text: str) -> None:
+        self.state.say(text)
+
+    def saved(self) -> str:
+        k = len(self.store.point)
+        safe = f"{k} capture{'' if k == 1 else 's'} {'is' if k == 1 else 'are'} safe in {self.store.path}"
+        return safe + (f"; resume with: {self.hint}" if self.hint else "")
+
+    def show_progress(self) -> None:
+        per = self.opts.per_point
+        self.state.update(progress=[{"name": k, "done": v, "want": per} for k, v in self.counts.items()])
+
+    def todo(self) -> list[str]:
+        return [nm for nm in self.requested if self.counts[nm] < self.opts.per_point]
+
+    # ------------------------------------------------------------------ the coach
+    def spots_in_base(self, targets) -> np.ndarray:
         """Where the captures' spots were (layout frame, a measured spot or the aim), in the base frame at
         the sheet's placement: the coach fits the camera's measurements, as solve will."""
         t = np.array(targets, dtype=float).reshape(-1, 3)
-        return layout.sheet.to_base(t[:, :2], layout.plane_z) if layout.frame == "sheet" else t
+        lay = self.layout
+        return lay.sheet.to_base(t[:, :2], lay.plane_z) if lay.frame == "sheet" else t
 
-    def coach_data(k: int) -> tuple[np.ndarray, np.ndarray]:
+    def coach_data(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The first k captures the coach fits, (k, n) rad and (k, 3) mm base frame. In a camera session a
         capture the camera could not measure enters as spent: its spot where the coach's fit predicts it
         (an aimed spot's residual, at the aiming noise, would be taken for the camera's noise; left out,
         the coach would ask for the same hidden pose again)."""
-        q = np.asarray(store.q[:k], dtype=float).reshape(-1, nominal.n)
-        spots = spots_in_base(store.target[:k])
+        store = self.store
+        q = np.asarray(store.q[:k], dtype=float).reshape(-1, self.nominal.n)
+        spots = self.spots_in_base(store.target[:k])
         spent = ~np.array(store.measured[:k], bool)
-        if camera is not None and spent.any():
-            spots[spent] = predict_spots(coach.post.model, q[spent], spots[spent, 2])[0]
+        if self.camera is not None and spent.any():
+            spots[spent] = predict_spots(self.coach.post.model, q[spent], spots[spent, 2])[0]
         return q, spots
 
-    def coach_status():
-        """Refit the coach on every capture so far and print its status block (the prior's with none)."""
-        todo = [nm for nm in requested if counts[nm] < opts.per_point]
-        q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), nominal.n)
-        q_fit, spots = coach_data(len(q_all))
+    def coach_status(self):
+        """Refit the coach on every capture so far and say its status block (the prior's with none)."""
+        store, coach = self.store, self.coach
+        todo = self.todo()
+        q_all = np.asarray(store.q, dtype=float).reshape(len(store.point), self.nominal.n)
+        q_fit, spots = self.coach_data(len(q_all))
         if len(q_fit):
             coach.update(q_fit, spots)
-        aimed = np.array([points[p] for p in store.point]).reshape(-1, 3)  # no suggestion where one was taken
+        aimed = np.array([self.points[p] for p in store.point]).reshape(-1, 3)  # no suggestion where taken
         st = coach.status(q_fit, allowed=todo or None, target=aimed)
-        current = q_all[-1] if len(q_all) else robot.read().q
-        w("\n".join(coach_lines(st, counts, current, coach.stop_gain, done=not todo)) + "\n")
+        current = q_all[-1] if len(q_all) else self.robot.read().q
+        lines = coach_lines(st, self.counts, current, coach.stop_gain, done=not todo)
+        self.say("\n".join(lines) + "\n")
+        self.state.update(
+            coach={
+                "predicted_mm": float(st.predicted),
+                "uncertainty_mm": float(st.uncertainty),
+                "region": str(st.region),
+                "stop": bool(st.stop),
+                "captures": int(st.captures),
+                "lines": [ln.strip() for ln in lines],
+            }
+        )
         return st
 
-    def move_to(q: np.ndarray) -> None:
-        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move."""
-        plan = plan_moves(robot.read().q, q[None], nominal, opts.max_step)
-        w(preview(plan))
-        if not confirmed[0]:
-            confirm(plan, opts.yes, out=out)
-            confirmed[0] = True
-        for step in plan.steps:
-            robot.move_to(step)
-        w(
-            "  at the suggested pose: the camera measures where the beam lands\n"
-            if hands_free and not by_hand
-            else "  at the suggested pose: refine the aim by hand, then trigger\n"
-        )
+    # ------------------------------------------------------------------ the steps
+    def run(self) -> CaptureResult:
+        robot = self.robot
+        step = self.start
+        try:
+            while step is not None:
+                step = step()
+        except KeyboardInterrupt:
+            robot.stop()
+            moved = "the arm was stopped; " if self.opts.move else ""  # a hand-guided arm is the operator's
+            self.say(f"\ninterrupted: {moved}{self.saved()}\n")
+            self.state.end(f"interrupted: {self.saved()}", "stopped")
+            raise
+        except MotionRefused as e:
+            self.state.end(f"the moves were not confirmed: {self.saved()}", "stopped")
+            raise MotionRefused(f"{e}; {self.saved()}") from None
+        except RobotConnectionError as e:
+            robot.stop()
+            self.state.end(f"the robot stopped answering: {self.saved()}", "stopped")
+            raise RobotConnectionError(f"{e}; {self.saved()}") from None
+        except DeviceError as e:
+            self.state.end(f"a device failed: {self.saved()}", "stopped")
+            raise DeviceError(f"{e}; {self.saved()}") from None
+        finally:
+            robot.close()
+        return self.result
 
-    # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the camera
-    # measures each; a pose whose spot it cannot measure is guided by hand once (then kept as aimed)
-    hands_free = opts.move and camera is not None
-    settled = False  # the camera's exposure, set on the first photo (sessions.exposure)
-    by_hand = False
-    try:
+    def start(self):
+        robot, store = self.robot, self.store
+        self.state.phase("setup", "connecting to the robot")
+        self.show_progress()
+        if store.point:  # a resumed session: a simulated arm goes back to where its last capture was
+            robot.resume_at(store.q[-1], store.t[-1])
         robot.connect()
-        if robot.guidance and not hands_free:
-            w(f"{robot.name}: {robot.guidance}\n")
-        t_run = robot.clock.now()
-        t_offset = max(store.t, default=0.0)  # the session's t keeps increasing across resumes
-        status = None
-        if coach is not None:
+        if robot.guidance and not self.hands_free:
+            self.say(f"{robot.name}: {robot.guidance}\n")
+        if self.camera is not None:
+            pol = self.opts.photos
+            self.say(
+                f"camera: each capture is photographed and its spot measured at once (captures.csv); photos "
+                f"kept: {pol.keep}, {pol.fmt.upper()} ({pol.choices()})\n"
+            )
+        # the session's t keeps increasing across resumes; a simulated clock that continues the session's
+        # time shifts it by exactly 0, so a resumed session's t is the unbroken one's to the bit
+        self.t_shift = max(store.t, default=0.0) - robot.clock.now()
+        if self.coach is not None:
+            self.state.phase("setup", "the coach fits the captures so far")
             # a resumed session: the coach goes through the fits (each warm-started from the one before)
             # that the uninterrupted session made, so its suggestions are the same to the last bit
             for k in range(1, len(store.q)):
-                q_fit, spots = coach_data(k)
+                q_fit, spots = self.coach_data(k)
                 if len(q_fit):
-                    coach.update(q_fit, spots)
-            status = coach_status()
-        while True:
-            todo = [nm for nm in requested if counts[nm] < opts.per_point]
-            if not todo:
-                break
-            name = todo[0]
-            aim = None  # the spot the coach planned off the point: layout frame (2,), base frame (3,), mm
-            if status is not None and status.plan.point[0] in todo:
-                name = str(status.plan.point[0])
-                if anywhere:
-                    base = status.plan.target[0]
-                    aim = (layout.sheet.from_base(base[None])[0], base)
-                if opts.move and not by_hand:
-                    move_to(status.suggestion)
-                robot.suggest_pose(status.suggestion)
-            x, y, z = points[name]
-            w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
-            if hands_free and not by_hand:
-                w(f"at {name}: capture {counts[name] + 1} of {opts.per_point}, hands-free  [Ctrl-C stops]\n")
-                cmd = "capture"
+                    self.coach.update(q_fit, spots)
+            self.status = self.coach_status()
+        return self.next_capture
+
+    def next_capture(self):
+        """The point (and with the coach, the pose and the aim) of the next capture; the move there."""
+        page = self.state.take()  # the page's stop or discard, taken before anything moves
+        if page is not None:
+            self.cmd = "quit" if page == "stop" else page
+            return self.command
+        todo = self.todo()
+        if not todo:
+            return self.complete
+        st, opts, lay = self.status, self.opts, self.layout
+        self.name, self.aim = todo[0], None  # aim: the spot planned off the point: layout (2,), base (3,) mm
+        if st is not None and st.plan.point[0] in todo:
+            self.name = str(st.plan.point[0])
+            if self.anywhere:
+                base = st.plan.target[0]
+                self.aim = (lay.sheet.from_base(base[None])[0], base)
+            self.show_target()
+            if opts.move and not self.by_hand:
+                if not self.move_to(st.suggestion):
+                    return self.command
+            self.robot.suggest_pose(st.suggestion)
+        self.show_target()
+        self.say("\n" + "\n".join(progress_lines(self.counts, opts.per_point)) + "\n")
+        self.show_progress()
+        return self.trigger_step
+
+    def show_target(self) -> None:
+        """Where the spot should land, for the page: the aim (anywhere), or the point (beside it)."""
+        lay, name = self.layout, self.name
+        if self.aim is not None:
+            xy, words = self.aim[0], f"the aim ({self.aim[0][0]:.0f}, {self.aim[0][1]:.0f}) mm"
+        else:
+            xy, words = (lay.points[name] + self.beside)[:2], name
+        self.state.update(target={"xy": [float(v) for v in xy], "tol_mm": AIM_TOL_MM, "label": words})
+
+    def move_to(self, q: np.ndarray) -> bool:
+        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move. False
+        when the page asked to stop (or discard) between two steps: the arm stays where it is."""
+        robot, opts = self.robot, self.opts
+        plan = plan_moves(robot.read().q, q[None], self.nominal, opts.max_step)
+        self.say(preview(plan))
+        if not self.confirmed:
+            self.state.phase("confirm", "confirm the moves in the terminal: the page cannot", ("stop",))
+            confirm(plan, opts.yes, out=StateStream(self.state))
+            self.confirmed = True
+        for k, step in enumerate(plan.steps):
+            self.state.phase(
+                "moving", f"moving to the suggested pose: step {k + 1} of {len(plan.steps)}", ACTIONS[2:]
+            )
+            page = self.state.take()
+            if page is not None:
+                self.cmd = "quit" if page == "stop" else page
+                return False
+            robot.move_to(step)
+        self.say(
+            "  at the suggested pose: the camera measures where the beam lands\n"
+            if self.hands_free and not self.by_hand
+            else "  at the suggested pose: refine the aim by hand, then trigger\n"
+        )
+        return True
+
+    def trigger_step(self):
+        """The operator's command (hands-free: none, the camera measures at once)."""
+        name, opts, counts, aim = self.name, self.opts, self.counts, self.aim
+        x, y, z = self.points[name]
+        if self.hands_free and not self.by_hand:
+            self.say(
+                f"at {name}: capture {counts[name] + 1} of {opts.per_point}, hands-free  [Ctrl-C stops]\n"
+            )
+            self.cmd = "capture"
+            return self.settle
+        if aim is None:
+            self.robot.prompt_point(name, self.points[name], counts[name])
+            where = f"{name} ({x:.1f}, {y:.1f}, {z:.1f}) mm"
+        else:
+            self.robot.prompt_point(name, aim[1], counts[name], spot=aim[0])
+            (sx, sy), (dx, dy) = aim[0], aim[0] - self.layout.points[name][:2]
+            where = f"({sx:.0f}, {sy:.0f}) mm on the sheet ({dx:+.0f}, {dy:+.0f} mm off {name})"
+        line = f"aim at {where}: capture {counts[name] + 1} of {opts.per_point}"
+        self.state.phase("aiming", line, ACTIONS)
+        self.say(f"{line}   [{self.trigger.hint}]\n")
+        self.cmd = self.trigger.wait()
+        return self.command
+
+    def command(self):
+        """A quit or discard from the trigger (or the page); a capture goes on to standstill."""
+        if self.cmd == "quit":
+            self.say(f"stopped: {self.saved()}\n")
+            self.state.end(f"stopped: {self.saved()}", "stopped")
+            self.result = CaptureResult(False, self.counts, self.captured, self.discarded)
+            return None
+        if self.cmd == "discard":
+            gone = self.store.discard_last()
+            if gone is None:
+                self.say("nothing to discard\n")
             else:
-                if aim is None:
-                    robot.prompt_point(name, points[name], counts[name])
-                    where = f"{name} ({x:.1f}, {y:.1f}, {z:.1f}) mm"
-                else:
-                    robot.prompt_point(name, aim[1], counts[name], spot=aim[0])
-                    (sx, sy), (dx, dy) = aim[0], aim[0] - layout.points[name][:2]
-                    where = f"({sx:.0f}, {sy:.0f}) mm on the sheet ({dx:+.0f}, {dy:+.0f} mm off {name})"
-                w(f"aim at {where}: capture {counts[name] + 1} of {opts.per_point}   [{trigger.hint}]\n")
-                cmd = trigger.wait()
-            if cmd == "quit":
-                w(f"stopped: {saved()}\n")
-                return CaptureResult(False, counts, captured, discarded)
-            if cmd == "discard":
-                gone = store.discard_last()
-                if gone is None:
-                    w("nothing to discard\n")
-                else:
-                    if gone in counts:  # a row at a point no longer requested counts nowhere
-                        counts[gone] -= 1
-                    discarded += 1
-                    w(f"discarded the last capture at {gone}\n")
-                continue
-            state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
-            if state is None:
-                w(
-                    f"the arm did not come to rest within {opts.still_timeout:g} s (max |dq| {peak:.4f} "
-                    "rad/s): not captured\n"
+                if gone in self.counts:  # a row at a point no longer requested counts nowhere
+                    self.counts[gone] -= 1
+                self.discarded += 1
+                self.say(f"discarded the last capture at {gone}\n")
+                self.show_progress()
+            return self.next_capture
+        return self.settle
+
+    def settle(self):
+        opts = self.opts
+        self.state.phase("settling", "hold still: the arm must be still before the photo", ACTIONS[2:])
+        shown = [0.0]
+
+        def countdown(peak: float, held: float) -> None:
+            now = time.monotonic()
+            if now - shown[0] > 0.1:  # at most ten updates a second: a simulated clock polls far faster
+                shown[0] = now
+                left = max(opts.hold - held, 0.0)
+                self.state.update(
+                    standstill={
+                        "left_s": left,
+                        "max_dq": peak,
+                        "threshold": opts.speed_threshold,
+                        "hold_s": opts.hold,
+                    }
                 )
-                continue
-            length = rangefinder.measure() if rangefinder is not None else None
-            earlier = np.array([q for p, q in zip(store.point, store.q) if p == name]).reshape(
-                -1, len(state.q)
+
+        self.still, peak = wait_still(
+            self.robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll, countdown
+        )
+        self.state.update(standstill=None)
+        if self.still is None:
+            msg = (
+                f"the arm did not come to rest within {opts.still_timeout:g} s (max |dq| {peak:.4f} "
+                "rad/s): not captured"
             )
-            check = check_capture(
-                nominal, points if aim is None else {**points, name: aim[1]}, name, state.q, earlier, opts
+            self.say(msg + "\n")
+            self.state.problem(msg)
+            return self.next_capture
+        self.peak = peak
+        return self.record
+
+    def record(self):
+        """Photograph and measure the capture, check it with the nominal model, append its row."""
+        store, state, name, aim, opts = self.store, self.still, self.name, self.aim, self.opts
+        camera, counts, lay = self.camera, self.counts, self.layout
+        self.state.update(problem=None)  # what went wrong before: this capture's photo supersedes it
+        length = self.rangefinder.measure() if self.rangefinder is not None else None
+        earlier = np.array([q for p, q in zip(store.point, store.q) if p == name]).reshape(-1, len(state.q))
+        check = check_capture(self.nominal, self.points, name, state.q, earlier, opts, aim)
+        t = state.t + self.t_shift
+        extra = dict(state.extra)
+        if length is not None:
+            extra["laser_length_measured"] = length
+        seen, got = "", None
+        if camera is not None:
+            self.state.phase("photo", "photographing the spot")
+            # the exposure is settled on the session's first photo, with the laser on a point
+            first = None if self.settled else settle_exposure(camera, readable_by(self.measure))
+            self.settled = True
+            aimed_at = self.points[name] if aim is None else aim[1]
+            got = spot_cells(
+                store.folder,
+                camera,
+                self.measure,
+                t,
+                aimed_at,
+                self.meta,
+                first,
+                opts.photos,
+                counts[name] == 0,
             )
-            t = t_offset + (state.t - t_run)
-            extra = dict(state.extra)
-            if length is not None:
-                extra["laser_length_measured"] = length
-            seen = ""
-            if camera is not None:
-                # the exposure is settled on the session's first photo, with the laser on a point
-                first = None if settled else settle_exposure(camera, readable_by(measure))
-                settled = True
-                aimed_at = points[name] if aim is None else aim[1]
-                cells, seen = spot_cells(store.folder, camera, measure, t, aimed_at, meta, first)
-                extra.update(cells)
-                if "camera_x" in cells:
-                    pass  # measured
-                elif hands_free and not by_hand:  # no aim and no measurement: no data
-                    w(f"{seen}: not kept; this pose is guided by hand once: aim beside the cross, trigger\n")
-                    by_hand = True
-                    continue
-                else:
-                    seen += (
-                        ": kept as an aimed capture, fitted to where it was aimed with the aiming noise "
-                        "(d Enter discards it, to retake it)\n"
-                    )
-            by_hand = False
-            spot = layout.points[name] + beside  # where it was aimed, layout frame (a sheet's: z 0)
-            if aim is not None:
-                extra.update(aim_x=aim[0][0], aim_y=aim[0][1])
-                spot = np.r_[aim[0], spot[2]]
-            if "camera_x" in extra:
-                spot = np.r_[extra["camera_x"], extra["camera_y"], spot[2]]
-            if layout.frame == "sheet":
-                spot = np.r_[spot[:2], layout.plane_z]  # as load_session's target: z the plane's height
-            row = {"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, "target": spot}
-            store.append({**row, **extra})
-            counts[name] += 1
-            captured += 1
-            w("\n".join(_report(check, counts[name], t, peak, length)) + "\n" + seen)
-            if check.flag and opts.auto_discard:
-                store.discard_last()
-                counts[name] -= 1
-                discarded += 1
-                w("discarded it (the simulated operator heeds the warning)\n")
-                continue
-            if coach is not None:
-                status = coach_status()
-                if opts.until_mm is not None and status.predicted <= opts.until_mm:
-                    w(
-                        f"predicted error at {status.region} {status.predicted:.2f} mm <= --until "
-                        f"{opts.until_mm:g} mm: session complete\n"
-                    )
-                    w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
-                    return CaptureResult(True, counts, captured, discarded)
-    except KeyboardInterrupt:
-        robot.stop()
-        w(f"\ninterrupted: the arm was stopped; {saved()}\n")
-        raise
-    except MotionRefused as e:
-        raise MotionRefused(f"{e}; {saved()}") from None
-    except RobotConnectionError as e:
-        robot.stop()
-        raise RobotConnectionError(f"{e}; {saved()}") from None
-    except DeviceError as e:
-        raise DeviceError(f"{e}; {saved()}") from None
-    finally:
-        robot.close()
-    w("\n" + "\n".join(progress_lines(counts, opts.per_point)) + "\n")
-    w(f"session complete: {sum(counts.values())} captures in {store.path}\n")
-    return CaptureResult(True, counts, captured, discarded)
+            if first is not None:  # the run's first photo: its size says what the photos will take
+                left = sum(max(opts.per_point - k, 0) for k in counts.values())
+                self.say(estimate_line(opts.photos, got.nbytes, left, len(self.requested)) + "\n")
+            extra.update(got.cells)
+            seen = got.said
+            if got.measured:
+                pass
+            elif self.hands_free and not self.by_hand:  # no aim and no measurement: no data
+                why = got.cells["camera_note"]
+                self.say(
+                    f"{seen}: not kept; this pose is guided by hand once: aim beside the cross, trigger\n"
+                )
+                self.state.problem(
+                    f"the camera could not measure the spot ({why}): guided by hand once", got.img
+                )
+                self.by_hand = True
+                return self.next_capture
+            else:
+                seen += (
+                    ": kept as an aimed capture, fitted to where it was aimed with the aiming noise "
+                    "(d Enter discards it, to retake it)\n"
+                )
+                self.state.problem(
+                    f"the camera could not measure the spot ({got.cells['camera_note']}): kept as an aimed "
+                    "capture",
+                    got.img,
+                )
+        self.by_hand = False
+        spot = lay.points[name] + self.beside  # where it was aimed, layout frame (a sheet's: z 0)
+        if aim is not None:
+            extra.update(aim_x=aim[0][0], aim_y=aim[0][1])
+            spot = np.r_[aim[0], spot[2]]
+        aimed_xy = spot[:2].copy()
+        if "camera_x" in extra:
+            spot = np.r_[extra["camera_x"], extra["camera_y"], spot[2]]
+        if lay.frame == "sheet":
+            spot = np.r_[spot[:2], lay.plane_z]  # as load_session's target: z the plane's height
+        row = {"point": name, "t": t, "q": state.q, "dq": state.dq, "tau": state.tau, "target": spot}
+        store.append({**row, **extra})
+        counts[name] += 1
+        self.captured += 1
+        self.say("\n".join(_report(check, counts[name], t, self.peak, length)) + "\n" + seen)
+        self.show_last(check, got, aimed_xy)
+        self.show_progress()
+        if check.flag and opts.auto_discard:
+            store.discard_last()
+            counts[name] -= 1
+            self.discarded += 1
+            self.say("discarded it (the simulated operator heeds the warning)\n")
+            self.show_progress()
+            return self.next_capture
+        return self.coached
+
+    def show_last(self, check: Check, got, aimed_xy: np.ndarray) -> None:
+        """The last capture, for the page: its measured spot and how far it lies from where it was aimed."""
+        last = {"point": self.name, "number": self.counts[self.name], "measured": False, "flag": check.flag}
+        if np.all(np.isfinite(check.offset)):
+            last["nominal_mm"] = float(np.hypot(*check.offset))
+        if got is not None and got.measured:
+            xy = np.array([got.cells["camera_x"], got.cells["camera_y"]], dtype=float)
+            last.update(
+                measured=True,
+                spot=[float(v) for v in xy],
+                sigma=[float(got.cells["camera_sx"]), float(got.cells["camera_sy"])],
+                from_aim_mm=float(np.hypot(*(xy - aimed_xy))),
+            )
+        phase = "captured" if got is None or got.measured else "problem"
+        self.state.update(last=last)
+        self.state.phase(phase, f"captured {self.name} #{self.counts[self.name]}", ACTIONS[1:])
+
+    def coached(self):
+        if self.coach is None:
+            return self.next_capture
+        self.status = st = self.coach_status()
+        until = self.opts.until_mm
+        if until is not None and st.predicted <= until:
+            self.say(
+                f"predicted error at {st.region} {st.predicted:.2f} mm <= --until {until:g} mm: session "
+                "complete\n"
+            )
+            return self.finish
+        return self.next_capture
+
+    def complete(self):
+        self.say("\n" + "\n".join(progress_lines(self.counts, self.opts.per_point)) + "\n")
+        return self.finish
+
+    def finish(self):
+        total = sum(self.counts.values())
+        self.say(f"session complete: {total} captures in {self.store.path}\n")
+        if self.camera is not None:
+            self.say(written_line(self.store.folder) + "\n")
+        self.state.end(f"session complete: {total} captures in {self.store.path}")
+        self.result = CaptureResult(True, self.counts, self.captured, self.discarded)
+        return None
+
+
+class StateStream:
+    """A text stream that says through a SessionState (what :func:`motion.confirm` prints)."""
+
+    def __init__(self, state: SessionState):
+        self.state = state
+
+    def write(self, text: str) -> None:
+        self.state.say(text)
+
+    def flush(self) -> None:
+        """Nothing buffered."""

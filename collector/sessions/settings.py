@@ -45,6 +45,7 @@ FIXED = (
     "rangefinder",
     "effects",
     "aim",
+    "world",
 )
 SETTINGS = FIXED + (
     "camera",
@@ -58,6 +59,10 @@ SETTINGS = FIXED + (
     "ros_joints",
     "rangefinder_query",
     "aperture_z",
+    "photos",  # which photos are kept and how: no measurement depends on it (sessions.photos)
+    "photo_format",
+    "view",  # --view: a resumed session brings its live view back (on 127.0.0.1 unless told again)
+    "view_port",
 )
 
 
@@ -156,6 +161,8 @@ def capture_settings(
             cfg["effects"] = list(parse_effects(cfg.get("effects"), cfg.get("camera") == "fake"))
         elif cfg.get("effects") is not None:
             raise SessionError("--effects switches the simulated world's effects: it needs --backend fake")
+        if cfg["backend"] == "mujoco" and not cfg.get("world"):
+            raise SessionError("--backend mujoco needs --world SCENE.xml (lasercal mujoco-scene writes one)")
         folder = check_output(output, folder=True, instead=f"resume it with --resume {output}")
         return CaptureSettings(cfg, load_layout(layout), Path(layout), folder, False)
     if output or layout:

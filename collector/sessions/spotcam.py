@@ -22,7 +22,7 @@ from lasercal.collector.hardware import fakeworld, truearm
 from lasercal.collector.hardware.fakeworld import World, camera_pose, hidden
 from lasercal.collector.hardware.truelens import SheetView, SpaceCamera
 from lasercal.collector.hardware.truespot import footprint
-from lasercal.collector.sessions.exposure import FakeExposure
+from lasercal.collector.sessions.exposure import CountedPhotos, FakeExposure
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout
 from lasercal.solver.kinematics.model import RobotModel
@@ -161,7 +161,7 @@ class SheetCamera(FakeExposure):
         """Nothing to release."""
 
 
-class PaperTopCamera(FakeExposure):
+class PaperTopCamera(CountedPhotos):
     """``validate``'s fake camera over a simulated sheet: a known view straight down at a point of the
     paper as it truly lies (800 mm above it, ``size`` px at ``mm_per_px`` there, no lens distortion), the
     true beam's spot on the paper rendered by the world's own code (:func:`truespot.footprint`, the paper's
@@ -189,20 +189,18 @@ class PaperTopCamera(FakeExposure):
         f = 800.0 / mm_per_px
         K = np.array([[f, 0, (size[0] - 1) / 2], [0, f, (size[1] - 1) / 2], [0, 0, 1.0]])
         self.view = SheetView(SpaceCamera(Lens(tuple(size), K), R, t), paper)
-        self._count = 0
 
-    def photo(self) -> np.ndarray:
-        """One photo of the blank paper with the true beam's spot, (h, w, 3) BGR uint8."""
+    def _render(self, seed: int) -> np.ndarray:
+        """A photo of the blank paper with the true beam's spot, (h, w, 3) BGR uint8."""
         from lasercal.vision.render import Photo, render
 
         a, d = self.robot.true_beam()
         uv, _, s = self.paper.hit(a, d)
         w = self.world
         spots = footprint(self.view, self.paper, uv[0], d, w.has("ellipse"), w.has("subsurface"), self.gain)
-        self._count += 1
         spots = spots if s[0] > 0 else ()
         photo = Photo(self.view, (), spots, paper=Photo.paper * self.gain, camera=self.sensor)
-        return render(photo, seed=self.seed + self._count)
+        return render(photo, seed=seed)
 
     def close(self) -> None:
         """Nothing to release."""
@@ -280,6 +278,10 @@ def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_fi
         paper = world.paper(layout.sheet, layout.plane_z)
         cam = SheetCamera(arm, markers, crosses, paper, world, cfg["seed"])
         return cam, lambda img, name: measure_spot(img, name, markers, cam.lens)
+    if spec == "mujoco":  # the MuJoCo world's camera: photos measured as a real camera's are
+        from lasercal.collector.hardware.mujoco import mujoco_camera
+
+        return mujoco_camera(robot), lambda img, name: measure_spot(img, name, markers)
     from lasercal.collector.sessions.cameras import OpenCVCamera
 
     camera = OpenCVCamera(int(spec) if spec.isdigit() else spec)

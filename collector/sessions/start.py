@@ -8,10 +8,11 @@ nothing to clean up; what the session then does is :func:`sessions.capture.run_c
 from __future__ import annotations
 
 import sys
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from lasercal.collector.hardware import make_rangefinder, make_robot
+from lasercal.collector.hardware import SIMULATED, make_rangefinder, make_robot
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.hardware.fakeworld import World, on_table, paper_half_length, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
@@ -19,14 +20,17 @@ from lasercal.collector.sessions.anywhere import session_layout_file
 from lasercal.collector.sessions.capture import (
     CaptureOptions,
     CaptureResult,
+    StateStream,
     aimed_layout,
     new_session,
     run_capture,
     session_coach,
 )
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
+from lasercal.collector.sessions.photos import PhotoPolicy
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
 from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
+from lasercal.collector.sessions.state import EitherTrigger, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.collector.sessions.world import (
     SimulatedWorld,
@@ -100,18 +104,49 @@ class StartedCapture:
     measure: object = None
     spots: dict | None = None
 
-    def run(self, out=sys.stdout) -> CaptureResult:
+    def run(self, out=sys.stdout, view=None) -> CaptureResult:
         """Run the session (:func:`run_capture`) on screen ``out``; close the store and devices after.
 
         Parameters
         ----------
         out : text stream, the operator's screen
+        view : collector.view.ViewOptions or None, serve the live view while the session runs
 
         Returns
         -------
         CaptureResult
         """
+        state = SessionState("capture", out)
+        try:
+            with ExitStack() as stack:
+                try:
+                    camera = stack.enter_context(session_view(state, view, self.camera, self.layout_file()))
+                except BaseException:  # e.g. the view's port taken: a new session, still empty, is undone
+                    self.abandon()
+                    raise
+                return self._run(state, camera, view is not None)
+        finally:
+            self.store.close()
+            if self.camera is not None:
+                self.camera.close()
+            self.trigger.close()
+            if self.rangefinder is not None:
+                self.rangefinder.close()
+
+    def layout_file(self):
+        """The layout file the session's markers are in."""
+        cfg, folder = self.settings.cfg, self.settings.folder
+        return session_layout_file(cfg, folder) if self.settings.resume else self.settings.layout_path
+
+    def abandon(self) -> None:
+        """A new session that could not start, still empty, leaves nothing behind."""
+        self.store.close()
+        if not self.settings.resume and not self.store.point:
+            self.store.remove_empty()
+
+    def _run(self, state, camera, viewed: bool) -> CaptureResult:
         cfg, layout = self.settings.cfg, self.settings.layout
+        state.phase("setup", "the coach designs the session")
         try:
             # Built here, not at start: the coach's design takes a while, after the resume is announced.
             coach = None
@@ -124,33 +159,24 @@ class StartedCapture:
                     anywhere = {k: layout.sheet.to_base(v, layout.plane_z) for k, v in self.spots.items()}
                 coach = session_coach(self.store, self.nominal, aimed, cfg, sheet, anywhere)
         except BaseException:  # e.g. a layout point out of reach: a new session, still empty, is undone
-            self.store.close()
-            if not self.settings.resume and not self.store.point:
-                self.store.remove_empty()
+            self.abandon()
             raise
-        try:
-            real = cfg["backend"] != "fake"
-            return run_capture(
-                self.store,
-                self.robot,
-                self.trigger,
-                self.nominal,
-                self.opts,
-                out,
-                self.rangefinder,
-                self.hint,
-                coach,
-                real,
-                self.camera,
-                self.measure,
-            )
-        finally:
-            self.store.close()
-            if self.camera is not None:
-                self.camera.close()
-            self.trigger.close()
-            if self.rangefinder is not None:
-                self.rangefinder.close()
+        real = cfg["backend"] not in SIMULATED
+        return run_capture(
+            self.store,
+            self.robot,
+            EitherTrigger(self.trigger, state) if viewed else self.trigger,
+            self.nominal,
+            self.opts,
+            None,
+            self.rangefinder,
+            self.hint,
+            coach,
+            real,
+            camera,
+            self.measure,
+            state,
+        )
 
 
 def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapture:
@@ -173,8 +199,10 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         ``move`` on a real robot whose moves cannot be confirmed (no ``yes`` and no terminal).
     """
     cfg, layout = settings.cfg, settings.layout
-    if guide.auto and cfg["backend"] != "fake":
-        raise LasercalError("--auto needs --backend fake (only the simulated operator can trigger by itself)")
+    if guide.auto and cfg["backend"] not in SIMULATED:
+        raise LasercalError(
+            "--auto needs --backend fake or mujoco (only the simulated operator can trigger by itself)"
+        )
     nominal = load_model(cfg["robot"])
     # a resumed session goes on in the world it recorded (its draws, the camera's calibration)
     world = (
@@ -196,6 +224,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         points=table_points(layout, world, beside),
         repeat_sigma=world.repeat_sigma,
         place=lambda xy: on_table(layout, world, xy),
+        placement=layout.sheet if layout.frame == "sheet" else None,
         printed=layout.frame == "sheet",
     )
     camera, measure = capture_camera(camera_spec, cfg, robot, layout, layout_file, world)
@@ -208,12 +237,10 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
             raise LasercalError(
                 f"--guide move: the {robot.name} backend cannot move the arm (use --guide hand)"
             )
-        if cfg["backend"] != "fake":
+        if cfg["backend"] not in SIMULATED:
             confirmable(guide.yes, what="to the suggested poses ")
     if settings.resume:
         store = CaptureStore.open(settings.folder)
-        if cfg["backend"] == "fake":  # the fake arm's drift runs on the session's clock, across resumes
-            robot.t_offset = max(store.t, default=0.0)
     else:
         store = new_session(
             settings.folder, cfg, layout, settings.layout_path, robot, nominal, rangefinder, camera, world
@@ -227,6 +254,7 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
         move=guide.move,
         yes=guide.yes,
         max_step=guide.max_step,
+        photos=PhotoPolicy.of(cfg),
     )
     hint = (
         f"lasercal capture --resume {store.folder}"
@@ -298,19 +326,26 @@ class StartedValidation:
     opts: ValidateOptions
     world: SimulatedWorld | None = None
 
-    def run(self, out=sys.stdout) -> ValidationResult:
+    def run(self, out=sys.stdout, view=None) -> ValidationResult:
         """Run the validation (:func:`run_validation`) on screen ``out``; it closes the robot and camera.
 
         Parameters
         ----------
         out : text stream, the operator's screen
+        view : collector.view.ViewOptions or None, serve the live view while the validation runs
 
         Returns
         -------
         ValidationResult
         """
+        state = SessionState("validation", out)
+        with session_view(state, view, self.camera, self.layout.path) as camera:
+            return self._run(state, camera, view is not None)
+
+    def _run(self, state, camera, viewed: bool) -> ValidationResult:
         from lasercal.collector.sessions.validate import run_validation
 
+        out = StateStream(state)
         s = self.settings
         extra = {"collector": {"settings": s.cfg, "run": s.run}}
         if self.world is not None:
@@ -326,14 +361,14 @@ class StartedValidation:
             self.layout,
             self.point,
             self.robot,
-            self.camera,
+            camera,
             self.opts,
-            self.trigger,
+            EitherTrigger(self.trigger, state) if viewed and self.trigger is not None else self.trigger,
             self.measure,
-            out=out,
             meta_extra=extra,
             resume=s.resume,
-            confirm_moves=s.cfg["backend"] != "fake",
+            confirm_moves=s.cfg["backend"] not in SIMULATED,
+            state=state,
         )
 
 
@@ -387,7 +422,7 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     )
     trigger = None
     if run["guide"] or not robot.can_move:
-        trigger = AutoTrigger() if cfg["backend"] == "fake" else make_trigger(cfg["trigger"], robot)
+        trigger = AutoTrigger() if cfg["backend"] in SIMULATED else make_trigger(cfg["trigger"], robot)
     opts = ValidateOptions(
         run["n"],
         cfg["seed"],
@@ -396,8 +431,22 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
         cfg["hold"],
         yes=yes,
         max_step=run["max_step"],
+        photos=PhotoPolicy.of(cfg),
     )
     return StartedValidation(settings, model, layout, point, robot, camera, measure, trigger, opts, world)
+
+
+@contextmanager
+def session_view(state, view, camera, layout_file):
+    """The live view around a session (:func:`collector.view.live_view`) when ``view`` asks for it: yields
+    the camera the session photographs with (shared with the view's frames), else the camera itself."""
+    if view is None:
+        yield camera
+        return
+    from lasercal.collector.view import live_view
+
+    with live_view(state, view, camera, layout_file) as shared:
+        yield shared if shared is not None else camera
 
 
 def _pose_text(pose) -> str:

@@ -200,7 +200,10 @@ class CsvLog:
         append_durably(self._fd, csv_line([row.get(h, "") for h in self.header]), self.path)
 
     def close(self) -> None:
-        os.close(self._fd)
+        """Close the file (again: nothing)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
 
 
 class CaptureStore:
@@ -339,4 +342,7 @@ class CaptureStore:
         return {nm: self.point.count(nm) for nm in names}
 
     def close(self) -> None:
-        os.close(self._fd)
+        """Close the file (again: nothing)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None

@@ -16,18 +16,19 @@ makes, seen from above (``vision.render``).
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.sessions.cameras import OpenCVCamera
-from lasercal.collector.sessions.capture import wait_still
-from lasercal.collector.sessions.exposure import FakeExposure, readable_by, settle_exposure
+from lasercal.collector.sessions.capture import StateStream, wait_still
+from lasercal.collector.sessions.exposure import CountedPhotos, readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
+from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import Layout
@@ -64,7 +65,7 @@ class SpotLook:
     speckle: float = 0.2
 
 
-class FakeCamera(FakeExposure):
+class FakeCamera(CountedPhotos):
     """Photos of the spot the fake robot's true beam makes on a blank sheet.
 
     No reference marks are printed: ink under the spot would bias its centroid, and the
@@ -94,16 +95,14 @@ class FakeCamera(FakeExposure):
     ):
         self.robot, self.view, self.plane_z, self.seed, self.look = robot, view, plane_z, seed, look
         self.exposure = exposure
-        self._count = 0
 
-    def photo(self) -> np.ndarray:
+    def _render(self, seed: int) -> np.ndarray:
         spot, _ = self.robot.true_spot(self.plane_z)
         u, v = self.view.project(spot[:2])[0]
-        self._count += 1
         lk, g = self.look, self.gain
         spot = LaserSpot(u, v, lk.sigma, lk.peak * g, lk.speckle)
         photo = Photo(self.view, (), (spot,), paper=PAPER * g, camera=self.sensor)
-        return render(photo, seed=self.seed + self._count)
+        return render(photo, seed=seed)
 
     def close(self) -> None:
         """Nothing to release."""
@@ -163,7 +162,7 @@ def make_camera(
     (camera, measure): ``measure(img, name) -> ((2,) mm, exposure advice)`` or None when the photos can
     only be stored (a real camera and a layout without markers)
     """
-    spec = spec or ("fake" if cfg["backend"] == "fake" else None)
+    spec = spec or {"fake": "fake", "mujoco": "mujoco"}.get(cfg["backend"])
     if spec == "fake":
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
@@ -189,6 +188,10 @@ def make_camera(
 
     markers = load_markers(layout_path)
     measure = None if markers is None else (lambda img, name: measure_with_markers(img, name, markers, sheet))
+    if spec == "mujoco":  # the MuJoCo world's camera, measured as a real camera's photos are
+        from lasercal.collector.hardware.mujoco import mujoco_camera
+
+        return mujoco_camera(robot), measure
     return OpenCVCamera(int(spec) if spec.isdigit() else spec), measure
 
 
@@ -258,6 +261,26 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
                 )
 
 
+def validation_commands(
+    layout: Layout, model: RobotModel, model_ref, point: str, n: int, seed: int
+) -> np.ndarray:
+    """The configurations a validation commands at ``point`` (n, N) rad: ``n`` diverse in-limit poses whose
+    beam meets the point under the model (the aiming IK, seed ``seed``), as the robot's encoders must read
+    them -- under the model's robot effects (a compliance, an eccentricity) the true pose is the aimed one
+    (:func:`solver.control.correct.command_angles`, their torques the fit's gravity model's), as ``correct``
+    commands a goal; ``validate`` and ``configurations`` both call this."""
+    from lasercal.solver.control.correct import command_angles, joint_effect
+    from lasercal.solver.control.nominal import gravity_robot
+    from lasercal.solver.kinematics.effects import extension_from_model
+
+    q = layout.aim_at(model, point, n, np.random.default_rng(seed))
+    ext = extension_from_model(model.extensions, model_ref, model.n)
+    if ext is None:
+        return q
+    joint_effect(ext)
+    return command_angles(model, ext, q, gravity_robot(model, model_ref))
+
+
 @dataclass(frozen=True)
 class ValidationResult:
     """Where a validation run wrote its table, and the spots it measured ((k, 2) mm, base frame).
@@ -312,6 +335,8 @@ class ValidateOptions:
     keep_photos : int or None, write only the photos of the first k configurations (None: every one); the
         others are measured and not kept (their row's ``photo`` is empty): ``lasercal demo``'s 240 fake
         photos were 200 MB
+    photos : PhotoPolicy, which photos are written (``first``: the run's first and every one not measured)
+        and how; a run whose photos are not measured (no markers) keeps them all
     """
 
     n: int = 60
@@ -324,6 +349,7 @@ class ValidateOptions:
     yes: bool = False
     max_step: float = MAX_STEP
     keep_photos: int | None = None
+    photos: PhotoPolicy = ALL_PNG
 
 
 def run_validation(
@@ -341,6 +367,7 @@ def run_validation(
     meta_extra: dict | None = None,
     resume: bool = False,
     confirm_moves: bool = True,
+    state: SessionState | None = None,
 ) -> ValidationResult:
     """Photograph the spot at N configurations ``model`` computes for ``point``; write validation.csv.
 
@@ -356,11 +383,13 @@ def run_validation(
     opts : ValidateOptions
     trigger : Trigger, needed when the operator guides the arm
     measure : callable(img, name) -> ((2,) mm, exposure advice or None), or None to leave x_mm, y_mm empty
-    out : text stream
+    out : text stream (None: only ``state``'s listeners see the lines)
     meta_extra : dict, more keys for validation.yaml (the CLI stores what ``--resume`` needs)
     resume : bool, continue the run in ``folder``: configurations already photographed are skipped
     confirm_moves : bool, ask (:func:`collector.sessions.motion.confirm`) before the first move; off only
         for the simulated robot
+    state : SessionState or None, what the run is doing, for the terminal and the live view (None: a new
+        one that writes to ``out``)
 
     A Ctrl-C or a lost link stops the arm; the table keeps every photo taken (each written
     atomically), and ``resume`` continues where it stopped.
@@ -369,143 +398,237 @@ def run_validation(
     -------
     ValidationResult
     """
-    p = layout.points[point]
-    folder = Path(folder)
-    if not resume and (folder / "validation.csv").exists():
-        raise SessionError(f"{folder} already holds a validation run: resume it with --resume {folder}")
-    planned = layout.aim_at(model, point, opts.n, np.random.default_rng(opts.seed))
-    guided = opts.guide or not robot.can_move
-    if guided and trigger is None:
-        raise DeviceError(
-            f"the {robot.name} backend cannot move the arm: the operator guides it, so a trigger is needed"
+    state = SessionState("validation", out) if state is None else state
+    run = ValidationRun(folder, model, model_ref, layout, point, robot, camera, opts, trigger, measure, state)
+    return run.run(meta_extra, resume, confirm_moves)
+
+
+class ValidationRun:
+    """A validation run as a state machine, as :class:`~collector.sessions.capture.CaptureRun`:
+    ``prepare`` (plan, preview and confirmation, files) -> per configuration ``reach`` (moved there, or
+    guided and triggered) -> ``settle`` -> ``photograph`` (measure, keep, the row) -> ... -> the end.
+    Parameters as :func:`run_validation`'s."""
+
+    def __init__(self, folder, model, model_ref, layout, point, robot, camera, opts, trigger, measure, state):
+        self.folder, self.model, self.model_ref, self.layout = Path(folder), model, model_ref, layout
+        self.point, self.robot, self.camera, self.opts = point, robot, camera, opts
+        self.trigger, self.measure, self.state = trigger, measure, state
+        self.p = layout.points[point]
+        self.guided = opts.guide or not robot.can_move
+        self.photos, self.spots, self.failed, self.settled = 0, [], 0, False
+        self.k = 0  # the next of the configurations to do (an index into ``todo``)
+        # a photo nobody measures is the only record of its spot: kept whatever --photos says
+        self.policy = opts.photos if measure is not None else replace(opts.photos, keep="all")
+
+    def say(self, text: str) -> None:
+        self.state.say(text)
+
+    def show_progress(self) -> None:
+        done = len(self.done) + self.photos
+        self.state.update(progress=[{"name": self.point, "done": done, "want": self.opts.n}])
+
+    def run(self, meta_extra, resume: bool, confirm_moves: bool) -> ValidationResult:
+        folder, opts, robot, camera = self.folder, self.opts, self.robot, self.camera
+        if not resume and (folder / "validation.csv").exists():
+            raise SessionError(f"{folder} already holds a validation run: resume it with --resume {folder}")
+        self.planned = validation_commands(
+            self.layout, self.model, self.model_ref, self.point, opts.n, opts.seed
         )
-    if resume:  # a row a kill tore is cut off (then the log goes on after the last whole row)
-        cut_torn_line(folder / "validation.csv")
-    done = done_indices(folder / "validation.csv") if resume else set()
-    todo = [i for i in range(len(planned)) if i not in done]
-    meta = {
-        "format": VALIDATION_FORMAT,
-        "model": model_ref,
-        "point": {"name": point, "xyz": [float(v) for v in p]},
-        "plane": {"z": float(layout.plane_z)},
-        "n": opts.n,
-        "seed": opts.seed,
-        "backend": robot.name,
-        "camera": camera.name,
-        "simulated": "fake" in (robot.name, camera.name),  # the report says simulated or measured
-        "motion": "guided by the operator" if guided else "moved by the backend",
-        "units": {"q": "rad", "x_mm": "mm", "y_mm": "mm", "q_dev": "rad"},
-        "columns": {
-            "q1..qN": "measured joint positions when the photo was taken",
-            "photo": "relative to this folder (empty: measured, not kept)",
-            "x_mm, y_mm": "the spot on the plane, base frame (empty: not measured -- no markers)",
-            "q_dev": "largest joint deviation from the configuration the model computed",
-        },
-        **(meta_extra or {}),
-    }
-    plan = None
-    robot.connect()
-    try:  # preview and confirmation before the first file and the first move
-        if not guided and todo:
-            plan = plan_moves(robot.read().q, planned[todo], model, opts.max_step)
-            out.write(preview(plan))
-            if confirm_moves:
-                confirm(plan, opts.yes, out=out)
-    except BaseException:
-        robot.close()
-        camera.close()
-        raise
-    if not resume:
-        (folder / "photos").mkdir(parents=True, exist_ok=True)
-        write_atomic(folder / "validation.yaml", dump_yaml(meta, sort_keys=False, width=120))
-    header = ["index"] + [f"q{j + 1}" for j in range(model.n)] + ["photo", "x_mm", "y_mm", "q_dev"]
-    log = CsvLog(
-        folder / "validation.csv",
-        header,
-        [
-            f"lasercal validation of {model_ref} at {point}: q rad, x_mm/y_mm mm "
-            f"(plane z = {layout.plane_z:g} mm), q_dev rad; see validation.yaml"
-        ],
-        resume=resume,
-    )
-    w = out.write
-    photos, spots, failed, settled = 0, [], 0, False
-    if resume:
-        w(f"resuming {folder}: {len(done)} of {opts.n} configurations done, {len(todo)} to go\n")
-    try:
-        for k, i in enumerate(todo):
-            q = planned[i]
-            if guided:
-                robot.prompt_configuration(q)
-                now = robot.read().q
-                w(
-                    f"\nconfiguration {i + 1}/{opts.n}: guide the arm to q = {np.round(q, 3).tolist()} rad\n"
-                    f"  now off by {np.round(q - now, 3).tolist()} rad   [{trigger.hint}]\n"
-                )
-                cmd = trigger.wait()
-                if cmd == "quit":
-                    w(f"stopped after {photos} photos: {log.path}\n")
-                    break
-                if cmd == "discard":
-                    w(f"configuration {i + 1} skipped\n")
-                    continue
-            else:
-                for step in plan.steps[plan.target_of == k]:
-                    robot.move_to(step)
-            state, peak = wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
-            if state is None:
-                failed += 1
-                w(
-                    f"configuration {i + 1}: the arm did not come to rest (max |dq| {peak:.4f} rad/s): "
-                    "skipped\n"
-                )
-                continue
-            # the exposure is settled on the first photo, with the laser on the point
-            img = camera.photo() if settled else settle_exposure(camera, readable_by(measure))
-            settled = True
-            name = f"photos/{i:04d}.png" if opts.keep_photos is None or i < opts.keep_photos else ""
-            if name:
-                ok, png = cv2.imencode(".png", img)
-                if not ok:
-                    raise DeviceError(f"cannot encode photo {name}")
-                write_atomic_bytes(folder / name, png.tobytes())  # a kill leaves no truncated photo
-            row = {
-                "index": str(i),
-                **{f"q{j + 1}": v for j, v in enumerate(state.q)},
-                "photo": name,
-                "q_dev": float(np.abs(state.q - q).max()),
-            }
-            msg = f"photo {i + 1}/{opts.n}: {name or 'not kept'}"
-            if measure is not None:
-                try:
-                    xy, advice = measure(img, name)
-                except VisionError as e:  # one unreadable photo must not end the run: it stays on disk
-                    msg += f", not measured ({e})"
-                    failed += 1
-                else:
-                    row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
-                    spots.append(xy)
-                    msg += f", spot {np.hypot(*(xy - p[:2])):.2f} mm from {point}"
-                    if advice:  # said while the photos are taken, so the next ones can be better
-                        msg += f"; exposure: {advice}"
-            log.append(row)
-            photos += 1
-            w(msg + "\n")
-    except (RobotConnectionError, KeyboardInterrupt) as e:
-        robot.stop()
-        total = len(done) + photos
-        where = (
-            f"partial: {total} of {opts.n} configurations in {log.path}; "
-            f"continue with lasercal validate --resume {folder}"
+        if self.guided and self.trigger is None:
+            raise DeviceError(
+                f"the {robot.name} backend cannot move the arm: the operator guides it, so a trigger is "
+                "needed"
+            )
+        if resume:  # a row a kill tore is cut off (then the log goes on after the last whole row)
+            cut_torn_line(folder / "validation.csv")
+        self.done = done_indices(folder / "validation.csv") if resume else set()
+        self.todo = [i for i in range(len(self.planned)) if i not in self.done]
+        self.state.phase("setup", f"validating {self.model_ref} at {self.point}")
+        self.state.update(
+            target={"xy": [float(v) for v in self.markers_xy()], "tol_mm": 1.0, "label": self.point}
         )
-        if isinstance(e, KeyboardInterrupt):
-            w(f"\ninterrupted: the arm was stopped; {where}\n")
+        self.show_progress()
+        self.plan = None
+        robot.connect()
+        try:  # preview and confirmation before the first file and the first move
+            if not self.guided and self.todo:
+                self.plan = plan_moves(robot.read().q, self.planned[self.todo], self.model, opts.max_step)
+                self.say(preview(self.plan))
+                if confirm_moves:
+                    self.state.phase(
+                        "confirm", "confirm the moves in the terminal: the page cannot", ("stop",)
+                    )
+                    confirm(self.plan, opts.yes, out=StateStream(self.state))
+        except BaseException:
+            robot.close()
+            camera.close()
             raise
-        raise RobotConnectionError(f"{e}; {where}") from None
-    finally:
-        log.close()
-        robot.close()
-        camera.close()
-    return ValidationResult(
-        log.path, photos, np.array(spots).reshape(-1, 2), len(done) + photos, opts.n, failed
-    )
+        self.log = self.open_files(meta_extra, resume)
+        policy = self.policy
+        self.say(
+            f"every photo {'is measured at once (validation.csv) and ' if self.measure else ''}kept as the "
+            f"options say: {policy.keep}, {policy.fmt.upper()} ({policy.choices()})\n"
+        )
+        if resume:
+            self.say(
+                f"resuming {folder}: {len(self.done)} of {opts.n} configurations done, {len(self.todo)} to "
+                "go\n"
+            )
+        step = self.reach if self.todo else None
+        try:
+            while step is not None:
+                step = step()
+        except (RobotConnectionError, KeyboardInterrupt) as e:
+            robot.stop()
+            total = len(self.done) + self.photos
+            where = (
+                f"partial: {total} of {opts.n} configurations in {self.log.path}; "
+                f"continue with lasercal validate --resume {folder}"
+            )
+            self.state.end(where, "stopped")
+            if isinstance(e, KeyboardInterrupt):
+                moved = "" if self.guided else "the arm was stopped; "  # a hand-guided arm is the operator's
+                self.say(f"\ninterrupted: {moved}{where}\n")
+                raise
+            raise RobotConnectionError(f"{e}; {where}") from None
+        finally:
+            self.log.close()
+            robot.close()
+            camera.close()
+        self.say(written_line(folder) + "\n")
+        spots, done = np.array(self.spots).reshape(-1, 2), len(self.done) + self.photos
+        res = ValidationResult(self.log.path, self.photos, spots, done, opts.n, self.failed)
+        if not self.state.data["ended"]:
+            self.state.end(f"{res.summary()} in {res.path}")
+        return res
+
+    def markers_xy(self) -> np.ndarray:
+        """The validation point in the frame of the layout file's markers (a sheet's own), where the page
+        draws its target: the layout as loaded (the one the run is given is in the base frame)."""
+        from lasercal.solver.formats.session import load_layout
+
+        return load_layout(self.layout.path).points[self.point][:2]
+
+    def open_files(self, meta_extra, resume: bool) -> CsvLog:
+        folder, layout, model, opts, p = self.folder, self.layout, self.model, self.opts, self.p
+        meta = {
+            "format": VALIDATION_FORMAT,
+            "model": self.model_ref,
+            "point": {"name": self.point, "xyz": [float(v) for v in p]},
+            "plane": {"z": float(layout.plane_z)},
+            "n": opts.n,
+            "seed": opts.seed,
+            "backend": self.robot.name,
+            "camera": self.camera.name,
+            "simulated": "fake"
+            in (self.robot.name, self.camera.name),  # the report says simulated or measured
+            "motion": "guided by the operator" if self.guided else "moved by the backend",
+            "units": {"q": "rad", "x_mm": "mm", "y_mm": "mm", "q_dev": "rad"},
+            "columns": {
+                "q1..qN": "measured joint positions when the photo was taken",
+                "photo": "relative to this folder (empty: measured, not kept)",
+                "x_mm, y_mm": "the spot on the plane, base frame (empty: not measured -- no markers)",
+                "q_dev": "largest joint deviation from the configuration the model computed",
+            },
+            **(meta_extra or {}),
+        }
+        if not resume:
+            (folder / "photos").mkdir(parents=True, exist_ok=True)
+            write_atomic(folder / "validation.yaml", dump_yaml(meta, sort_keys=False, width=120))
+        header = ["index"] + [f"q{j + 1}" for j in range(model.n)] + ["photo", "x_mm", "y_mm", "q_dev"]
+        comment = (
+            f"lasercal validation of {self.model_ref} at {self.point}: q rad, x_mm/y_mm mm "
+            f"(plane z = {layout.plane_z:g} mm), q_dev rad; see validation.yaml"
+        )
+        return CsvLog(folder / "validation.csv", header, [comment], resume=resume)
+
+    def reach(self):
+        """The next configuration: the arm moved there, or the operator guides it and triggers."""
+        if self.k >= len(self.todo):
+            return None
+        page = self.state.take()
+        if page == "stop":
+            self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
+            self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
+            return None
+        i, opts = self.todo[self.k], self.opts
+        q = self.planned[i]
+        if self.guided:
+            self.robot.prompt_configuration(q)
+            now = self.robot.read().q
+            line = f"configuration {i + 1}/{opts.n}: guide the arm to q = {np.round(q, 3).tolist()} rad"
+            self.state.phase("aiming", line, ACTIONS)
+            self.say(f"\n{line}\n  now off by {np.round(q - now, 3).tolist()} rad   [{self.trigger.hint}]\n")
+            cmd = self.trigger.wait()
+            if cmd == "quit":
+                self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
+                self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
+                return None
+            if cmd == "discard":
+                self.say(f"configuration {i + 1} skipped\n")
+                self.k += 1
+                return self.reach
+        else:
+            steps = self.plan.steps[self.plan.target_of == self.k]
+            self.state.phase("moving", f"moving to configuration {i + 1}/{opts.n}", ACTIONS[2:])
+            for step in steps:
+                self.robot.move_to(step)
+        return self.settle
+
+    def settle(self):
+        opts, i = self.opts, self.todo[self.k]
+        self.state.phase("settling", "waiting for the arm to be still", ACTIONS[2:])
+        state, peak = wait_still(self.robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
+        if state is None:
+            self.failed += 1
+            msg = f"configuration {i + 1}: the arm did not come to rest (max |dq| {peak:.4f} rad/s): skipped"
+            self.say(msg + "\n")
+            self.state.problem(msg)
+            self.k += 1
+            return self.reach
+        self.still = state
+        return self.photograph
+
+    def photograph(self):
+        """Photograph the spot, measure it from the photo in memory, keep the photo as the options say,
+        append the row."""
+        opts, policy, i, state, p = self.opts, self.policy, self.todo[self.k], self.still, self.p
+        self.state.phase("photo", f"photographing configuration {i + 1}/{opts.n}")
+        q = self.planned[i]
+        # the exposure is settled on the first photo, with the laser on the point
+        first = not self.settled
+        img = self.camera.photo() if self.settled else settle_exposure(self.camera, readable_by(self.measure))
+        self.settled = True
+        name = f"photos/{i:04d}.{policy.fmt}"
+        row = {"index": str(i), **{f"q{j + 1}": v for j, v in enumerate(state.q)}}
+        seen, last = "", {"point": self.point, "number": i + 1, "measured": False}
+        if self.measure is not None:  # measured from the photo in memory, kept or not
+            try:
+                xy, advice = self.measure(img, name)
+            except VisionError as e:  # one unreadable photo must not end the run: it stays on disk
+                seen = f", not measured ({e})"
+                self.failed += 1
+                self.state.problem(f"configuration {i + 1}: the spot could not be measured ({e})", img)
+            else:
+                row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
+                self.spots.append(xy)
+                err = float(np.hypot(*(xy - p[:2])))
+                seen = f", spot {err:.2f} mm from {self.point}"
+                last.update(error_mm=err)
+                if advice:  # said while the photos are taken, so the next ones can be better
+                    seen += f"; exposure: {advice}"
+        keep = opts.keep_photos is None or i < opts.keep_photos
+        keep &= policy.kept(len(self.done) + self.photos == 0, "x_mm" in row)
+        data = policy.encode(img, name) if keep or first else b""
+        if keep:
+            write_atomic_bytes(self.folder / name, data)  # a kill leaves no truncated photo
+        if first and policy.keep != "none":
+            self.say(estimate_line(policy, len(data), len(self.todo), 1) + "\n")
+        row.update(photo=name if keep else "", q_dev=float(np.abs(state.q - q).max()))
+        self.log.append(row)
+        self.photos += 1
+        self.say(f"photo {i + 1}/{opts.n}: {name if keep else 'not kept'}{seen}\n")
+        self.state.update(last=last)
+        self.show_progress()
+        self.k += 1
+        return self.reach

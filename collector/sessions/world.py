@@ -270,7 +270,7 @@ def floors(session, layout_file, point: str, n: int = 30, seed: int = 0) -> tupl
     opts = ValidateOptions()
     measured, true = [], []
     for q in aim(world.truth, paper.surface(printed[None])[0], n, seed, **layout.aim_kwargs()):
-        robot.move_to(robot.effects.encoders(q[None], robot.clock.now() + robot.t_offset)[0])
+        robot.move_to(robot.effects.encoders(q[None], robot.clock.now())[0])
         wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)  # as validate waits
         a, d = robot.true_beam()
         true.append(np.linalg.norm(paper.hit(a, d)[0][0] - printed))

@@ -315,7 +315,8 @@ class Posterior:
     weights : (m,) array, 1 used, 0 flagged as an outlier
     rows : (2 m_used, p) array, the spot Jacobian of the used captures at the estimate
     prior_root : (p, p) array, R = L^-1: the prior covariance is R R^T (eqs. D1, D4)
-    target_xy : (m_used, 2) array, the used captures' points in the base frame, mm (what a sheet's pose
+    target_xy : (m_used, 2) array, where the estimate's beams land for the used captures (at their points,
+        to the fit's residual), base frame, mm (what a sheet's pose
         would move: :func:`~lasercal.solver.identify.laser_parameters.counted_rank`)
     slope : (m_used, 2) array, d spot / d plane height of the used captures' beams (what a sheet's tilt
         would move)
@@ -485,7 +486,9 @@ def posterior(
         rank = fit.identifiability.rank
     else:
         v, w, J, rank, sigma, dof = x0, np.ones(0), np.zeros((0, P.size)), 0, prior.noise, 0.0
-    used_xy = target[w > 0, :2] if m else np.zeros((0, 2))
+    # where the model's beams land (what a sheet's pose and print would move: a common scale of robot and
+    # print then moves nothing, as in solve's sheet units, eq. S4)
+    used_xy = P.spots(v, q[w > 0], target[w > 0, 2])[0][:, :2] if m else np.zeros((0, 2))
     d = P.beam(v, q[w > 0]).direction if m else np.zeros((0, 3))
     post = Posterior(
         P,

@@ -43,14 +43,22 @@ from scipy.special import (
 )
 
 from lasercal.solver.analysis import ALPHA
-from lasercal.solver.analysis.stats import HeldOut, grouped_folds, held_out_all, nested_fitter
+from lasercal.solver.analysis.stats import (
+    HeldOut,
+    capture_kinds,
+    carriers,
+    grouped_folds,
+    held_out_all,
+    nested_fitter,
+    rms_by_kind,
+)
 from lasercal.solver.errors import ModelError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.degenerate import DATA_RATIO
 from lasercal.solver.identify.measurement import fit, residuals
 from lasercal.solver.identify.point import polish_point, session_targets, tip_joint_jacobian
 from lasercal.solver.identify.position import point_joint_jacobian, sensor_points
-from lasercal.solver.identify.spot import Identification, base_targets
+from lasercal.solver.identify.spot import Identification, base_targets, placed_targets, sheet_start
 from lasercal.solver.kinematics.aim import polish
 from lasercal.solver.kinematics.effects import (
     ROBOT_EFFECTS,
@@ -62,6 +70,7 @@ from lasercal.solver.kinematics.effects import (
 )
 from lasercal.solver.kinematics.gravity import gravity_torques, model_torques
 from lasercal.solver.kinematics.laser import spot_joint_jacobian
+from lasercal.solver.kinematics.sheet import sheet_residual
 from lasercal.solver.streams import Seed, root, stream
 
 _RTOL = 1e-6
@@ -114,8 +123,9 @@ class Diagnosis:
         geometry absorbs a planar similarity of the whole layout
     proposed : Extension or None, the F test's choice (fitted), kept or not
     acceptance : dict, the held-out decision: 'decided_by' ('cross-validation' or 'F test only'),
-        'accepted', 'folds', 'grouping', 'failed_folds', 'fold_rms_mm' (model -> per fold),
-        'gain_percent_folds', 'gain_percent_ci95'
+        'accepted', 'folds', 'grouping', 'failed_folds', 'fold_rms_mm' (model -> per fold; a camera
+        session's in units of each capture's noise, :func:`acceptance`), 'gain_percent_folds',
+        'gain_percent_ci95', 'holdout_by_kind' (a camera session: kind -> model -> held-out RMS mm)
     statistics : dict, model ('nominal', 'geometric', 'extended') -> 'train' and 'holdout' RMS, mm
         (over the captures the robust geometric fit keeps; holdout None without cross-validation)
     untested : dict effect -> why the data cannot test it
@@ -250,7 +260,11 @@ def joint_jacobian(session: Session, model, q: np.ndarray) -> np.ndarray:
         return model.sensor_pose[:3, :3] @ point_joint_jacobian(model, q, P, session.point)[1]
     if session.measurement == "point":
         return tip_joint_jacobian(model, q)[1]
-    return spot_joint_jacobian(model, q, session.target[:, 2])[1]
+    if session.frame != "sheet":
+        return spot_joint_jacobian(model, q, session.target[:, 2])[1]
+    pose = model.sheet or sheet_start(session, model)  # in the sheet's own units, as lm fits (eq. S4)
+    J = spot_joint_jacobian(model, q, placed_targets(session, pose)[:, 2])[1]
+    return np.einsum("ij,mjk->mik", sheet_residual(pose.vector, np.zeros((1, 2)))[1], J)
 
 
 def _candidate_columns(ext: Extension, session: Session, Jq: np.ndarray, tau) -> np.ndarray:
@@ -258,7 +272,7 @@ def _candidate_columns(ext: Extension, session: Session, Jq: np.ndarray, tau) ->
     m = session.m
     if ext.effect == "reference_point_offset":  # laser sessions only: point sessions identify their points
         C = np.zeros((m, 2, 2))
-        C[session.point == ext.point] = -np.eye(2)
+        C[(session.point == ext.point) & ~session.measured] = -np.eye(2)  # a measured spot uses no point
         return C
     idx, G = ext.regressors(session.q, session.t, tau)
     return Jq[:, :, idx] * G[:, None, :]
@@ -539,26 +553,41 @@ def _ci95(x: np.ndarray) -> list | None:
     return [float(x.mean() - h), float(x.mean() + h)]
 
 
-def acceptance(h_geo: HeldOut, h_ext: HeldOut, keep: np.ndarray, grouping: str) -> dict:
-    """The held-out decision on one extension: kept when its pooled held-out RMS beats the geometry's.
+def acceptance(
+    h_geo: HeldOut, h_ext: HeldOut, keep: np.ndarray, grouping: str, scale=None, counted=None
+) -> dict:
+    """The held-out decision on one extension: kept when its pooled held-out error beats the geometry's.
+
+    The decision weighs each capture's held-out residual by its own noise, r_i / c_i (eq. K1's c_i: a
+    camera session's measured captures at the camera's noise, its aimed ones at the aiming noise), so that
+    every capture speaks in the same units whatever its kind (an effect only aimed captures show, a point
+    offset, is judged by them). The figures reported (mm) are those of the ``counted`` captures.
 
     Parameters
     ----------
     h_geo, h_ext : HeldOut, the two models' cross-validations on the same folds
-    keep : (m,) bool array, the captures counted (the robust geometric fit's inliers)
+    keep : (m,) bool array, the captures that decide (the robust geometric fit's inliers)
     grouping : str, how the folds were formed (for the report)
+    scale : (m,) array or None, c_i, each capture's noise relative to the fit's reference (default ones)
+    counted : (m,) bool array or None, the captures the mm figures count (default ``keep``)
     """
     ok = keep & np.all(np.isfinite(h_geo.residuals), axis=1) & np.all(np.isfinite(h_ext.residuals), axis=1)
-    rms = {
-        k: float(np.sqrt(np.mean(np.sum(h.residuals[ok] ** 2, axis=1))))
-        for k, h in (("geometric", h_geo), ("extended", h_ext))
-    }
-    fg, fe = h_geo.fold_rms(ok), h_ext.fold_rms(ok)
+    w = np.ones(len(ok)) if scale is None else 1.0 / np.asarray(scale)
+    mine = ok & (True if counted is None else counted)
+
+    def rms(h, sel, weight=1.0):
+        return float(np.sqrt(np.mean(np.sum((h.residuals * weight)[sel] ** 2, axis=1))))
+
+    pair = (("geometric", h_geo), ("extended", h_ext))
+    rms_mm = {k: rms(h, mine) for k, h in pair}
+    decide = {k: rms(h, ok, w[:, None]) for k, h in pair}
+    fg, fe = (HeldOut(h.residuals * w[:, None], h.fold, h.failed).fold_rms(ok) for _, h in pair)
     gains = 100.0 * (fg - fe) / fg
     return {
         "decided_by": "cross-validation",
-        "accepted": bool(rms["extended"] < rms["geometric"]),
-        "holdout_rms_mm": rms,
+        "accepted": bool(decide["extended"] < decide["geometric"]),
+        "holdout_rms_mm": rms_mm,
+        **({} if scale is None else {"holdout_rms_noise_units": decide}),
         "folds": len(fg),
         "grouping": grouping,
         "failed_folds": {str(i): why for i, why in {**h_geo.failed, **h_ext.failed}.items()},
@@ -704,13 +733,20 @@ def diagnose(
     tau, tau_src = session_torques(session, payload)
     session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
     geo = fit(session, robust=robust)
-    # a misplaced reference point: laser sessions only (point and position sessions identify their points)
-    pts = list(dict.fromkeys(session.point)) if session.measurement == "laser" else []
+    # a misplaced reference point: a laser session's measured points (point and position sessions identify
+    # theirs; a printed sheet's are where the printer put them, its scale and tilt fitted with its pose) at
+    # the captures aimed at them (a camera's measured spot does not use its point)
+    offsets = session.measurement == "laser" and session.frame != "sheet"
+    pts = list(dict.fromkeys(session.point[~session.measured])) if offsets else []
     clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
     lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
     exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral, session.robot.joint_names)
     cannot = untested(
-        session.measurement, tau is not None, session.clock, session.t is not None and np.ptp(session.t) > 0
+        session.measurement,
+        tau is not None,
+        session.clock,
+        session.t is not None and np.ptp(session.t) > 0,
+        session.frame,
     )
     if effect is not None:
         exts = [e for e in exts if e.effect == effect]
@@ -741,8 +777,13 @@ def diagnose(
     )
     boot = bootstrap(session, geo, tester, n_boot, n_refit, rng) if n_boot else {}
 
-    inlier = geo.weights > 0  # captures the robust fit flags (mis-aims) are reported, not averaged in
-    rms = lambda r: float(np.sqrt(np.mean(np.sum(r[inlier] ** 2, axis=1))))  # noqa: E731
+    # captures the robust fit flags (mis-aims) are reported, not averaged in; a camera session's figures are
+    # its measured captures' (its aimed ones, at 100 times their noise, would otherwise be all they show),
+    # its decision every capture's at its own noise (eq. K1)
+    inlier = geo.weights > 0
+    counted = inlier & carriers(session)
+    scale = geo.extra.get("scale")
+    rms = lambda r: float(np.sqrt(np.mean(np.sum(r[counted] ** 2, axis=1))))  # noqa: E731
     nominal_rms = rms(residuals(session.robot, None, session))
     if k > 1:
         f = grouped_folds(session, k, seed)
@@ -759,7 +800,7 @@ def diagnose(
         h_geo, h_ext = h[0], h[1] if chosen else h[0]
         if combo is not None:  # kept only when it predicts held-out data better than its first effect alone
             h_combo = h[2]
-            vs = acceptance(h_ext, h_combo, inlier, grouping)
+            vs = acceptance(h_ext, h_combo, inlier, grouping, scale, counted)
             combo["accepted"] = vs["accepted"]
             combo["holdout_rms_mm"] = {"single": vs["holdout_rms_mm"]["geometric"]} | {
                 "combination": vs["holdout_rms_mm"]["extended"]
@@ -767,7 +808,16 @@ def diagnose(
             combo["gain_percent_folds"] = vs["gain_percent_folds"]
             if vs["accepted"]:
                 chosen, ext_fit, h_ext = combo["extension"], combo["fit"], h_combo
-        acc = acceptance(h_geo, h_ext, inlier, grouping)
+        acc = acceptance(h_geo, h_ext, inlier, grouping, scale, counted)
+        kinds = {
+            kind: {
+                m: rms_by_kind(np.linalg.norm(h.residuals, axis=1), session, inlier)[kind]["rms_mm"]
+                for m, h in (("geometric", h_geo), ("extended", h_ext))
+            }
+            for kind in capture_kinds(session)
+        }
+        if kinds:
+            acc["holdout_by_kind"] = kinds
         if chosen is not None and not acc["accepted"] and effect is None:
             acc["rejected"] = "the extension does not predict held-out data better than the geometry"
         r_geo, r_ext = h_geo.residuals, h_ext.residuals
@@ -787,9 +837,9 @@ def diagnose(
     keep = chosen is not None and (acc["accepted"] or effect is not None)
     statistics = {
         "nominal": {"train": nominal_rms, "holdout": nominal_rms if k > 1 else None},
-        "geometric": {"train": geo.rms_mm, "holdout": held["geometric"] if k > 1 else None},
+        "geometric": {"train": rms(geo.residuals), "holdout": held["geometric"] if k > 1 else None},
         "extended": {
-            "train": ext_fit.rms_mm if keep else geo.rms_mm,
+            "train": rms(ext_fit.residuals if keep else geo.residuals),
             "holdout": (held["extended"] if keep else held["geometric"]) if k > 1 else None,
         },
     }

@@ -50,6 +50,7 @@ def simulate_captures(
     points=None,
     effect: Extension | Combination | None = None,
     tau_noise: float = 0.05,
+    aims: dict | None = None,
 ) -> SimulatedCaptures:
     """Configurations of the true robot aimed at each reference point with aiming noise.
 
@@ -67,6 +68,8 @@ def simulate_captures(
         angles are the true ones minus the effect's correction (solved by fixed-point
         iteration), or the operator aims at the point's true position (point offset)
     tau_noise : float, std of the logged joint torques about the gravity model, Nm
+    aims : dict point name -> (per_point, 2) array, optional: where in the plane each capture aims, mm off
+        its point (a camera session's coach aims anywhere on the sheet); default at the point
 
     Returns
     -------
@@ -80,6 +83,8 @@ def simulate_captures(
         q = layout.aim_at(truth, name, per_point, child(seed, "poses", name))
         noise = stream(seed, "aiming", name).normal(0, aim_noise, (per_point, 2))
         hit = p + np.c_[noise, np.zeros(per_point)]
+        if aims is not None:
+            hit[:, :2] += aims[name]
         if effect is not None and effect.point == name:
             hit[:, :2] += effect.params[:2]
         qs.append(polish(truth, q, hit) if aim_noise > 0 else q)

@@ -18,6 +18,7 @@ import numpy as np
 
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
+from lasercal.solver.identify.laser_parameters import unseen_by_spots
 from lasercal.solver.identify.measurement import determined_by, fit, residuals
 from lasercal.solver.identify.point import tips
 from lasercal.solver.identify.spot import Identification, base_targets, predict_spots
@@ -70,6 +71,37 @@ def per_point(model: RobotModel, session: Session, mask: np.ndarray | None = Non
     spots, _ = predict_spots(model, session.q[mask], target[:, 2])
     names = session.point[mask]
     return {nm: spot_stats(spots[names == nm], target[names == nm]) for nm in dict.fromkeys(names)}
+
+
+def capture_kinds(session: Session) -> dict:
+    """A camera session's captures by kind: 'measured' (the camera measured the spot) and 'aimed' (the
+    operator aimed at the point or the coach's aim), (m,) bool masks; {} for a session with no measured
+    capture (every capture of one kind)."""
+    meas = session.measured
+    if session.measurement != "laser" or not meas.any():
+        return {}
+    return {"measured": meas, "aimed": ~meas}
+
+
+def carriers(session: Session) -> np.ndarray:
+    """(m,) bool: the captures that carry the fit and its figures -- a camera session's measured ones (its
+    aimed captures weigh 1/100 as much at their noise), else all."""
+    return capture_kinds(session).get("measured", np.ones(session.m, bool))
+
+
+def rms_by_kind(errors: np.ndarray, session: Session, keep: np.ndarray) -> dict:
+    """Per kind of capture (:func:`capture_kinds`): captures counted and the RMS, mean and max of their
+    errors (m,) mm over ``keep`` (m,) bool; {} for a session of one kind."""
+    out = {}
+    for kind, sel in capture_kinds(session).items():
+        e = errors[sel & keep & np.isfinite(errors)]
+        out[kind] = {
+            "captures": int(e.size),
+            "rms_mm": round(float(np.sqrt(np.mean(e**2))), 6) if e.size else None,
+            "mean_mm": round(float(e.mean()), 6) if e.size else None,
+            "max_mm": round(float(e.max()), 6) if e.size else None,
+        }
+    return out
 
 
 MISFIT = 10.0  # a noise estimate this many times the prior's: the data do not fit the model at all
@@ -259,14 +291,23 @@ class CrossValidation:
     nominal_errors: np.ndarray
     inlier: np.ndarray | None = None
     failed: dict = field(default_factory=dict)
+    session: Session | None = None
+
+    @property
+    def _inlier(self) -> np.ndarray:
+        return np.ones(len(self.errors), bool) if self.inlier is None else self.inlier
 
     def as_dict(self) -> dict:
-        keep = (np.ones(len(self.errors), bool) if self.inlier is None else self.inlier) & np.isfinite(
-            self.errors
-        )
+        """The summary over the counted captures (a camera session's measured ones, which carry the fit),
+        with ``by_kind`` (measured, aimed) for a camera session."""
+        inlier = self._inlier
+        if self.session is not None:
+            inlier = inlier & carriers(self.session)
+        keep = inlier & np.isfinite(self.errors)
         e, e0 = self.errors[keep], self.nominal_errors[keep]
         if not e.size:  # every fold failed
             e = np.full(1, np.nan)
+        kinds = {} if self.session is None else rms_by_kind(self.errors, self.session, self._inlier)
         return {
             "folds": self.k,
             "failed_folds": {str(i): why for i, why in self.failed.items()},
@@ -275,6 +316,7 @@ class CrossValidation:
             "holdout_mean_mm": float(e.mean()),
             "holdout_max_mm": float(e.max()),
             "nominal_rms_mm": float(np.sqrt(np.mean(e0**2))),
+            **({"by_kind": kinds} if kinds else {}),
         }
 
 
@@ -312,6 +354,7 @@ def cross_validate(
         np.linalg.norm(residuals(session.robot, None, session), axis=1),
         inlier,
         h.failed,
+        session,
     )
 
 
@@ -383,15 +426,20 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
     if ident.extension is not None:
         session = replace(session, q=ident.extension.true_q(session.q, session.t, session.tau))
     idf = ident.identifiability
+    # a camera session's figures are its measured captures' (they carry the fit), and each kind's apart
+    carry = carriers(session)
+    fit_errors = np.linalg.norm(ident.residuals, axis=1)
+    noise = ident.extra.get("noise")
     rep = {
         "method": ident.method,
         "converged": ident.converged,
         "iterations": ident.iterations,
         "seconds": round(ident.seconds, 4),
         "captures": session.m,
-        "fit_rms_mm": round(ident.rms_mm, 6),
-        "sigma_mm": round(ident.sigma_mm, 6),
-        **({"noise_by_kind": kind_noise(ident.extra["noise"])} if "noise" in ident.extra else {}),
+        "fit_rms_mm": round(float(np.sqrt(np.mean(fit_errors[used & carry] ** 2))), 6),
+        "sigma_mm": round(ident.sigma_mm if noise is None else noise["measured_mm"], 6),
+        **({"noise_by_kind": kind_noise(noise)} if noise is not None else {}),
+        **({"fit_by_kind": k} if (k := rms_by_kind(fit_errors, session, used)) else {}),
         "outliers": [
             {"index": i, "line": int(session.lines[i]), "point": str(session.point[i])}
             for i in ident.outliers
@@ -403,8 +451,11 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
             "unidentifiable": idf.unidentifiable,
         },
     }
-    if "counted" in ident.extra:  # a laser fit: what the count is; spots never see the beam's start along it
-        rep["identifiability"] |= {"possible": idf.n_params - 1, "counted": ident.extra["counted"]}
+    if "counted" in ident.extra:  # a laser fit: what the count is (laser_parameters: what spots never see)
+        rep["identifiability"] |= {
+            "possible": idf.n_params - unseen_by_spots(session.frame == "sheet"),
+            "counted": ident.extra["counted"],
+        }
     if session.measurement == "point":
         nominal = (
             ident.nominal
@@ -422,10 +473,16 @@ def solve_report(session: Session, ident: Identification, cv: CrossValidation | 
         rep["gauge"] = ident.extra.get("gauge", "")
         rep["targets"] = position_target_stats(ident, before, used)  # logged q: the extension applies once
     else:
-        before, after = per_point(ident.nominal, before), per_point(ident.model, session, used)
+        aimed = capture_kinds(session).get("aimed", np.zeros(session.m, bool)) & used
+        before, after = per_point(ident.nominal, before, carry), per_point(ident.model, session, used & carry)
+        off = per_point(ident.model, session, aimed)  # a camera session's aimed captures: the aim's error
         rep["points"] = {
-            nm: {"before": before[nm].as_dict(), "after": after[nm].as_dict() if nm in after else None}
-            for nm in before
+            nm: {
+                "before": before[nm].as_dict() if nm in before else None,
+                "after": after[nm].as_dict() if nm in after else None,
+                **({"aimed": off[nm].as_dict()} if nm in off else {}),
+            }
+            for nm in dict.fromkeys(session.point)
         }
     if ident.model.sheet is not None:
         rep["sheet"] = {"pose": ident.model.sheet.as_dict(), "std": ident.model.sheet_std, "frame": "base"}

@@ -192,9 +192,45 @@ def load_yaml(path):
             line=torn,
         )
     try:
-        return yaml.safe_load(text)
+        doc = yaml.safe_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         raise FormatError(
             path, f"invalid YAML: {getattr(e, 'problem', e)}", line=None if mark is None else mark.line + 1
         ) from None
+    bad = non_finite(yaml.compose(text))
+    if bad is not None:
+        field, line, value = bad
+        raise FormatError(path, f"{value} on line {line} (expected a finite number)", field=field)
+    return doc
+
+
+def non_finite(node, where: str = ""):
+    """The first NaN or infinity of a composed YAML document (``yaml.compose``): (field, line, text), or None;
+    the field as the loaders name it (``sheet.x_mm``, ``points.P1``: a list is one field).
+
+    lasercal writes no such number, and none is a length, an angle or a setting: one in any field of a file
+    it reads -- a field the command uses or not -- is a corruption, named here (issue 47's sweep: a NaN in a
+    layout's marker, a model's statistics or a session's simulated pose passed in silence).
+    """
+    import yaml
+
+    if isinstance(node, yaml.MappingNode):
+        for key, value in node.value:
+            found = non_finite(value, f"{where}.{key.value}" if where else str(key.value))
+            if found is not None:
+                return found
+    elif isinstance(node, yaml.SequenceNode):
+        for value in node.value:  # a list is one field (points.P1), as the loaders name it
+            found = non_finite(value, where)
+            if found is not None:
+                return found
+    elif isinstance(node, yaml.ScalarNode) and node.tag == "tag:yaml.org,2002:float":
+        text = node.value.lower().replace("_", "")
+        try:
+            finite = math.isfinite(float(text.replace(".inf", "inf").replace(".nan", "nan")))
+        except ValueError:  # YAML 1.1's base-60 floats (1:30.5): finite
+            finite = True
+        if not finite:  # .nan, .inf, and a number too large for a float (1.0e400)
+            return where, node.start_mark.line + 1, node.value
+    return None

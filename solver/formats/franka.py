@@ -171,12 +171,43 @@ def _effect_size(model: RobotModel) -> tuple[float, float] | None:
         return None
     if ext is None or "t" in ext.needs():  # a drift needs a session's clock: no size from q alone
         return None
-    q = stream(0, "franka-export", "effects").uniform(model.limits[:, 0], model.limits[:, 1], (_SAMPLES, 7))
+    q = stream(0, "franka-export", "effects").uniform(
+        model.limits[:, 0], model.limits[:, 1], (_SAMPLES, model.n)
+    )
     tau = model_torques(model, q)[0] if "tau" in ext.needs() else None
     qt = ext.true_q(q, None, tau)  # q_true = q + dq(q, tau(q)), as lasercal correct applies it
     F = model_flange(model)
     d = tool_frames(model.screws, F, qt)[0][:, :3, 3] - tool_frames(model.screws, F, q)[0][:, :3, 3]
     return float(np.abs(qt - q).max()), float(np.linalg.norm(d, axis=1).max())
+
+
+def effect_notes(model: RobotModel) -> list[str]:
+    """The model's robot effects (``extensions``), one sentence each with its size: what no kinematic file
+    (kinematics.yaml, a URDF, a DH table) carries, and lasercal's corrector applies.
+
+    Parameters
+    ----------
+    model : RobotModel
+
+    Returns
+    -------
+    list of str (empty without effects)
+    """
+    out = []
+    for effect, entry in (model.extensions or {}).items():
+        joints = entry.get("joints") if isinstance(entry, dict) else None
+        where = f" of joint(s) {', '.join(map(str, joints))}" if joints else ""
+        out.append(f"the {effect}{where} (a correction of the joint angles, not a geometry){{size}}")
+    if out:
+        size = _effect_size(model)
+        text = (
+            f": up to {size[0] * 1000:.3f} mrad of joint angle, {size[1]:.3f} mm at the flange over "
+            f"{_SAMPLES} configurations within the limits -- lasercal's corrector applies it"
+            if size
+            else " -- lasercal's corrector applies it"
+        )
+        out = [s.replace("{size}", text) for s in out]
+    return out
 
 
 def not_carried(model: RobotModel) -> list[str]:
@@ -214,19 +245,7 @@ def not_carried(model: RobotModel) -> list[str]:
             f"the end-effector frame 'ee' at {_mm(p)}, rpy ({', '.join(f'{a:.6f}' for a in rpy)}) rad in "
             f"{link8} (a TCP, not a joint)"
         )
-    for effect, entry in (model.extensions or {}).items():
-        joints = entry.get("joints") if isinstance(entry, dict) else None
-        where = f" of joint(s) {', '.join(map(str, joints))}" if joints else ""
-        out.append(f"the {effect}{where} (a correction of the joint angles, not a geometry){{size}}")
-    if any("{size}" in s for s in out):
-        size = _effect_size(model)
-        text = (
-            f": up to {size[0] * 1000:.3f} mrad of joint angle, {size[1]:.3f} mm at the flange over "
-            f"{_SAMPLES} configurations within the limits -- lasercal's corrector applies it"
-            if size
-            else " -- lasercal's corrector applies it"
-        )
-        out = [s.replace("{size}", text) for s in out]
+    out += effect_notes(model)
     if model.sensor_pose is not None:
         S = np.asarray(model.sensor_pose)
         out.append(

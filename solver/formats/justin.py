@@ -209,10 +209,53 @@ def read_dlr_measurements(path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
         start = reader.line_num + 1
     if not q:
         raise FormatError(path, "no records", line=2)
+    check_units(path, np.array(q), np.array(mk), lines)
     dup = [i for i, k in enumerate(index) if k in index[:i]]
     if dup:
         raise FormatError(path, f"row index {index[dup[0]]} appears twice", line=lines[dup[0]], field="index")
     return np.array(index), np.array(q), np.array(mk), np.array(lines)
+
+
+MARKERS_FAR_MM = 50_000.0  # a marker farther from a ceiling camera than 50 m was written in mm, not m
+
+
+def check_units(path, q: np.ndarray, markers_mm: np.ndarray, lines) -> None:
+    """Records in the wrong units, refused naming the first one: joints in degrees (beyond +-2 pi, the
+    model's limits -- the facts give none -- where radians of a revolute joint cannot be) or markers in
+    millimetres (read as metres: tens of kilometres from the cameras).
+
+    Parameters
+    ----------
+    path : the file, for the message
+    q : (m, 19) array, the records' joint values as read (rad)
+    markers_mm : (m, 2, 3) array, the markers as read, converted to mm
+    lines : sequence of int, each record's first line
+
+    Raises
+    ------
+    FormatError
+        Naming the file, the record's line and the field.
+    """
+    beyond = np.argwhere(np.abs(q) > 2 * np.pi)
+    if beyond.size:
+        i, j = beyond[0]
+        raise FormatError(
+            path,
+            f"joint {j + 1} is {q[i, j]:g}, beyond +-2 pi rad in {len({int(k) for k in beyond[:, 0]})} of "
+            f"{len(q)} records (expected radians: degrees?)",
+            line=lines[i],
+            field="joints",
+        )
+    far = np.argwhere(np.abs(markers_mm).reshape(len(q), -1) > MARKERS_FAR_MM)
+    if far.size:
+        i = far[0, 0]
+        raise FormatError(
+            path,
+            f"a marker lies {np.abs(markers_mm[i]).max() / 1000:g} m from the cameras (expected metres: "
+            "millimetres?)",
+            line=lines[i],
+            field="markers",
+        )
 
 
 def justin_session_meta(source: str) -> dict:

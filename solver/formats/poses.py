@@ -32,6 +32,7 @@ from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.table import read_csv
 from lasercal.solver.formats.tolerances import Tolerances, robot_tolerances
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.whole import dump_yaml
 
 POSE = ("x", "y", "z", "rx", "ry", "rz")
 STD = ("sx", "sy", "sz", "srx", "sry", "srz")
@@ -209,7 +210,7 @@ def write_pose_session(folder, meta: dict, q, T, std=None, t=None, temperature=N
     """Write a pose session folder (captures.csv: q1..qN,t[,temperature],x,y,z,rx,ry,rz[,sx..srz])."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "session.yaml").write_text(yaml.safe_dump(meta, sort_keys=False, width=120))
+    (folder / "session.yaml").write_text(dump_yaml(meta, sort_keys=False, width=120))  # whole: a cut shows
     q = np.atleast_2d(q)
     t = np.arange(len(q), dtype=float) if t is None else np.asarray(t, float)
     cols = [q, t[:, None]]

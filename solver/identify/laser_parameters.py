@@ -13,9 +13,12 @@ A laser fit's parameters (``solve``, the report, ``plan`` and the capture coach 
 * an extension's (``--extend``), when one is fitted.
 
 Of these, spots never see where the beam starts along itself (one combination of M.x, y, z: the height
-``aperture_z`` fixes it), so rank = parameters - 1 is a fully identified fit. The rank is the SVD rank of
-the captures' Jacobian over the counted parameters, without the prior (:func:`solver.identify.lsq.
-identifiability`).
+``aperture_z`` fixes it), and on a sheet they never see a common scale of the robot and the print (a
+world grown about the base origin, the robot raised with the sheet's height: where the spot lies on the
+paper, in the paper's units, is unchanged, eq. S4), so rank = parameters - 1 (a sheet's: - 2) is a fully
+identified fit (:func:`unseen_by_spots`); the robot's tolerances (the prior) fix what spots cannot. The
+rank is the SVD rank of the captures' Jacobian over the counted parameters, without the prior
+(:func:`solver.identify.lsq.identifiability`).
 """
 
 from __future__ import annotations
@@ -42,6 +45,12 @@ SHEET_KINDS = [
     "sheet_tilt",
 ]
 NSHEET = len(SHEET_NAMES)
+
+
+def unseen_by_spots(sheet: bool) -> int:
+    """Combinations of the counted parameters that no spot data can see (module docstring): the beam's start
+    along itself, and on a sheet (``sheet``) the common scale of robot and print."""
+    return 2 if sheet else 1
 
 
 def sheet_gauge(P: LaserParams) -> list[int]:

@@ -23,7 +23,7 @@ from lasercal.solver.identify.degenerate import (
 from lasercal.solver.identify.laser_parameters import SHEET_NAMES
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
-from lasercal.solver.identify.spot import Identification, base_targets, identify, spot_residuals
+from lasercal.solver.identify.spot import Identification, identify, plane_residuals
 from lasercal.solver.kinematics.effects import Extension
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -68,10 +68,8 @@ def residuals(
             if session.points[nm] is None and nm not in known:
                 known[nm] = p[session.point == nm].mean(axis=0)
         return p - session_targets(session, known)
-    target = base_targets(session, model).copy()
-    if ext is not None:
-        target[:, :2] += ext.target_offset(session.point)
-    return spot_residuals(model, q, target)
+    off = ext.target_offset(session.point, ~session.measured) if ext is not None else 0.0
+    return plane_residuals(model, q, session) - off
 
 
 def check_data(session) -> None:
@@ -98,7 +96,10 @@ def check_data(session) -> None:
             field="constraints.distances",
         )
     names, counts = np.unique(np.asarray(session.point, dtype=str), return_counts=True)
-    few = [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
+    # a point's own position is told from its captures' spread only where it is measured apart from the
+    # others (a base-frame layout); a printed sheet's points move together with its pose, print and tilt
+    printed = session.measurement == "laser" and session.frame == "sheet"
+    few = [] if printed else [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
     if few:
         raise IdentificationError(
             f"too few captures at {', '.join(few)}: that point's position cannot be told from the model's "

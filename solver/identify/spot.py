@@ -38,7 +38,7 @@ from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_
 from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
-from lasercal.solver.kinematics.sheet import SCALE_KEYS, TILT_KEYS, SheetPose, sheet_to_base
+from lasercal.solver.kinematics.sheet import SCALE_KEYS, TILT_KEYS, SheetPose, sheet_residual, sheet_to_base
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,6 +225,16 @@ def base_targets(session: Session, model: RobotModel) -> np.ndarray:
     return placed_targets(session, model.sheet or sheet_start(session, model))
 
 
+def plane_residuals(model: RobotModel, q: np.ndarray, session: Session) -> np.ndarray:
+    """A laser session's residuals (m, 2) mm of ``model`` at configurations q (m, n): spot minus point in
+    the plane, a sheet session's in the sheet's own units (eq. S4) with the model's sheet pose (or
+    :func:`sheet_start`'s), as ``lm`` fits them."""
+    if session.frame != "sheet":
+        return spot_residuals(model, q, session.target)
+    pose = model.sheet or sheet_start(session, model)
+    return sheet_residual(pose.vector, spot_residuals(model, q, placed_targets(session, pose)))[0]
+
+
 def in_base_frame(session: Session, pose: SheetPose) -> Session:
     """A sheet session as a base-frame one, its points placed by ``pose`` (eq. S1): for what assumes the
     points are known in the base frame (the capture coach's posterior)."""
@@ -283,6 +293,7 @@ def fit_kinds(session: Session, residual, jacobian, v0, names, prior_at, robust,
             names,
             robust,
             w,
+            groups=meas,  # each kind's outliers against its own noise
             suspects=suspects,
             prior=prior_at(ref),
         )
@@ -372,36 +383,45 @@ def identify_lm(
         """True configurations, in-plane base-frame targets and the plane's height at each (eqs. S1, S3)
         under parameters u = [x, pose, theta]."""
         placed = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[0] if sheet else target
-        tg, z = placed[:, :2], placed[:, 2]
-        if not extension:
-            return q, tg, z
-        e = extension.with_params(u[p + nsh :])
-        return e.true_q(q, t, tau), tg + e.target_offset(session.point), z
+        qt = extension.with_params(u[p + nsh :]).true_q(q, t, tau) if extension else q
+        return qt, placed[:, :2], placed[:, 2]
+
+    aimed = ~session.measured
+
+    def offset(u):
+        """A reference point's offset (m, 2) mm, in the residual's frame (a sheet's: its own units)."""
+        return extension.with_params(u[p + nsh :]).target_offset(session.point, aimed) if extension else 0.0
 
     def residual(v):
         u = embed(v)
         qt, tg, z = model_inputs(u)
         spot, _ = P.spots(u[:p], qt, z)
-        return spot[:, :2] - tg
+        r = spot[:, :2] - tg
+        return (sheet_residual(u[p : p + nsh], r)[0] if sheet else r) - offset(u)
 
     def jacobian(v):
         u = embed(v)
-        qt, _, z = model_inputs(u)
-        _, _, J = P.spot_jacobian(u[:p], qt, z)
+        qt, tg, z = model_inputs(u)
+        spot, _, J = P.spot_jacobian(u[:p], qt, z)
         cols = [J]
         if sheet:  # the target moves in the plane; the plane's height moves the spot along the beam
             Js = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[1]
             d = P.beam(u[:p], qt).direction
             cols.append(-Js[:, :2] + (d[:, :2] / d[:, 2:])[:, :, None] * Js[:, 2:3])
-        if extension and extension.effect == "reference_point_offset":
-            Je = np.zeros((m, 2, 2))
-            Je[session.point == extension.point] = -np.eye(2)
-            cols.append(Je)
-        elif extension:
+        if extension and extension.acts_on_joints:
             idx, G = extension.regressors(q, t, tau)
             _, Jq = spot_joint_jacobian(P.to_model(u[:p]), qt, z)
             cols.append(Jq[:, :, idx] * G[:, None, :])
-        return np.concatenate(cols, axis=2)[:, :, free]
+        J = np.concatenate(cols, axis=2)
+        if sheet:  # eq. S4: d(M r)/du = M dr/du + dM/du r
+            _, M, dM = sheet_residual(u[p : p + nsh], spot[:, :2] - tg)
+            J = np.einsum("ij,mjk->mik", M, J)
+            J[:, :, p : p + nsh] += dM
+        if extension and extension.effect == "reference_point_offset":
+            Je = np.zeros((m, 2, 2))
+            Je[(session.point == extension.point) & aimed] = -np.eye(2)
+            J = np.concatenate([J, Je], axis=2)
+        return J[:, :, free]
 
     history, iterations = [], 0
     w = np.ones(m)

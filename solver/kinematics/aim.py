@@ -153,6 +153,35 @@ def _nearest_on_beams(
     return q, converged
 
 
+def beam_reach(model: RobotModel, length: float) -> tuple[np.ndarray, float] | None:
+    """A bound on how far from joint 1's axis a beam of up to ``length`` mm can reach, whatever the angles.
+
+    With p_i a point on joint i's axis at q = 0 (p_1 the axis's point nearest the base origin, each next
+    one the foot of the previous on its axis), turning joint i moves p_(i+1) about an axis through p_i and
+    every earlier joint moves both rigidly, so |p_(i+1) - p_i| never changes; by the triangle inequality
+    |spot - p_1| <= sum_i |p_(i+1) - p_i| + |aperture - p_n| + length.
+
+    Parameters
+    ----------
+    model : RobotModel, revolute joints
+    length : float, the longest beam, mm
+
+    Returns
+    -------
+    (p_1 (3,) mm, bound mm), or None for a robot with a prismatic joint (no such bound)
+    """
+    if np.any(model.prismatic):
+        return None
+    w, v = model.screws[:, :3], model.screws[:, 3:]
+    on_axis = np.cross(w, v) / np.sum(w * w, axis=1)[:, None]  # v = -w x q: the axis point nearest the origin
+    pts = [on_axis[0]]
+    for i in range(1, model.n):  # the foot of the previous point on this axis
+        u = w[i] / np.linalg.norm(w[i])
+        pts.append(on_axis[i] + np.dot(pts[-1] - on_axis[i], u) * u)
+    pts.append(np.asarray(model.aperture, dtype=float))
+    return pts[0], float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)) + length)
+
+
 def aim(
     model: RobotModel,
     point,
@@ -190,6 +219,12 @@ def aim(
         When fewer than n in-limit solutions were found.
     """
     point = np.asarray(point, dtype=float)
+    far = beam_reach(model, length[1])
+    if far is not None and np.linalg.norm(point - far[0]) > far[1]:  # no IK needed to say so
+        raise AimingError(
+            f"{point.tolist()} mm lies {np.linalg.norm(point - far[0]):.0f} mm from joint 1's axis point, "
+            f"beyond what the arm and a beam of {length[1]:g} mm can reach ({far[1]:.0f} mm)"
+        )
     seed = root(rng)
     nj = model.n
     pool = pool or max(8 * n, 64)

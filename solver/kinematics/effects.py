@@ -185,11 +185,13 @@ class Extension:
             q = q_true - (self.true_q(q, t, tau) - q)
         return q
 
-    def target_offset(self, point_names: np.ndarray) -> np.ndarray:
-        """(m, 2) mm added to the session's targets (only a reference_point_offset moves them)."""
+    def target_offset(self, point_names: np.ndarray, aimed: np.ndarray | None = None) -> np.ndarray:
+        """(m, 2) mm added to the session's targets (only a reference_point_offset moves them); ``aimed``
+        (m,) bool: the captures aimed at their point (default all; a camera's measured spot is where the
+        beam was, whatever the point's position)."""
         off = np.zeros((len(point_names), 2))
         if self.effect == "reference_point_offset":
-            off[point_names == self.point] = self.params[:2]
+            off[(point_names == self.point) & (True if aimed is None else aimed)] = self.params[:2]
         return off
 
     # ------------------------------------------------------------ model file
@@ -266,7 +268,7 @@ class Combination:
     true_q = Extension.true_q
     logged_q = Extension.logged_q
 
-    def target_offset(self, point_names: np.ndarray) -> np.ndarray:
+    def target_offset(self, point_names: np.ndarray, aimed: np.ndarray | None = None) -> np.ndarray:
         return np.zeros((len(point_names), 2))
 
     def model_entries(self) -> dict:
@@ -353,8 +355,9 @@ def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_nam
     return out
 
 
-def untested(measurement: str, has_tau: bool, clock: str, t_changes: bool) -> dict:
-    """Effects of the catalogue the data cannot test, with the reason (for the report)."""
+def untested(measurement: str, has_tau: bool, clock: str, t_changes: bool, frame: str = "base") -> dict:
+    """Effects of the catalogue the data cannot test, with the reason (for the report); ``frame``: the
+    layout's ('sheet': points printed, not measured)."""
     out = {}
     if not has_tau:
         out["joint_compliance"] = "no logged torques and no gravity model of the robot"
@@ -367,6 +370,11 @@ def untested(measurement: str, has_tau: bool, clock: str, t_changes: bool) -> di
         out["drift"] = "t does not change over the session"
     if measurement == "point":
         out["reference_point_offset"] = "point sessions identify their points (an offset is absorbed)"
+    elif measurement == "laser" and frame == "sheet":
+        out["reference_point_offset"] = (
+            "the points are printed, where the printer put them (its scale and the sheet's tilt are fitted "
+            "with the sheet's pose): an offset is a measured layout's mistake"
+        )
     return out
 
 

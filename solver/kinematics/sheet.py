@@ -116,3 +116,40 @@ def sheet_to_base(v: np.ndarray, p_sheet: np.ndarray, z) -> tuple[np.ndarray, np
         J[:, 2, 3], J[:, 2, 4] = raw[:, 0] * tilt[0], raw[:, 1] * tilt[1]
         J[:, 2, 5], J[:, 2, 6] = p[:, 0], p[:, 1]  # d/d t_i: the printed coordinate
     return out, J
+
+
+def sheet_residual(v: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eq. S4: an in-plane residual measured in the base frame, in the printed sheet's own units.
+
+        r_s = diag(1 + e)^-1 Rz(yaw)^T r
+
+    where r = spot - point (base frame, on the sheet's surface): r_s is where the spot lies on the paper
+    minus where the point is printed, in the units a camera or an operator measures on the paper. Unlike
+    |r|, |r_s| does not shrink when robot and sheet shrink together about the base origin: a fit in base
+    frame mm is paid for a common scale of robot and sheet (about -m sigma_e^2 for m captures), one in
+    sheet units is not (the scale is then fixed by the robot's lengths, as it physically is).
+
+    Parameters
+    ----------
+    v : (3,) or (7,) array, the sheet's parameters [x mm, y mm, yaw rad(, ex, ey, tx rad, ty rad)]
+    r : (k, 2) array, base-frame in-plane residuals, mm
+
+    Returns
+    -------
+    r_s : (k, 2) array, sheet units (printed mm)
+    M : (2, 2) array, the map diag(1 + e)^-1 Rz(yaw)^T
+    dM : (k, 2, len(v)) array, d(M)/dv r at fixed r (non-zero in the yaw and scale columns only)
+    """
+    r = np.atleast_2d(np.asarray(r, dtype=float))[:, :2]
+    e = np.asarray(v[3:5], dtype=float) if len(v) > 3 else np.zeros(2)
+    c, s = math.cos(v[2]), math.sin(v[2])
+    Rt = np.array([[c, s], [-s, c]])
+    inv = 1.0 / (1.0 + e)
+    M = inv[:, None] * Rt
+    rot = r @ Rt.T  # Rz(yaw)^T r
+    dM = np.zeros((len(r), 2, len(v)))
+    dM[:, :, 2] = inv * (r @ np.array([[-s, c], [-c, -s]]).T)  # d Rz(yaw)^T / d yaw r
+    if len(v) > 3:
+        dM[:, 0, 3] = -rot[:, 0] * inv[0] ** 2
+        dM[:, 1, 4] = -rot[:, 1] * inv[1] ** 2
+    return rot * inv, M, dM
