@@ -177,3 +177,35 @@ def test_rangefinder_lengths_are_logged(tmp_path):
     _, true_length = predict_spots(TRUTH, s.q, s.target[:, 2])
     assert np.abs(measured - true_length).max() < 2.0  # 0.5 mm noise
     assert np.ptp(true_length) > 50  # the poses really differ in length
+
+
+def test_a_photo_taken_while_the_arm_creeps_is_measured_in_mm_of_spot_and_a_simulated_clock_is_not_read():
+    """The read after a capture's photo (sessions.capture.moved_during_photo): how far the spot moved under
+    the nominal model since the standstill read the row logs -- in mm on the plane, so joint 7's spin about
+    the beam (franky-sim's chatter) counts for what it moves the spot, not for its angle."""
+    from lasercal.collector.hardware.base import Clock, FakeClock, JointState
+    from lasercal.collector.sessions.capture import PHOTO_MOVED_MM, moved_during_photo
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.identify.spot import predict_spots
+
+    panda = load_model("panda")
+    q0 = np.asarray(panda.home, dtype=float)
+
+    class Creeping:  # an arm on wall time that turned by `step` since the standstill read
+        def __init__(self, step, clock):
+            self.step, self.clock = step, clock
+
+        def read(self):
+            return JointState(q0 + self.step, np.zeros(7), np.zeros(7), 0.0, {})
+
+    still = JointState(q0, np.zeros(7), np.zeros(7), 0.0, {})
+    for j, turn in ((1, 1e-5), (6, 1e-4)):
+        step = np.zeros(7)
+        step[j] = turn
+        want = np.linalg.norm(np.diff(predict_spots(panda, np.array([q0, q0 + step]), -8.0)[0], axis=0))
+        got = moved_during_photo(Creeping(step, Clock()), still, panda, -8.0)
+        assert got == pytest.approx(want, rel=1e-9)
+    shoulder = np.r_[0, 2e-5, 0, 0, 0, 0, 0]  # joint 2 by 2e-5 rad: 0.007 mm at the spot, a retake
+    assert moved_during_photo(Creeping(shoulder, Clock()), still, panda, -8.0) > PHOTO_MOVED_MM
+    # a simulated clock cannot move the arm between the read and the photo: not read (its reads draw noise)
+    assert moved_during_photo(Creeping(shoulder, FakeClock()), still, panda, -8.0) == 0.0

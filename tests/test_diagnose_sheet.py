@@ -215,11 +215,13 @@ def test_a_camera_session_of_the_fake_robot_names_the_compliance_its_truth_holds
     s = str(tmp_path / "s")
     run(
         ["capture", "--layout", str(sheet), "--robot", "panda", "--backend", "fake", "--camera", "fake"]
-        + ["--guide", "move", "--auto", "--per-point", "4", "--truth", str(truth), "-o", s]
+        + ["--guide", "move", "--auto", "--per-point", "6", "--truth", str(truth), "-o", s]
     )
     d = diagnosis(tmp_path, s)
     assert d["effect"] == "joint_compliance" and d["joints"] == [2], d["label"]
     c2 = d["parameters"]["c2"]
     assert abs(c2["value"] - 1.5e-4) < 4 * c2["std_error"]
-    held = d["acceptance"]["holdout_by_kind"]["measured"]  # 20 captures: folds of 16 fit loosely
+    # 30 captures (6 per point): at 4 per point some draws leave 5 of 20 unmeasured (the arm hides the
+    # spot, or it is outside the view), and 4 folds of ~11 measured captures cannot fit 33 directions
+    held = d["acceptance"]["holdout_by_kind"]["measured"]
     assert held["extended"] < held["geometric"]

@@ -70,7 +70,7 @@ def test_plan_counts_the_parameters_solve_counts_on_a_sheet_session(tmp_path, ca
     # base frame
     assert planned["parameters"] == solved["parameters"] == 35
     assert planned["rank"] == solved["rank"] == planned["of"] == solved["possible"] == 33
-    # the unseen directions: one holds the print scale with the arm's lengths (a world that grows with the sheet)
+    # the unseen directions: one holds the print scale with the arm's lengths (a world grown with the sheet)
     assert sum("sheet.e" in d for d in solved["unidentifiable"]) == 1
     assert solved["counted"].startswith("35 = 7 joints x 4")
     assert "sheet pose 3, print scale 2 and tilt 2 - 5 held" in solved["counted"]
