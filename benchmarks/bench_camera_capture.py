@@ -13,6 +13,11 @@ camera-calibrate's estimate, the spot's subsurface glow):
   measurement are all that is left;
 * repeatability: the same poses, where the true beam truly meets the paper (no camera).
 
+Each line also gives what ``solve`` found of the sheet against the world's own paper
+(:func:`collector.sessions.world.true_sheet_pose`): found - true print scale x, y and tilt x, y, in the
+sigmas ``solve`` reports (eq. S4: residuals in the printed sheet's mm, so the common scale has no bias to
+pay).
+
     python benchmarks/bench_camera_capture.py [RUN ...]
 
 RUN: name=capture options (default: the issue's, and each effect alone with the arm's repeatability);
@@ -52,8 +57,24 @@ def error_mean(text: str) -> float:
     return float(re.findall(r"error mean ([0-9.]+) mm", text)[-1])
 
 
-def run(options: str, where: Path) -> tuple[float, float, float, float]:
-    """(error mean, honest floor, repeatability floor, simulated seconds of the capture) of one session."""
+def sheet_sigmas(where: Path) -> list[float]:
+    """Found - true print scale x, y and tilt x, y of the solved sheet (m.yaml), in its reported sigmas."""
+    import yaml
+
+    from lasercal.collector.sessions.world import session_world, true_sheet_pose
+    from lasercal.solver.formats.robots import load_model
+    from lasercal.solver.formats.session import load_layout
+
+    model = yaml.safe_load((where / "m.yaml").read_text())
+    z = load_layout(where / "sheet" / "layout.yaml").plane_z
+    true, _ = true_sheet_pose(session_world(where / "s"), load_model("panda"), z)
+    keys = ("scale_x", "scale_y", "tilt_x_rad", "tilt_y_rad")
+    return [(model["sheet"][k] - getattr(true, k)) / model["sheet_std"][k] for k in keys]
+
+
+def run(options: str, where: Path) -> tuple[float, float, float, float, list[float]]:
+    """(error mean, honest floor, repeatability floor, simulated seconds of the capture, the sheet's
+    found - true scale and tilt in sigmas) of one session."""
     from lasercal.collector.sessions.world import floors
     from lasercal.solver.formats.session import load_session
 
@@ -64,17 +85,19 @@ def run(options: str, where: Path) -> tuple[float, float, float, float]:
     val = ["--layout", "sheet/layout.yaml", "--backend", "fake", "-n", "30", "--point", "P6"]
     err = error_mean(lasercal("validate", "m.yaml", *val, "-o", "val", cwd=where))
     honest, repeat = floors(where / "s", where / "sheet" / "layout.yaml", "P6", 30, 0)
-    return err, honest, repeat, float(load_session(where / "s").t[-1])
+    return err, honest, repeat, float(load_session(where / "s").t[-1]), sheet_sigmas(where)
 
 
 def main(argv: list[str]) -> None:
     runs = dict(a.split("=", 1) for a in argv) if argv else RUNS
     for name, options in runs.items():
         with tempfile.TemporaryDirectory() as d:
-            err, honest, repeat, t = run(options, Path(d))
+            err, honest, repeat, t, z = run(options, Path(d))
         print(
             f"{name:45s} error mean {err:.3f} mm; floors: honest {honest:.3f} mm ({err / honest:.2f} x), "
-            f"repeatability {repeat:.3f} mm ({err / repeat:.2f} x); {t:.0f} s"
+            f"repeatability {repeat:.3f} mm ({err / repeat:.2f} x); {t:.0f} s; sheet found - true in "
+            f"sigmas: scale {z[0]:+.2f} {z[1]:+.2f}, tilt {z[2]:+.2f} {z[3]:+.2f}",
+            flush=True,
         )
 
 
