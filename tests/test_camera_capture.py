@@ -7,6 +7,7 @@ import io
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from lasercal.collector.hardware import make_robot
 from lasercal.collector.hardware.fakeworld import EFFECTS, World, table_points
@@ -19,6 +20,8 @@ from lasercal.solver.identify.spot import identify_lm, predict_spots
 from lasercal.solver.kinematics.aim import aim, polish
 from lasercal.vision.errors import VisionError
 
+ROUNDS = 13  # of the sheet's 5 calibration points: 65 photos, ~50 seen (the arm hides a quarter)
+
 
 def test_measured_spots_lie_within_their_stated_uncertainty(sheet):
     """Monte Carlo over the fake camera's photos with every effect on (a world seed whose printer, sheet
@@ -26,7 +29,15 @@ def test_measured_spots_lie_within_their_stated_uncertainty(sheet):
     estimate): each measured spot against where the true beam met the paper, in the layout's printed
     coordinates (the world's own code), divided by its stated 1-sigma. A z-score RMS near 1 means the
     uncertainty says what the measurement does; far above 1 it would promise too much, far below it would
-    waste the data."""
+    waste the data.
+
+    How near: the RMS of k z-scores of a true sigma spreads as sqrt(chi2_k / k). Issue 47 item 3: a band
+    0.3-1.5 on 11 spots passed a sigma 1.5x too large (RMS 0.67) or too small (1.5). Both axes pooled
+    over ROUNDS rounds of the sheet's points give k >= 90, whose 99.9 % quantile (1.22) a sigma 1.5x too
+    small leaves with 99 % probability. Measured: RMS 0.65 (k = 100) in issue 38's world, 0.61 (k = 100;
+    0.74, 0.45 per axis) in issue 45's: the stated sigma is 1.6x too large here, not just by chance (its
+    0.1 % quantile is 0.79); not the ink term (INK_PX 0 gives the same in issue 38's world). Until that is
+    found, asserted as it is: never optimistic, and no more than 1.8x conservative."""
     layout = load_layout(sheet)
     world = World.draw(EFFECTS, 3)
     assert np.abs(world.print_scale - 1).max() > 5e-4 and abs(world.sheet_dz) > 0.1  # the effects bite
@@ -39,7 +50,7 @@ def test_measured_spots_lie_within_their_stated_uncertainty(sheet):
     camera, measure = capture_camera("fake", cfg, robot, layout, sheet, world)
     robot.connect()
     z, lost = [], 0
-    for k in range(3):
+    for k in range(ROUNDS):
         for name in layout.calibration:
             robot.prompt_point(name, None, k)
             robot.clock.sleep(10.0)  # transit and release jiggle over
@@ -52,10 +63,13 @@ def test_measured_spots_lie_within_their_stated_uncertainty(sheet):
                 continue
             z.append((m.xy - true) / m.sigma)
     z = np.array(z)
-    assert len(z) >= 11, lost
-    rms = np.sqrt(np.mean(z**2, axis=0))
-    print("z-score RMS per axis", rms, "max", np.abs(z).max(), "lost", lost)
-    assert np.all(rms > 0.3) and np.all(rms < 1.5), rms
+    k, rms = z.size, float(np.sqrt(np.mean(z**2)))
+    print(
+        "z-score RMS", rms, "per axis", np.sqrt(np.mean(z**2, axis=0)), "max", np.abs(z).max(), "lost", lost
+    )
+    assert k >= 90, lost
+    hi = np.sqrt(chi2.ppf(0.999, k) / k)
+    assert 1 / 1.8 < rms < hi, (rms, hi)
     assert np.abs(z).max() < 4.5, z
 
 

@@ -150,3 +150,19 @@ def test_capture_whose_standard_input_ends_stops_keeps_its_captures_and_says_so(
     monkeypatch.setattr("sys.stdin", io.StringIO("\n\n\n"))
     assert main(resume[1:] + ["--no-coach"]) == 0
     assert load_session(s).m == 6 and "session complete: 6 captures" in capsys.readouterr().out
+
+
+def test_solve_on_too_few_captures_at_a_point_names_the_captures_file(tmp_path, capsys):
+    """A base-frame session cut to one capture at P3: one line naming the captures file, exit 2, no model."""
+    s = tmp_path / "s"
+    args = ["simulate", "panda_thesis_identified", "--layout", "thesis", "--per-point", "4", "-o", str(s)]
+    assert main(args) == 0
+    lines = (s / "captures.csv").read_text().splitlines(keepends=True)
+    p3 = [i for i, ln in enumerate(lines) if ln.startswith("P3,")]
+    (s / "captures.csv").write_text("".join(ln for i, ln in enumerate(lines) if i not in p3[1:]))
+    capsys.readouterr()
+    assert main(["solve", str(s), "-o", str(tmp_path / "m.yaml")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    head = f"lasercal: error: {s / 'captures.csv'}: too few captures at P3 (1): "
+    assert len(err) == 1 and err[0].startswith(head), err
+    assert not (tmp_path / "m.yaml").exists()

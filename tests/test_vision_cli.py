@@ -165,10 +165,11 @@ def test_a_batch_with_lost_photos_exits_2_naming_them_and_opencv_says_nothing(fi
     )
     r = subprocess.run([sys.executable, "-c", code, *argv], cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 2
-    assert r.stderr.splitlines() == [
+    (line,) = r.stderr.splitlines()
+    assert line.startswith(
         "lasercal: error: 2 of 3 photos not measured (empty.jpg: not an image OpenCV can decode (JPEG, PNG, "
-        "TIFF, ...); trunc.png: not an image OpenCV can decode (JPEG, PNG, TIFF, ...))"
-    ]
+        "TIFF, ...); trunc.png: the PNG is cut short: 3000 bytes, where its chunks need at least "
+    )
     assert "good.png                      1" in r.stdout and not overlays.exists()
 
 

@@ -45,3 +45,25 @@ def test_chroma_subsampling_probe(tmp_path):
     cv2.imwrite(str(tmp_path / "x.png"), img)
     assert chroma_subsampled(tmp_path / "420.jpg")
     assert not any(chroma_subsampled(tmp_path / n) for n in ("444.jpg", "grey.jpg", "x.png", "missing.jpg"))
+
+
+def test_a_cut_png_is_one_line_of_lasercal_not_the_codecs(tmp_path, capfd):
+    # Issue 47 item 11: libpng printed "libpng error: PNG input buffer is incomplete" on fd 2 before
+    # lasercal's own line. Now the codec's words are in that line, and nothing else reaches stderr.
+    from lasercal.collector.cli.main import main
+
+    img = (np.random.default_rng(1).random((60, 80, 3)) * 255).astype(np.uint8)
+    ok, buf = cv2.imencode(".png", img)
+    (tmp_path / "cut.png").write_bytes(buf.tobytes()[: buf.size // 2])
+    damaged = bytearray(buf.tobytes())
+    damaged[100] ^= 0xFF  # inside the image data: a CRC error
+    (tmp_path / "crc.png").write_bytes(bytes(damaged))
+    why = {"cut.png": "the PNG is cut short", "crc.png": r"cannot decode the photo \(IDAT: CRC error\)"}
+    for name in ("cut.png", "crc.png"):
+        with pytest.raises(ImageReadError, match=rf"{name}: {why[name]}"):
+            read_image(tmp_path / name)
+        assert capfd.readouterr().err == ""
+    assert main(["spots", str(tmp_path / "cut.png")]) == 2
+    err = capfd.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("lasercal: error: 1 of 1 photos not measured"), err
+    assert "cut short" in err[0] and "libpng" not in err[0] and "WARN" not in err[0]

@@ -161,19 +161,43 @@ def test_spot_on_the_plane_within_01_mm_with_four_markers_at_03_mm_per_px(tmp_pa
     assert np.sqrt(np.mean(np.square(errs))) < 0.1
 
 
-def test_lens_distortion_needs_the_camera_model(tmp_path):
+def test_lens_distortion_is_fitted_to_the_markers_when_no_camera_is_given(tmp_path, monkeypatch):
+    # Issue 47 item 12: `lasercal spots` on a capture's photo gave y -118.874 where capture, which knows
+    # the camera's calibration, recorded -118.746 +- 0.031. Without a camera YAML the lens is now fitted
+    # to the markers' corners: the same photo gives the same spot, and a warning says why.
     dist = (-0.12, 0.05, 0, 0, 0)
-    with_cam, without = [], []
+    err = {"calibrated": [], "fitted": [], "plane only": []}
+    apart = []
     for seed in range(3):
         view, markers, xy, img = scene(seed + 10, dist=dist)
         lay = P.load_markers(write_layout(tmp_path, markers))
-        cam = Camera(view.size, view.K, view.dist)
-        for camera, out in ((cam, with_cam), (None, without)):
-            res = measure_photo(img, "p", Options(expect=None), lay, camera)
+        known = measure_photo(img, "p", Options(expect=None), lay, Camera(view.size, view.K, view.dist))
+        fitted = measure_photo(img, "p", Options(expect=None), lay)
+        with monkeypatch.context() as m:  # as before: the homography alone
+            m.setattr(P, "LENS_MIN_FIDUCIALS", 10**9)
+            plain = measure_photo(img, "p", Options(expect=None), lay)
+        assert any("lens distortion fitted to them" in w for w in fitted.warnings), fitted.warnings
+        assert not any("lens distortion" in w for w in known.warnings + plain.warnings)
+        for res, how in ((known, "calibrated"), (fitted, "fitted"), (plain, "plane only")):
             got = np.array([[s.x_mm, s.y_mm] for s in res.spots])
-            out += [np.min(np.hypot(*(got - p).T)) for p in xy]
-    assert np.sqrt(np.mean(np.square(with_cam))) < 0.1
-    assert np.sqrt(np.mean(np.square(without))) > 2 * np.sqrt(np.mean(np.square(with_cam)))
+            err[how] += [np.min(np.hypot(*(got - p).T)) for p in xy]
+        for a, b in zip(known.spots, fitted.spots):  # the same spot, within the sigma spots states
+            apart.append(np.hypot(a.x_mm - b.x_mm, a.y_mm - b.y_mm) / np.hypot(b.sigma_x_mm, b.sigma_y_mm))
+    rms = {how: float(np.sqrt(np.mean(np.square(e)))) for how, e in err.items()}
+    # Measured: 0.033 mm calibrated, 0.050 mm through the fitted lens, 0.142 mm through the plane alone.
+    assert rms["calibrated"] < 0.1 and rms["fitted"] < 0.1, rms
+    assert rms["plane only"] > 2 * rms["fitted"], rms
+    # Four markers in the photo's corners leave the lens loose in the sheet's middle: up to 2.2 of the
+    # stated sigma apart here (docs/vision.md); the capture's sheet, six markers, agrees to 0.2 sigma.
+    assert max(apart) < 3.0, apart
+
+
+def test_no_lens_is_fitted_to_markers_that_lie_on_a_plane(tmp_path):
+    for seed in range(2):
+        view, markers, xy, img = scene(seed)
+        lay = P.load_markers(write_layout(tmp_path, markers))
+        res = measure_photo(img, "p", Options(expect=None), lay)
+        assert res.plane.camera is None and not any("lens" in w for w in res.warnings)
 
 
 def test_too_few_markers_is_a_clear_error(tmp_path):

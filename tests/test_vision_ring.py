@@ -101,6 +101,23 @@ def test_real_clipped_core_in_a_magenta_ring_is_found_at_its_label():
 
 
 @needs_photos
+def test_real_spot_cut_by_two_edges_is_taken_by_its_ring_but_not_within_its_labels_tolerance():
+    # LiamAG laser4.png: a spot ~430 px wide, rendered yellow-white in an orange ring, cut by the top and
+    # left edges. Issue 41's test asserted it found (RING_MIN 12); raising RING_MIN to 15 dropped the case
+    # (issue 47 item 1). Its ring (25 DN) clears 15 and it is the one spot reported, flagged cut; but the
+    # centre of its clipped core lies 37.8 px from the label (an ellipse fitted to the visible part of the
+    # half-maximum contour, 12 px uncertain), where "found" needs 24 px, and 32 px from the visible
+    # light's centroid. Asserted as it is: within 4 uncertainties (48 px), not as found.
+    name = "LiamAG+CLS-Beam-Monitor/laser4.png"
+    res = measure_file(PHOTOS / name, Options(expect=None))
+    lab = label(name)["spots"][0]
+    (spot,) = res.spots
+    d = np.hypot(spot.u - lab["x"], spot.v - lab["y"])
+    assert spot.evidence.rule == "ring" and spot.evidence.ring >= RING_MIN and spot.evidence.cut
+    assert d <= 4.0 * lab["uncertainty_px"], d
+
+
+@needs_photos
 def test_real_flashlight_hotspot_is_no_spot():
     # A clipped white hotspot 160 px wide, cyan-white at its edge: no laser-coloured ring.
     res = measure_file(PHOTOS / "LiamAG+CLS-Beam-Monitor/flashlight.jpg", Options(expect=None))

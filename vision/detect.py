@@ -51,7 +51,6 @@ from lasercal.vision.candidates import Candidate, _octave, _shrink, find_candida
 from lasercal.vision.decide import (
     CLOSE,
     MEASURE_SIDE,
-    PERMISSIVE,
     REASONS,
     RULE,
     SHIFT_MIN,
@@ -61,19 +60,20 @@ from lasercal.vision.decide import (
     _dominant,
     _keep_strongest,
     _strength,
+    finish,
     judge,
     measure_spot,
+    refusal,
 )
 from lasercal.vision.errors import NoSpotError, VisionError
 from lasercal.vision.features import LUMA_CLIP
 from lasercal.vision.imagej import measure as imagej_measure
 from lasercal.vision.images import full_scale
 from lasercal.vision.ring import RING_MIN
-from lasercal.vision.spot import CHANNEL, Evidence, Spot
+from lasercal.vision.spot import CHANNEL, Evidence, Pending, Spot
 
 __all__ = [
     "CLOSE",
-    "PERMISSIVE",
     "REASONS",
     "RULE",
     "SHIFT_MIN",
@@ -145,7 +145,7 @@ def detect_spots(
         )
     if colour != "auto" and colour not in CHANNEL:
         raise VisionError(f"unknown laser colour '{colour}' (red, green or auto)")
-    tries = measure_candidates(img, colour, reference, gamma, luma, search, rule)
+    tries = measure_candidates(img, colour, reference, gamma, luma, search)
     colour, spots, warnings = select(tries, name, expect, rule, predicted, img)
     if method == "imagej":
         measured = []
@@ -170,27 +170,27 @@ def measure_candidates(
     gamma: float = 2.2,
     luma: bool = False,
     search: np.ndarray | None = None,
-    rule: DecisionRule = RULE,
 ) -> dict[str, tuple[list[Spot], list[Rejection]]]:
-    """Stages 1 to 4 for each laser colour tried: the candidates measured and judged.
+    """Stages 1, 2 and 4 for each laser colour tried: the candidates measured, through the physical
+    gates only (light, size, shape, fringes: :func:`~vision.decide.measure_spot`). Whether each is laser
+    light by its colour (stage 3) is :func:`select`'s to judge, with any :class:`DecisionRule`: the
+    command and the benchmark that fits the rule (:mod:`vision.fit`) measure a photo the same way.
 
     Parameters
     ----------
     img, colour, reference, gamma, luma, search : as for :func:`detect_spots`
-    rule : DecisionRule; :data:`~vision.decide.PERMISSIVE` keeps every candidate that passes the
-        physical gates, to be judged again by :func:`select` (as the benchmark that fits the rule does)
 
     Returns
     -------
-    dict colour -> (spots, rejected): the spots that ``rule`` takes for laser light (not yet
-    deduplicated), the candidates rejected
+    dict colour -> (spots, rejected): the candidates that pass the physical gates (not yet judged nor
+    deduplicated), and those refused
     """
     if img.ndim == 2:
         colours = ["red"]  # one channel: colour is moot
     else:
         colours = list(CHANNEL) if colour == "auto" else [colour]
     shrunk: dict[int, np.ndarray] = {}  # one photo, two colours: shrink it once
-    return {c: _find(img, c, reference, gamma, luma, shrunk, search, rule) for c in colours}
+    return {c: _find(img, c, reference, gamma, luma, shrunk, search) for c in colours}
 
 
 def select(
@@ -282,15 +282,38 @@ def select(
 def _judged(
     spots: list[Spot], rejected: list[Rejection], rule: DecisionRule
 ) -> tuple[list[Spot], list[Rejection]]:
-    """Spots judged again by ``rule`` (those it refuses become rejections), deduplicated."""
+    """Spots judged by ``rule`` (those it refuses become rejections), given their precise centres
+    (:func:`~vision.decide.finish`), deduplicated."""
     kept, refused = [], list(rejected)
     for s in spots:
         ev = s.evidence if s.evidence is None else judge(s.evidence, rule)
         if ev is not None and ev.rule is None:
-            refused.append(Rejection("white", s.u, s.v, ev))
+            refused.append(Rejection(refusal(s.evidence, rule), s.u, s.v, ev))
+            continue
+        done = finish(replace(s, evidence=ev))
+        if isinstance(done, Rejection):
+            refused.append(done)
         else:
-            kept.append(replace(s, evidence=ev))
-    return _dedupe(kept), refused
+            kept.append(replace(done, evidence=judge(done.evidence, rule)))
+    return _one_per_light(_dedupe(kept)), refused
+
+
+def _one_per_light(spots: list[Spot]) -> list[Spot]:
+    """One spot for each light: of spots that lie within each other's laser-coloured light (its halo,
+    :attr:`~vision.spot.Evidence.reach`), the strongest. A grey disc, a lighter patch or a glint in a
+    spot's halo is lit by that spot: the same light, not a second spot (one that outshines the spot is
+    lit on one side, and :attr:`DecisionRule.side_max` refuses it)."""
+
+    out: list[Spot] = []
+    for s in sorted(spots, key=_strength, reverse=True):
+        if not any(np.hypot(s.u - o.u, s.v - o.v) <= max(_reach(s), _reach(o)) for o in out):
+            out.append(s)
+    return out
+
+
+def _reach(s: Spot) -> float:
+    """How far a spot's light reaches, px (its blob's radius at least)."""
+    return max(0.0 if s.evidence is None else s.evidence.reach, np.sqrt(s.area / np.pi))
 
 
 def _colour_margin(s: Spot, rule: DecisionRule) -> float:
@@ -352,9 +375,8 @@ def _find(
     luma: bool,
     shrunk: dict | None = None,
     search: np.ndarray | None = None,
-    rule: DecisionRule = RULE,
 ) -> tuple[list[Spot], list[Rejection]]:
-    """Spots of one laser colour that ``rule`` accepts, and the candidates rejected."""
+    """The candidates of one laser colour that pass the physical gates, and those refused."""
     shrunk = {} if shrunk is None else shrunk
     refs: dict[int, np.ndarray] = {}
     cands = find_candidates(img, colour, reference, shrunk=shrunk, search=search)
@@ -364,7 +386,7 @@ def _find(
         side = max(c.box[2] - c.box[0], c.box[3] - c.box[1])
         k = 1 if side <= MEASURE_SIDE else 2 ** int(np.ceil(np.log2(side / MEASURE_SIDE)))  # a pyramid
         if k <= 1:
-            r = measure_spot(img, c, colour, reference, others, gamma, luma, rule)
+            rs = measure_spot(img, c, colour, reference, others, gamma, luma)
         else:
             # A spot tens to hundreds of px wide is measured on a shrunk copy of the photo: its
             # centre is known to a fraction of its width anyway, and the fit stays small and fast.
@@ -374,13 +396,13 @@ def _find(
             if reference is not None and k not in refs:
                 refs[k] = _shrink(reference, k)
             ref = refs.get(k)
-            r = _grown(
-                measure_spot(
-                    small, _shrunk(c, k), colour, ref, [_shrunk(o, k) for o in others], gamma, True, rule
-                ),
-                k,
-            )
-        (rejected if isinstance(r, Rejection) else found).append(r)
+            near = [_shrunk(o, k) for o in others]
+            rs = [
+                _grown(r, k)
+                for r in measure_spot(small, _shrunk(c, k), colour, ref, near, gamma, True, False)
+            ]
+        for r in rs:
+            (rejected if isinstance(r, Rejection) else found).append(r)
     return _ring_first(found), rejected
 
 
@@ -417,13 +439,21 @@ def _grown(r: Spot | Rejection, k: int) -> Spot | Rejection:
         return replace(r, u=u, v=v)
     su = None if r.sigma_u is None else r.sigma_u * k
     sv = None if r.sigma_v is None else r.sigma_v * k
+    p = r.pending
+    if p is not None:  # its fit, when made, is in the shrunk copy's px too
+        p = Pending(p.result, k * p.scale, None if p.fallback is None else _grown(p.fallback, k))
     ev = r.evidence
     if ev is not None:
         k2 = k * k
         ev = replace(
-            ev, clipped_px=ev.clipped_px * k2, white_px=ev.white_px * k2, area=ev.area * k2, flux=ev.flux * k2
+            ev,
+            clipped_px=ev.clipped_px * k2,
+            white_px=ev.white_px * k2,
+            area=ev.area * k2,
+            flux=ev.flux * k2,
+            reach=ev.reach * k,
         )
-    return replace(r, u=u, v=v, sigma_u=su, sigma_v=sv, area=r.area * k * k, evidence=ev)
+    return replace(r, u=u, v=v, sigma_u=su, sigma_v=sv, area=r.area * k * k, evidence=ev, pending=p)
 
 
 def _imagej_box(shape, spot: Spot, side: int) -> tuple[int, int, int, int]:

@@ -178,6 +178,7 @@ def _evidence(
     need: float,
     colour: str,
     gamma: float | None = None,
+    ink: np.ndarray | None = None,
 ) -> Evidence:
     """Measure what a candidate looks like (see :class:`Evidence`).
 
@@ -193,6 +194,7 @@ def _evidence(
     colour : str, the laser colour tried
     gamma : float or None, the photo's encoding gamma; None skips the colour rule and the flux (a
         candidate already rejected as dim)
+    ink : (h, w) bool array or None, printed or dark pixels in the box (see :func:`_laser_light`)
     """
     area = 0 if blob is None else int(blob.sum())
     grey = plain.shape[2] == 1
@@ -218,7 +220,8 @@ def _evidence(
                 halo = total / max(float(np.maximum(other[ring], 0).sum()), total / HALO_CAP)
             else:
                 halo = 1.0  # all white: nothing says laser
-    rim = paper = shift = surround = None
+    rim = paper = shift = surround = side = None
+    reach = 0.0
     flux = 0.0
     if blob is not None and gamma is not None:
         base = plain - delta
@@ -229,6 +232,7 @@ def _evidence(
         rim, paper, _ = _rim_shift(plain, base, blob, ch, full, gamma, max(0.03 * peak_d, 4 * noise[ch]))
         shift = rim / max(1.0, paper)
         surround = _surround(base, ch, full, gamma)
+        side, reach = _laser_light(delta, blob, ch, noise, ink)
     lit = min(np.log(max(peak_d, 1e-6) / need), np.log(max(light, 1e-6) / _light_need(noise, full)))
     return Evidence(
         None if grey else colour,
@@ -248,6 +252,8 @@ def _evidence(
         flux,
         surround=surround,
         lit=float(lit),
+        side=side,
+        reach=float(reach),
     )
 
 
@@ -325,6 +331,82 @@ def _surround(base: np.ndarray, ch: int, full: float, gamma: float) -> float:
     )
     lin = _linear(np.median(np.maximum(border, 0.5), axis=0), full, gamma)
     return float(lin[ch] / max(np.delete(lin, ch).max(), 1e-6))
+
+
+# The laser-coloured light of a spot reaches out to where it falls below this fraction of its peak (and
+# 4 sigma of the paper): its halo, in which whatever else looks lit by a laser is that spot's light.
+HALO_FRACTION = 0.05
+
+
+def _laser_colour(delta: np.ndarray, ch: int) -> np.ndarray:
+    """The laser-coloured light a box adds over its paper, DN: the light added in the laser's channel
+    less that added in its neighbours (:data:`NEIGHBOURS`, the larger), smoothed over 1 px (speckle,
+    demosaicing). Only added light counts: red ink, which takes green away, adds none."""
+    others = np.max(np.maximum(delta[..., list(NEIGHBOURS[ch])], 0), axis=2)
+    return cv2.GaussianBlur(np.maximum(delta[..., ch], 0) - others, (0, 0), 1.0)
+
+
+def _laser_light(
+    delta: np.ndarray, blob: np.ndarray, ch: int, noise: np.ndarray, ink: np.ndarray | None = None
+) -> tuple[float, float]:
+    """How one-sided a candidate's laser-coloured light is about it, and how far that light reaches.
+
+    A laser's light falls off all around its spot: its halo is centred on it. A grey disc, a glint or
+    a lighter patch lit by *another* spot's halo, or a lamp's core with red light on one side (an
+    object's edge hides the rest), has laser-coloured light on one side of it only. ``side`` is the
+    light's dipole about the centre of the blob's brightest part (its top tenth in the luma smoothed
+    over a third of its radius: a spot's clipped core, a lamp, a glint, not a speckle grain; the whole
+    blob's centre where ink lies in it, which darkens the middle of a spot on a mark), over the
+    pixels within a ring width of the blob whose mirror images lie in the box too (so that an edge of
+    the box or of the photo does not tilt it): |sum w (p - c)| / sum w |p - c|, w the laser-coloured
+    light; 0 for light centred on it, 1 for light all on one side. Where ink (or a dark object) lies
+    in the window, only pairs of pixels clear of it count for the dipole, and the share of the light
+    whose mirror image falls on it counts on its own: a thin printed line through a spot hides the
+    light on both sides alike, an object's edge through a lamp hides one side.
+
+    ``reach`` is the largest distance from that centre of the region of laser-coloured light around the
+    blob (above :data:`HALO_FRACTION` of its peak and 4 sigma): its halo.
+
+    Returns
+    -------
+    side : float in [0, 1]; reach : float, px
+    """
+    h, w = blob.shape
+    lase = _laser_colour(delta, ch)
+    r_blob = np.sqrt(blob.sum() / np.pi)
+    # Smoothed over a third of the spot's radius: speckle grains do not move its brightest part.
+    luma = cv2.GaussianBlur(delta @ LUMA, (0, 0), max(1.0, r_blob / 3))
+    top = float(luma[blob].max())
+    brightest = blob & (luma >= top - 0.1 * abs(top))
+    if (
+        ink is not None and (ink & blob).any()
+    ):  # ink darkens the spot's middle: its blob, bridged over the ink
+        brightest = blob
+    m = cv2.moments(brightest.astype(np.uint8), binaryImage=True)
+    cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
+    dist = cv2.distanceTransform((~blob).astype(np.uint8), cv2.DIST_L2, 5)
+    yy, xx = np.mgrid[:h, :w].astype(np.float32)
+    mirrored = (2 * cx - xx >= 0) & (2 * cx - xx <= w - 1) & (2 * cy - yy >= 0) & (2 * cy - yy <= h - 1)
+    near = (dist <= float(np.clip(r_blob, 8.0, 30.0))) & mirrored
+    light = np.where(near, np.maximum(lase, 0.0), 0.0)
+    hidden = 0.0
+    if ink is not None:
+        mirror = cv2.remap(ink.astype(np.uint8), 2 * cx - xx, 2 * cy - yy, cv2.INTER_NEAREST).astype(bool)
+        total = float(light[~ink].sum())
+        hidden = float(light[~ink & mirror].sum()) / total if total > 0 else 0.0
+        light = np.where(ink | mirror, 0.0, light)
+    dx, dy = xx - cx, yy - cy
+    lever = float((light * np.hypot(dx, dy)).sum())
+    side = float(np.hypot((light * dx).sum(), (light * dy).sum()) / lever) if lever > 0 else 0.0
+    side = max(side, hidden)
+    nb = max(NEIGHBOURS[ch], key=lambda o: noise[o])
+    peak = float(lase[cv2.dilate(blob.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)].max())
+    halo = (lase > max(HALO_FRACTION * peak, 4 * float(np.hypot(noise[ch], noise[nb])))).astype(np.uint8)
+    n, labels = cv2.connectedComponents(halo | blob.astype(np.uint8), connectivity=8)
+    own = np.unique(labels[blob])
+    region = np.isin(labels, own[own > 0])
+    reach = float(np.hypot(dx[region], dy[region]).max()) if region.any() else r_blob
+    return side, reach
 
 
 def _light_need(noise: np.ndarray, full: float) -> float:

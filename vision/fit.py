@@ -1,11 +1,13 @@
 """Fitting the decision rule on labelled photos, and scoring it leaving one source out.
 
-A labelled photo's candidates are measured once, with every colour rule off
-(:data:`~vision.decide.PERMISSIVE`); a :class:`~vision.decide.DecisionRule` then decides which of them
-are spots (:func:`~vision.detect.select`, exactly as ``lasercal spots`` does), so many rules are
-scored on the same measurements. A photo is scored as the outside check scores it: a labelled spot
-is found when a reported spot lies within max(4 px, 2 x its ``uncertainty_px``); a reported spot
-farther than 3 x ``radius_px`` + 6 px from every labelled and every uncertain spot is false.
+A labelled photo's candidates are measured once, through the physical gates only
+(:func:`~vision.detect.measure_candidates`, as ``lasercal spots`` measures every photo); a
+:class:`~vision.decide.DecisionRule` then decides which of them are spots
+(:func:`~vision.detect.select`, as ``lasercal spots`` does next), so many rules are scored on the same
+measurements, each exactly as the command would apply it. A photo is scored as the outside check
+scores it: a labelled spot is found when a reported spot lies within max(4 px, 2 x its
+``uncertainty_px``); a reported spot farther than 3 x ``radius_px`` + 6 px from every labelled and every
+uncertain spot is false.
 
 :func:`fit_rule` chooses the thresholds (a grid: the fewest misses plus false spots, each source
 weighing the same; among equally good rules the middle one, farthest from both failure sides) and
@@ -22,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from lasercal.vision.decide import PERMISSIVE, DecisionRule, judge, margin
+from lasercal.vision.decide import DecisionRule, judge, margin
 from lasercal.vision.detect import measure_candidates, select
 from lasercal.vision.errors import VisionError
 from lasercal.vision.images import chroma_subsampled, read_image
@@ -33,6 +35,10 @@ from lasercal.vision.measure import check_photo, stage
 SHIFT_GRID = tuple(np.round(np.geomspace(1.2, 4.0, 16), 3))
 CORE_GRID = tuple(np.round(np.geomspace(1.0, 2.5, 12), 3))
 DOMINANCE_GRID = (0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5)
+# How one-sided a spot's laser light may be (0: centred on it, 1: all on one side), and how large a share
+# of the photo an unclipped spot may cover.
+SIDE_GRID = (0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0.8, 1.0)
+SHARE_GRID = tuple(np.round(np.geomspace(1e-4, 0.1, 13), 6))
 
 
 @dataclass(frozen=True)
@@ -45,7 +51,7 @@ class Labelled:
     name : str
     spots : list of dict, the labels (``x``, ``y``, ``uncertainty_px``, ``radius_px``), px
     uncertain : list of dict, spots that may or may not be laser light (never counted false)
-    tries : dict, from :func:`~vision.detect.measure_candidates` with the permissive rule; None when
+    tries : dict, from :func:`~vision.detect.measure_candidates` (not yet judged); None when
         the photo is lost before any candidate (an error line in ``error``)
     error : str or None
     """
@@ -60,7 +66,7 @@ class Labelled:
 
 def measure_labelled(folder: Path, entries: list | None = None) -> list[Labelled]:
     """Measure the candidates of every photo of a folder labelled as ``labels.json`` (see the real
-    photos' ``PROVENANCE.md``) with the permissive rule, as ``lasercal spots PHOTO`` reads it."""
+    photos' ``PROVENANCE.md``), as ``lasercal spots PHOTO`` reads and measures it."""
     entries = json.loads((folder / "labels.json").read_text()) if entries is None else entries
     out = []
     for e in entries:
@@ -70,7 +76,7 @@ def measure_labelled(folder: Path, entries: list | None = None) -> list[Labelled
             img = read_image(path)
             check_photo(img, str(path))
             with stage(str(path), "finding the laser spot"):
-                tries = measure_candidates(img, "auto", None, 2.2, chroma_subsampled(path), rule=PERMISSIVE)
+                tries = measure_candidates(img, "auto", None, 2.2, chroma_subsampled(path))
         except VisionError as exc:
             error = str(exc)
         uncertain = e.get("uncertain_spots") or []
@@ -165,7 +171,7 @@ def fit_rule(photos: list[Labelled], sweeps: int = 3) -> DecisionRule:
     errors with the others held (in log space: the farthest from both kinds of failure that the data
     can tell apart).
     """
-    grids = (SHIFT_GRID, CORE_GRID, DOMINANCE_GRID)
+    grids = (SHIFT_GRID, CORE_GRID, DOMINANCE_GRID, SIDE_GRID, SHARE_GRID)  # DecisionRule's order
     x = [float(np.exp(np.median(np.log(g)))) for g in grids]
     for _ in range(sweeps):
         before = list(x)
@@ -278,7 +284,7 @@ def rendered(n: int, seed: int = 0) -> list[Labelled]:
         )
         img = render(photo, 9000 + i)
         labels = [] if i % 5 == 4 else [dict(x=uv[0], y=uv[1], uncertainty_px=0.5, radius_px=2 * sigma)]
-        tries = measure_candidates(img, "auto", None, 2.2, True, rule=PERMISSIVE)
+        tries = measure_candidates(img, "auto", None, 2.2, True)
         out.append(Labelled("renderer", f"rendered {i}", labels, [], tries))
     return out
 
@@ -317,6 +323,28 @@ def lit_papers(n: int, seed: int = 0) -> list[Labelled]:
         img = np.clip(255 * np.clip(lin, 0, 1) ** (1 / 2.2), 0, 255).astype(np.uint8)
         img = cv2.imdecode(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1], cv2.IMREAD_COLOR)
         labels = [dict(x=u, y=v, uncertainty_px=0.5, radius_px=2 * sigma)] if i % 3 == 0 else []
-        tries = measure_candidates(img, "auto", None, 2.2, True, rule=PERMISSIVE)
+        tries = measure_candidates(img, "auto", None, 2.2, True)
         out.append(Labelled("lit paper", f"lit paper {i}", labels, [], tries))
+    return out
+
+
+def wild(n: int, seed: int = 0) -> list[Labelled]:
+    """Labelled photos of what an outside check on other cameras met (:mod:`vision.render_wild`): a spot
+    whose halo lights a lighter disc or a glint beside it, a lamp whose red light an edge cuts, a large
+    reddish surface beside a faint spot; ``n`` of each.
+
+    Returns
+    -------
+    list of Labelled, source "wild" (the spot's label: its true centre, uncertainty 0.5 px, its core
+    radius)
+    """
+    from lasercal.vision.render_wild import SCENES
+
+    out = []
+    for kind, draw in SCENES.items():
+        for i in range(n):
+            sc = draw(seed * 1000 + i)
+            labels = [dict(x=sc.truth[0], y=sc.truth[1], uncertainty_px=0.5, radius_px=sc.radius)]
+            tries = measure_candidates(sc.img, "auto", None, 2.2, True)
+            out.append(Labelled("wild", f"{kind} {i}", labels, [], tries))
     return out

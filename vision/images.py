@@ -11,6 +11,11 @@ frames. Only what a person looks at (the overlay) is turned upright, with
 
 from __future__ import annotations
 
+import os
+import re
+import sys
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import cv2
@@ -46,9 +51,18 @@ def read_image(path) -> np.ndarray:
         data = np.fromfile(path, np.uint8)
     except OSError as exc:
         raise ImageReadError(f"{path}: cannot read ({exc.strerror})") from None
-    img = cv2.imdecode(data, _FLAGS) if data.size else None
+    with _c_stderr() as said:  # the codecs' C libraries print to fd 2: lasercal's one line says it
+        img = cv2.imdecode(data, _FLAGS) if data.size else None
+    cut = _png_cut(data)
+    if cut:  # checked whatever the decoder made of it (some versions return the part they read)
+        raise ImageReadError(f"{path}: {cut}")
+    why = _codec_complaint(said)
+    if img is None and why:
+        raise ImageReadError(f"{path}: cannot decode the photo ({why}): the file is damaged")
     if img is None:
         raise ImageReadError(f"{path}: not an image OpenCV can decode (JPEG, PNG, TIFF, ...)")
+    if "premature end" in why.lower():  # libjpeg decodes a cut JPEG in part, the rest grey
+        raise ImageReadError(f"{path}: the photo is cut short ({why}): only part of it could be decoded")
     if img.dtype not in (np.uint8, np.uint16):
         raise ImageReadError(f"{path}: {img.dtype} pixels are not supported (8- or 16-bit only)")
     if img.ndim == 3 and img.shape[2] == 4:
@@ -56,6 +70,55 @@ def read_image(path) -> np.ndarray:
     elif img.ndim == 3 and img.shape[2] == 1:
         img = img[..., 0]
     return np.ascontiguousarray(img)
+
+
+@contextmanager
+def _c_stderr():
+    """Collect what C code writes to file descriptor 2 while the block runs (libpng's and libjpeg's
+    messages bypass Python), into the list yielded: one string, once the block ends."""
+    said: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            said.append(tmp.read().decode("utf-8", "replace"))
+
+
+def _codec_complaint(said: list[str]) -> str:
+    """The last line a codec library printed (e.g. ``IDAT: CRC error``), its prefix (``libpng error:``,
+    OpenCV's ``[ WARN:0@1.6] global grfmt_png.cpp:793 readFromStreamOrBuffer``) dropped; "" when it
+    printed nothing."""
+    lines = [ln.strip() for ln in "".join(said).splitlines() if ln.strip()]
+    if not lines:
+        return ""
+    last = re.sub(r"^\[[^]]*\]\s*global\s+\S+\s+\S+\s+", "", lines[-1])
+    return re.sub(r"^lib\w+ (error|warning):\s*", "", last)
+
+
+_PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_cut(data: np.ndarray) -> str:
+    """Why a PNG file ends before its last chunk (IEND), or "" (complete, or not a PNG). Each chunk is
+    its 4-byte length, 4-byte type, its data and a 4-byte CRC."""
+    buf = data.tobytes()
+    if not buf.startswith(_PNG):
+        return ""
+    pos = len(_PNG)
+    while pos + 8 <= len(buf):
+        end = pos + 12 + int.from_bytes(buf[pos : pos + 4], "big")
+        if end > len(buf):
+            return f"the PNG is cut short: {len(buf)} bytes, where its chunks need at least {end}"
+        if buf[pos + 4 : pos + 8] == b"IEND":
+            return ""
+        pos = end
+    return f"the PNG is cut short: {len(buf)} bytes, and its last chunk (IEND) missing"
 
 
 def full_scale(img: np.ndarray) -> float:

@@ -17,7 +17,7 @@ from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import MeasureFault, VisionError
 from lasercal.vision.exposure import Exposure, exposure_advice
 from lasercal.vision.images import chroma_subsampled, full_scale, read_image, to_gray
-from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_plane
+from lasercal.vision.plane import MarkerLayout, PlaneMap, find_fiducials, fit_lens, fit_plane
 from lasercal.vision.spot import Spot, with_plane
 
 
@@ -125,13 +125,15 @@ def measure_photo(
     if camera is not None:
         camera.check_size(size, name)
     luma = opts.channel == "luma" or (opts.channel == "auto" and subsampled)
-    plane, fid, lost = None, None, None
+    plane, fid, lost, lens_note, lens = None, None, None, None, None
     if layout is not None:
         try:  # the markers first: they bound the search; a photo without them is lost all the same
             with stage(name, "finding the markers"):
                 fid = find_fiducials(to_gray(img), layout, opts.gamma, camera)
             with stage(name, "fitting the plane"):
                 plane = fit_plane(fid, layout, camera, size, name)
+            if camera is None:
+                plane, fid, lens, lens_note = _lens_from_markers(img, name, layout, opts.gamma, plane, fid)
         except VisionError as exc:
             lost = exc
     with stage(name, "finding the laser spot"):
@@ -158,6 +160,8 @@ def measure_photo(
     colour = next(
         (s.evidence.colour for s in spots if s.evidence is not None and s.evidence.colour), opts.colour
     )
+    if lens_note:
+        warnings.append(lens_note)
     if plane is not None:
         if fid.unknown_ids:
             warnings.append(f"markers not in the layout ignored: ids {', '.join(map(str, fid.unknown_ids))}")
@@ -170,6 +174,8 @@ def measure_photo(
         xy = plane.to_plane(uv)
         sig_uv = np.array([[s.sigma_u or 0.0, s.sigma_v or 0.0] for s in spots])
         sig_xy = plane.sigma_mm(uv, sig_uv)
+        if lens is not None:  # the lens fitted to the markers is known only as well as they tell it
+            sig_xy = np.hypot(sig_xy, lens.sigma_mm(fid, plane.inliers, uv))
         has_sigma = [s.sigma_u is not None for s in spots]
         spots = [
             with_plane(s, float(p[0]), float(p[1]), float(e[0]) if ok else None, float(e[1]) if ok else None)
@@ -181,6 +187,28 @@ def measure_photo(
                 f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated"
             )
     return PhotoResult(name, spots, warnings, plane, colour, exposure)
+
+
+def _lens_from_markers(img, name, layout, gamma, plane, fid):
+    """The plane (and fiducials) through a lens fitted to the markers when they show one
+    (:func:`~vision.plane.fit_lens`: a capture that knows its camera's calibration measures the same
+    photo through it), the lens and a warning saying so; else the plane as it was, None and None."""
+    size = (img.shape[1], img.shape[0])
+    with stage(name, "fitting a lens to the markers"):
+        lens = fit_lens(plane, size)
+        if lens is None:
+            return plane, fid, None, None
+        fid_l = find_fiducials(to_gray(img), layout, gamma, lens.camera)
+        plane_l = fit_plane(fid_l, layout, lens.camera, size, name)
+    if plane_l.rms_mm >= plane.rms_mm:  # the corners found through the lens must agree better still
+        return plane, fid, None, None
+    k1, k2, f = lens.camera.dist[0], lens.camera.dist[1], lens.camera.K[0, 0]
+    note = (
+        f"the markers bend off a plane by {plane.rms_mm:.3f} mm RMS: a lens distortion fitted to them "
+        f"(k1 {k1:+.4f}, k2 {k2:+.4f} at f = {f:.0f} px) brings that to {plane_l.rms_mm:.3f} mm and is "
+        "undone before the mm (a camera YAML from camera-calibrate, --camera, is better)"
+    )
+    return plane_l, fid_l, lens, note
 
 
 def sheet_region(plane: PlaneMap, layout: MarkerLayout, grow: float = 2.0) -> np.ndarray:

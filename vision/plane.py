@@ -568,6 +568,112 @@ def fit_plane(
     return PlaneMap(H, camera, pm.rms_mm, pm.max_mm, inl, fid, scale)
 
 
+# A lens is fitted to the markers (without a camera YAML) only from this many inlier fiducials (four
+# markers' corners: 32 coordinates for the homography's 8 parameters and the lens' 2), when the plane fit
+# misses them by LENS_MISFIT_PX or more (an edge-fitted corner errs by ~0.02 px on the renderer), and when
+# the lens brings the median corner's miss down LENS_GAIN times: a sheet that is not flat, or a print out of
+# scale, is no lens and does not give way to one.
+LENS_MIN_FIDUCIALS = 16
+LENS_MISFIT_PX = 0.1
+LENS_GAIN = 3.0
+
+
+@dataclass(frozen=True)
+class FittedLens:
+    """A radial lens fitted to one photo's markers (:func:`fit_lens`).
+
+    Attributes
+    ----------
+    camera : Camera, the lens (k1, k2; principal point at the photo's centre)
+    cov : (2, 2) array, covariance of k1, k2 from the fit's residuals
+    """
+
+    camera: Camera
+    cov: np.ndarray
+
+    def sigma_mm(self, fid: Fiducials, inliers: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        """1-sigma plane errors (n, 2) mm of recorded pixels ``uv`` from the lens' own uncertainty: the
+        map through k1, k2 moved by +- each principal axis of :attr:`cov`, its homography refitted to
+        the markers each time (markers in four clusters at one distance from the centre leave a
+        direction of k1, k2 that moves them little and the sheet's middle more)."""
+        k = self.camera.dist[:2]
+        vals, vecs = np.linalg.eigh(self.cov)
+        var = np.zeros((len(uv), 2))
+        for lam, vec in zip(vals, vecs.T):
+            d = np.sqrt(max(lam, 0.0)) * vec
+            var += (
+                (
+                    _lens_map(self.camera, k + d, fid, inliers, uv)
+                    - _lens_map(self.camera, k - d, fid, inliers, uv)
+                )
+                / 2
+            ) ** 2
+        return np.sqrt(var)
+
+
+def _lens_map(cam: Camera, k: np.ndarray, fid: Fiducials, inliers: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Recorded pixels (n, 2) -> plane mm through the lens ``cam`` with k1, k2 = ``k`` and the homography
+    fitted through it to the inlier fiducials."""
+    lens = Camera(cam.size, cam.K, np.array([k[0], k[1], 0, 0, 0.0]))
+    H, _ = cv2.findHomography(lens.undistort(fid.image[inliers]), fid.plane[inliers], 0)
+    return cv2.perspectiveTransform(lens.undistort(np.asarray(uv, float)).reshape(-1, 1, 2), H).reshape(-1, 2)
+
+
+def fit_lens(plane: PlaneMap, size: tuple[int, int]) -> FittedLens | None:
+    """A radial lens fitted to the markers of a photo whose plane fit shows distortion, or None.
+
+    The recorded corners bend away from the plane's homography where the lens distorts; the two
+    radial terms of OpenCV's model (k1, k2; the principal point at the photo's centre, the focal length
+    set to the farthest corner's distance from it, which only scales k1 and k2: k1 is then the share
+    by which the lens moves that corner) are fitted with the homography to the inlier fiducials by
+    least squares on their misfit on the plane (mm), from the best k1 of a grid (the misfit has more
+    than one minimum when the markers lie at about one distance from the centre). It must bring the median
+    corner's misfit down :data:`LENS_GAIN` times (a marker that a shadow or a smudge moves stays off).
+
+    Parameters
+    ----------
+    plane : PlaneMap, fitted without a camera
+    size : (width, height) of the photo, px
+
+    Returns
+    -------
+    FittedLens (its camera's ``rms_px`` nan: not a calibration) when the markers call for one (see
+    :data:`LENS_MIN_FIDUCIALS`, :data:`LENS_MISFIT_PX`, :data:`LENS_GAIN`) and determine it, else None
+    """
+    from scipy.optimize import least_squares
+
+    inl = plane.inliers
+    noise = LENS_MISFIT_PX * plane.mm_per_px
+    if plane.camera is not None or inl.sum() < LENS_MIN_FIDUCIALS or plane.rms_mm < noise:
+        return None
+    w, h = size
+    uv, xy = plane.fiducials.image[inl], plane.fiducials.plane[inl]
+    c = np.array([(w - 1) / 2, (h - 1) / 2])
+    f = max(float(np.hypot(*(uv - c).T).max()), 0.25 * float(np.hypot(w, h)))
+    K = np.array([[f, 0, c[0]], [0, f, c[1]], [0, 0, 1.0]])
+
+    def misfit(k):  # mm, each inlier's miss (x, y) of the homography through the lens k1, k2
+        ideal = Camera((w, h), K, np.array([k[0], k[1], 0, 0, 0.0])).undistort(uv)
+        H, _ = cv2.findHomography(ideal, xy, 0)
+        return (cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 2) - xy).ravel()
+
+    def miss(k):  # the median corner's miss, mm
+        return float(np.median(np.hypot(*misfit(k).reshape(-1, 2).T)))
+
+    k1 = min(np.linspace(-0.2, 0.2, 41), key=lambda a: float(np.sum(misfit([a, 0.0]) ** 2)))
+    fit = least_squares(misfit, [k1, 0.0], x_scale=0.01)
+    k = fit.x
+    if miss(k) * LENS_GAIN > miss([0.0, 0.0]):
+        return None
+    # The covariance of k1, k2: the residuals' variance (their 2n coordinates less the lens' 2 and the
+    # homography's 8 parameters) through the normal matrix, which two clear parameters keep regular.
+    normal = fit.jac.T @ fit.jac
+    if np.linalg.cond(normal) > 1e12:
+        return None
+    s2 = float(fit.fun @ fit.fun) / max(fit.fun.size - 10, 1)
+    return FittedLens(Camera((w, h), K, np.array([k[0], k[1], 0, 0, 0.0])), s2 * np.linalg.inv(normal))
+
+
 def layout_markers(dictionary: str, corners: dict) -> dict:
     """The ``markers`` section for a layout YAML from ``{id: (4, 2) corners mm}``."""
     return {

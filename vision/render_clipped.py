@@ -22,6 +22,7 @@ import numpy as np
 
 from lasercal.vision.render import (
     Glare,
+    LaserSpot,
     PhoneCamera,
     Photo,
     ink_dot,
@@ -84,18 +85,8 @@ def clipped_scene(
     uv = np.array([w / 2, h / 2]) + rng.uniform(-30, 30, 2)
     tilt = rng.uniform(0, 40)
     scatter, width = rng.uniform(0.01, 0.05), rng.uniform(3, 5)
-    # The laser's channel clips out to core_radius along the minor axis: the beam's sigma from the
-    # profile E (g(x) + scatter g(x / width)) = 1 at x = core_radius / sigma (g: unit Gaussian).
-    x = _clip_radius(exposure, scatter, width)
-    spot = tilted_spot(
-        *uv,
-        max(core_radius / x, 1.0),
-        exposure / np.cos(np.radians(tilt)),
-        tilt,
-        rng.uniform(0, 180),
-        speckle=rng.uniform(0.1, 0.3),
-        scatter=scatter,
-        scatter_width=width,
+    spot = clipped_spot(
+        uv, core_radius, exposure, tilt, rng.uniform(0, 180), rng.uniform(0.1, 0.3), scatter, width
     )
     reach = core_radius / np.cos(np.radians(tilt))  # the clipped plateau's semi-major axis
     # A grey disc (printed dot) ~110 px away, brighter than a dark wall and darker than white paper,
@@ -135,6 +126,33 @@ def clipped_scene(
     yy, xx = np.mgrid[:h, :w]
     own = core & (np.hypot(xx - uv[0], yy - uv[1]) <= 1.5 * reach + 3)
     return ClippedScene(img, uv, np.array([disc_uv, glint_uv]), int(own.sum()))
+
+
+def clipped_spot(
+    uv,
+    core_radius: float,
+    exposure: float,
+    tilt: float,
+    azimuth: float,
+    speckle: float,
+    scatter: float,
+    width: float,
+) -> LaserSpot:
+    """A beam whose laser channel clips out to ``core_radius`` px along the minor axis, ``exposure``
+    times the clipping level at its peak, tilted ``tilt`` deg towards ``azimuth`` deg, with a scatter
+    wing of ``scatter`` of the peak ``width`` times wider: its sigma from the profile
+    E (g(x) + scatter g(x / width)) = 1 at x = core_radius / sigma (g: unit Gaussian)."""
+    x = _clip_radius(exposure, scatter, width)
+    return tilted_spot(
+        *uv,
+        max(core_radius / x, 1.0),
+        exposure / np.cos(np.radians(tilt)),
+        tilt,
+        azimuth,
+        speckle=speckle,
+        scatter=scatter,
+        scatter_width=width,
+    )
 
 
 def _clip_radius(exposure: float, scatter: float, width: float) -> float:

@@ -3,7 +3,7 @@ that it is laser light."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 CHANNEL = {"red": 2, "green": 1}  # BGR index of each laser's colour
 
@@ -53,6 +53,11 @@ class Evidence:
     ring : float or None, DN (8-bit scale): for a white clipped core, how laser-coloured the ring
         around it is, in its second-weakest angular sector (see :mod:`vision.ring`); None when the
         candidate has no core of that size
+    side : float or None, how one-sided the laser-coloured light around the spot is: 0 when it is
+        centred on the spot (a laser's own halo), 1 when it is all on one side (a disc or a glint in
+        another spot's halo, a lamp whose red light an edge cuts); see ``features._laser_light``
+    share : float, the share of the photo the spot's blob covers
+    reach : float, px, how far the spot's laser-coloured light (its halo) reaches from its centre
     """
 
     colour: str | None
@@ -74,6 +79,9 @@ class Evidence:
     surround: float | None = None
     lit: float = 0.0
     ring: float | None = None
+    side: float | None = None
+    share: float = 0.0
+    reach: float = 0.0
 
     @property
     def strength(self) -> float:
@@ -109,6 +117,9 @@ class Evidence:
             "surround": None if self.surround is None else round(self.surround, 2),
             "lit": round(self.lit, 3),
             "ring": None if self.ring is None else round(self.ring, 1),
+            "side": None if self.side is None else round(self.side, 3),
+            "share": round(self.share, 6),
+            "reach": round(self.reach, 1),
         }
 
     def describe(self) -> str:
@@ -119,6 +130,28 @@ class Evidence:
             f"{rule}{rim}excess {self.excess:.2f} of full scale ({self.snr:.0f} sigma), "
             f"luma {self.light:+.2f}, {self.clipped_px} px clipped, confidence {self.confidence:.2f}"
         )
+
+
+class Pending:
+    """The slow part of measuring a spot, its precise centre (a profile fit), put off until a rule takes
+    the spot for laser light (most candidates are not), then computed once (``vision.decide.finish``).
+
+    Parameters
+    ----------
+    run : callable () -> (u, v, sigma_u, sigma_v) px in the image measured, or the key of the gate that
+        refuses the spot once fitted (``vision.decide.REASONS``)
+    scale : int, the image measured is the photo shrunk by this factor (a spot hundreds of px wide)
+    fallback : Spot or None, reported instead when the fit refuses the spot (a ringed core's own spot)
+    """
+
+    def __init__(self, run, scale: int = 1, fallback: Spot | None = None):
+        self._run, self.scale, self.fallback, self._out = run, scale, fallback, None
+
+    def result(self):
+        """``run()``'s result, computed on the first call only."""
+        if self._out is None:
+            self._out = self._run()
+        return self._out
 
 
 @dataclass(frozen=True)
@@ -153,6 +186,7 @@ class Spot:
     sigma_y_mm: float | None = None
     on_ink: bool = False
     evidence: Evidence | None = None
+    pending: Pending | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self, convention: str = "opencv") -> dict:
         """JSON-ready dict; ``convention="imagej"`` adds 0.5 px to u and v."""

@@ -101,9 +101,10 @@ def check_data(session) -> None:
     printed = session.measurement == "laser" and session.frame == "sheet"
     few = [] if printed else [f"{nm} ({c})" for nm, c in zip(names, counts) if c < MIN_PER_POINT]
     if few:
+        where = f"{Path(session.path) / 'captures.csv'}: " if session.path else ""
         raise IdentificationError(
-            f"too few captures at {', '.join(few)}: that point's position cannot be told from the model's "
-            f"error (capture at least {MIN_PER_POINT} configurations there, or drop the point)"
+            f"{where}too few captures at {', '.join(few)}: that point's position cannot be told from the "
+            f"model's error (capture at least {MIN_PER_POINT} configurations there, or drop the point)"
         )
     if session.measurement != "laser" or len(names) < 3:
         return
