@@ -93,8 +93,10 @@ def _spot_centre(paper, view, uv, d, subsurface, seed):
 
 def test_the_spots_brightness_is_not_symmetric_about_the_beams_hit():
     """eq. F2: a beam 40 deg off the normal; with the paper's subsurface light, the measured spot lies
-    downstream of the hit by ~f d_s tan r (0.024 mm), across it not at all; without it, on the hit (means
-    over 24 photos, each with its own speckle and noise)."""
+    downstream of the hit by ~f d_s tan r (0.024 mm), across it not at all; without it, on the hit (medians
+    over 24 photos, each with its own speckle and noise: the detector reads an odd photo's speckled rim far
+    off -- issue 47's reads the null set's photo 20 0.25 mm off, 3.6 of its stated sigmas -- and a mean of
+    24 would carry a tenth of that)."""
     paper = PaperSheet(np.array([450.0, 0.0, -8.0]))
     below = paper.surface(np.zeros((1, 2)))[0]
     R, t = look_at(below + [0.0, 0.0, 800.0], below, up=(1.0, 0.0, 0.0))
@@ -109,10 +111,10 @@ def test_the_spots_brightness_is_not_symmetric_about_the_beams_hit():
     shifts = {
         s: np.array([_spot_centre(paper, view, uv, d, s, k) - uv for k in range(24)]) for s in (False, True)
     }
-    glow = shifts[True].mean(axis=0)
+    glow = np.median(shifts[True], axis=0)
     assert abs(glow @ along - expected) < 0.008, (glow @ along, expected)
     assert abs(glow @ across) < 0.006
-    assert np.linalg.norm(shifts[False].mean(axis=0)) < 0.006
+    assert np.linalg.norm(np.median(shifts[False], axis=0)) < 0.006
     assert expected > 0.02
 
 
