@@ -156,6 +156,28 @@ def perturbed(nominal, rng, rot=1e-3, mm=1.0):
     )
 
 
+def angle_error_positions(amp: float, configs: int, seed: int, sigma: float = 0.02):
+    """A position session's data: the perturbed UR5 (tests/data/ur5.urdf) whose joint 2 is off by ``amp``
+    sin(pi q2 / 2) rad -- an error over the joint's own angle (a gear's, an encoder's), 8 of a joint map's
+    0.5 rad knots a period -- at ``configs`` random configurations x 3 targets, ``sigma`` mm noise per axis.
+
+    Returns
+    -------
+    truth (RobotModel), q (3 configs, 6) rad, target names (3 configs,), positions (3 configs, 3) mm
+    """
+    from lasercal.solver.analysis.simulate import random_configs, simulate_positions
+    from lasercal.solver.formats.urdf import load_urdf
+
+    nominal = load_urdf(Path(__file__).parent / "data" / "ur5.urdf")
+    rng = np.random.default_rng(seed)
+    truth = perturbed(nominal, rng)
+    q = np.repeat(random_configs(nominal, configs, rng), 3, axis=0)
+    names = np.tile(np.array(list(truth.targets), dtype=object), configs)
+    qt = q.copy()
+    qt[:, 1] += amp * np.sin(np.pi * q[:, 1] / 2)
+    return truth, q, names, simulate_positions(truth, qt, names, sigma, rng)
+
+
 def make_session(
     tmp: Path, truth_name: str, layout_name: str, per_point: int, noise: float, seed: int, nominal: str
 ):

@@ -576,6 +576,7 @@ def fit_plane(
 LENS_MIN_FIDUCIALS = 16
 LENS_MISFIT_PX = 0.1
 LENS_GAIN = 3.0
+LENS_K2_ALPHA = 1e-3  # k2 is fitted only when an F test tells it from k1 at this level
 
 
 @dataclass(frozen=True)
@@ -641,6 +642,7 @@ def fit_lens(plane: PlaneMap, size: tuple[int, int]) -> FittedLens | None:
     :data:`LENS_MIN_FIDUCIALS`, :data:`LENS_MISFIT_PX`, :data:`LENS_GAIN`) and determine it, else None
     """
     from scipy.optimize import least_squares
+    from scipy.stats import f as f_dist
 
     inl = plane.inliers
     noise = LENS_MISFIT_PX * plane.mm_per_px
@@ -661,17 +663,26 @@ def fit_lens(plane: PlaneMap, size: tuple[int, int]) -> FittedLens | None:
         return float(np.median(np.hypot(*misfit(k).reshape(-1, 2).T)))
 
     k1 = min(np.linspace(-0.2, 0.2, 41), key=lambda a: float(np.sum(misfit([a, 0.0]) ** 2)))
-    fit = least_squares(misfit, [k1, 0.0], x_scale=0.01)
-    k = fit.x
+    # k1 alone first; k2 only where the markers tell it from k1 (an F test): markers at about one
+    # distance from the centre leave a valley k1 r^2 + k2 r^4 = const, whose far ends move the sheet's middle
+    # apart -- the same photo as PNG and as JPEG settled at either end, 0.1 mm apart at the spot
+    one = least_squares(lambda a: misfit([a[0], 0.0]), [k1], x_scale=0.01)
+    two = least_squares(misfit, [one.x[0], 0.0], x_scale=0.01)
+    dof = max(two.fun.size - 10, 1)  # 2n coordinates less the lens' 2 and the homography's 8
+    ss1, ss2 = float(one.fun @ one.fun), float(two.fun @ two.fun)
+    both = ss2 < ss1 and (ss1 - ss2) / (ss2 / dof) > f_dist.ppf(1 - LENS_K2_ALPHA, 1, dof)
+    fit, k = (two, two.x) if both else (one, np.r_[one.x[0], 0.0])
     if miss(k) * LENS_GAIN > miss([0.0, 0.0]):
         return None
-    # The covariance of k1, k2: the residuals' variance (their 2n coordinates less the lens' 2 and the
-    # homography's 8 parameters) through the normal matrix, which two clear parameters keep regular.
+    # The covariance of the fitted terms: the residuals' variance through the normal matrix, which clear
+    # parameters keep regular; a k2 not fitted has none.
     normal = fit.jac.T @ fit.jac
     if np.linalg.cond(normal) > 1e12:
         return None
-    s2 = float(fit.fun @ fit.fun) / max(fit.fun.size - 10, 1)
-    return FittedLens(Camera((w, h), K, np.array([k[0], k[1], 0, 0, 0.0])), s2 * np.linalg.inv(normal))
+    cov = np.zeros((2, 2))
+    n = len(fit.x)
+    cov[:n, :n] = float(fit.fun @ fit.fun) / (dof + 2 - n) * np.linalg.inv(normal)
+    return FittedLens(Camera((w, h), K, np.array([k[0], k[1], 0, 0, 0.0])), cov)
 
 
 def layout_markers(dictionary: str, corners: dict) -> dict:

@@ -13,6 +13,12 @@ def args_import_ipa(p: argparse.ArgumentParser) -> None:
     """The arguments of ``lasercal import-ipa``."""
     p.add_argument("series", type=INFOLDER, help="one published series folder (e.g. ur10-tracker/Series_A)")
     output_argument(p, "-o", "--output", kind="folder", required=True, help="pose session folder to write")
+    p.add_argument(
+        "--half",
+        choices=["first", "second"],
+        help="only this half of the series in recording order (rows 1..m/2 or the rest): register a model on "
+        "one half of a later series, predict the other",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing output")
 
 
@@ -21,9 +27,11 @@ def cmd_import_ipa(args) -> int:
     from lasercal.solver.formats.ipa import write_ipa_session
 
     with atomic_output(args.output, folder=True) as tmp:
-        m = write_ipa_session(args.series, tmp)
+        m = write_ipa_session(args.series, tmp, args.half)
+    half = f", the {args.half} half of the series" if args.half else ""
     print(
-        f"wrote {args.output}: {m} poses (robot ur10; the probe in the tracker frame, mm and rotation vector)"
+        f"wrote {args.output}: {m} poses{half} (robot ur10; the probe in the tracker frame, mm and rotation "
+        "vector)"
     )
     return 0
 
@@ -82,13 +90,13 @@ def solve_poses(args) -> int:
     import numpy as np
 
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.analysis.pose_cv import candidates, extend_auto, half_scores
+    from lasercal.solver.analysis.pose_cv import candidates, covering, extend_auto, half_scores
     from lasercal.solver.errors import LasercalError
     from lasercal.solver.formats.poses import load_pose_session
     from lasercal.solver.identify.poses import fit_poses
 
-    if args.extend not in ("none", "auto", "joint_compliance"):
-        raise LasercalError(f"--extend {args.extend}: pose sessions take none, auto or joint_compliance")
+    if args.extend not in POSE_EXTEND:
+        raise LasercalError(f"--extend {args.extend}: pose sessions take {', '.join(POSE_EXTEND)}")
     sessions = [load_pose_session(s, robot=args.robot) for s in args.session]
     names = [s.name for s in sessions]
     if len(set(names)) != len(names):
@@ -108,8 +116,8 @@ def solve_poses(args) -> int:
         auto = extend_auto(sessions, nominal, robust=not args.no_robust)
         fit, table = auto.fit, auto.table
     else:
-        ext = candidates(nominal, sessions)[1].extension if args.extend == "joint_compliance" else None
-        fit = fit_poses(sessions, nominal, ext, robust=not args.no_robust)
+        ext, jm = named_extension(args.extend, candidates(nominal, sessions))
+        fit = fit_poses(sessions, nominal, ext, jm, robust=not args.no_robust)
     model = fit.model.replace(nominal=str(sessions[0].meta.get("robot", nominal.name)))
     with atomic_output(args.output) as tmp:
         model.save(tmp)
@@ -131,13 +139,10 @@ def solve_poses(args) -> int:
     elif args.folds and len(sessions) > 1:
         pos, rot = [], []
         for k, held in enumerate(sessions):
-            f = fit_poses(
-                [s for j, s in enumerate(sessions) if j != k],
-                nominal,
-                fit.effects[0],
-                robust=not args.no_robust,
-                warm=fit,
-            )
+            train = [s for j, s in enumerate(sessions) if j != k]
+            ext, jm = fit.effects
+            # each fold its own fit, from the nominal (pose_cv's module docstring)
+            f = fit_poses(train, nominal, ext, covering(jm, train), robust=not args.no_robust)
             p, r = half_scores(f.model, held)
             pos.append(p.mean())
             rot.append(r.mean())
@@ -145,6 +150,27 @@ def solve_poses(args) -> int:
         out.append(f"leave one session out: {np.mean(pos):.3f} mm, {1e3 * np.mean(rot):.3f} mrad mean")
     print("\n".join(out) + f"\nwrote {args.output}")
     return 0
+
+
+POSE_EXTEND = ("none", "auto", "joint_compliance", "joint_map")  # solve --extend of pose sessions
+
+
+def named_extension(name: str, cands: list) -> tuple:
+    """(Extension or None, JointMap or None) of ``solve --extend NAME`` on pose sessions: 'joint_compliance'
+    on the joints the gravity model loads, 'joint_map' the joint error map alone, 'none' neither."""
+    from lasercal.solver.errors import LasercalError
+
+    if name == "joint_map":
+        return None, cands[-1].joint_map
+    if name == "joint_compliance":
+        comp = [c for c in cands if c.extension is not None and c.joint_map is None]
+        if not comp:
+            raise LasercalError(
+                "--extend joint_compliance: no joint's gravity torque spans 5 Nm over these sessions "
+                "(or the robot has no link masses)"
+            )
+        return comp[0].extension, None
+    return None, None
 
 
 def cmd_predict_pose(model, args) -> int:

@@ -12,8 +12,8 @@ from lasercal.solver.control.nominal import gravity_robot
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.session import header_beside, load_configs
 from lasercal.solver.identify.position import sensor_points
-from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.gravity import model_torques
+from lasercal.solver.kinematics.joint_map import model_extension
 from lasercal.solver.kinematics.model import RobotModel
 
 
@@ -39,7 +39,7 @@ def cmd_predict_position(model: RobotModel, args) -> int:
         tau = None if cfg.tau is None else np.repeat(cfg.tau, k, axis=0)
         t = None if cfg.t is None else np.repeat(cfg.t, k)
         header = cfg.header + ["target"]
-    ext = extension_from_model(model.extensions, args.model, model.n)
+    ext = model_extension(model.extensions, args.model, model.n)  # its joint map too
     if ext is None or "tau" not in ext.needs() or tau is not None:
         unused(args, "no torques are computed: no compliance, or the CSV's", "payload")
     if ext is not None:

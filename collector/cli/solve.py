@@ -51,10 +51,10 @@ def args_solve(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--extend",
         default="none",
-        choices=["auto", "none"] + list(JOINT_EFFECTS) + ["reference_point_offset"],
+        choices=["auto", "none"] + list(JOINT_EFFECTS) + ["joint_map", "reference_point_offset"],
         help="auto: diagnose, fit the winning non-geometric effect and keep it if it predicts held-out data "
-        "better; or name one (default none). Only robot effects (compliance, eccentricity) are written to "
-        "the model",
+        "better; or name one (default none; joint_map: the joint error map, pose and position sessions). "
+        "Only robot effects (compliance, eccentricity, the joint map) are written to the model",
     )
     payload_argument(p)
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")

@@ -21,7 +21,8 @@ def format_diagnosis(d) -> str:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
         lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
         for nm, v in o["parameters"].items():
-            lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
+            if not nm.startswith("map"):  # a joint map's hundreds of knots: one line below
+                lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
         if d.ambiguous_with:
             lines.append(
                 "  (explains the data almost as well: "
@@ -78,6 +79,16 @@ def format_diagnosis(d) -> str:
             lines.append(f"  fold {i} could not be fitted: {why}")
     else:
         lines.append(f"no cross-validation: the F test decided alone  (torques: {d.torque_source})")
+    jm = acc.get("joint_map")
+    if jm:
+        h, ci = jm["holdout_rms_mm"], jm["gain_percent_ci95"]
+        verdict = "kept" if jm["accepted"] else "asked for: kept" if jm["asked_for"] else "not kept"
+        lines.append(
+            f"{jm['label']} ({jm['knots']} knots), held-out ({jm['folds']} folds by configuration): "
+            f"{h['without']:.3f} mm without, {h['with']:.3f} mm with; gain per fold "
+            + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
+            + f": {verdict}"
+        )
     if st:
         lines.append(f"{'RMS (mm)':10} {'nominal':>9} {'geometric':>10} {'extended':>9}")
         for part in ("train", "holdout"):

@@ -9,8 +9,13 @@ halves are the first and second half in recording order: the later half was meas
 joints the gravity model loads, and that plus a joint error map (:mod:`solver.kinematics.joint_map`) by this
 protocol over the sessions (leave one session out; one session: three blocks of rows in order), and keeps
 the one with the lowest held-out score (position mean / sigma_pos + rotation mean / sigma_rot, the noise
-levels of the geometric fit). Each fold's fit starts from the whole data's fit of the same candidate (a few
-LM steps, not a fit from scratch).
+levels of the geometric fit). Each fold's fit is its own: from the nominal robot, its frames from the
+closed-form start, its own rotation/position noise ratio, a joint map's knots over its own angles --
+nothing of the held-out session reaches it (a start from the whole data's fit would carry it: the
+directions the fold cannot identify stay where the start put them). The map's knot step and prior are
+the defaults (``STEP_RAD`` of :mod:`~lasercal.solver.kinematics.joint_map`, ``joint_map_rad``);
+benchmarks/bench_ur10.py chooses them inside its own leave-one-series-out (nested), to measure what
+choosing them on the data costs.
 """
 
 from __future__ import annotations
@@ -92,6 +97,11 @@ def candidates(nominal: RobotModel, sessions: list) -> list:
     return out
 
 
+def covering(jm: JointMap | None, sessions: list) -> JointMap | None:
+    """The map ``jm`` (its joints and knot step) anew, its knots over the angles of these sessions."""
+    return jm and JointMap.covering(np.vstack([s.q for s in sessions]), jm.joints, jm.step)
+
+
 def folds(sessions: list) -> list:
     """Leave-one-out units: the sessions, or one session's three blocks of rows in order (as sessions)."""
     if len(sessions) > 1:
@@ -140,7 +150,8 @@ def extend_auto(sessions: list, nominal: RobotModel, robust: bool = True) -> Aut
         pos, rot = [], []
         for k, held in enumerate(units):
             train = [u for j, u in enumerate(units) if j != k]
-            f = fit_poses(train, nominal, c.extension, c.joint_map, robust=robust, warm=full)
+            jm = covering(c.joint_map, train)
+            f = fit_poses(train, nominal, c.extension, jm, robust=robust)  # its own fit (module docstring)
             p, r = half_scores(f.model, held)
             pos.append(p.mean())
             rot.append(r.mean())

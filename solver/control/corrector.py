@@ -25,17 +25,28 @@ The computation (the same solution as :mod:`solver.control.correct`, by fewer an
    with the previous command q_s as the seed -- dq = J^T (J J^T + lambda I)^-1 (e - J (q_s - q)) + (q_s - q)
    (eq. 6.7 with the seed's null-space pull, lambda = |e|^2 / 2 + lambda_0 as in ik) -- whose fixed point is
    the solution nearest the previous command, ``correct``'s with that seed (the true angles pulled towards
-   the command, as ``correct`` pulls them, from the previous true angles). J J^T + lambda I is solved by
-   Cholesky. A step shorter than :data:`STEP_TOL` rad ends it: the error it leaves is of second order,
-   below 1e-7 mm at the tool of a 1 m arm. Along a path sampled at 1 kHz two steps suffice.
-3. Effects. A compliance and an eccentricity (the model's robot effects, q_true = q_cmd + dq) are linear
+   the command, as ``correct`` pulls them). J J^T + lambda I is solved by LAPACK. The steps start where
+   the last tick's motion carries the true angles, q_t + (q_t - q_(t-1)): the goal moves by v dt (1.7 mm
+   at 1.7 m/s) between ticks, the extrapolation misses it only by a dt^2 (0.02 mm on a 150 mm circle), so
+   one step lands within round-off of the goal and the second only confirms it. A step shorter than
+   :data:`STEP_TOL` rad ends it: the error it leaves is of second order, below 1e-7 mm at the tool of a
+   1 m arm.
+3. Limits, as ``correct`` keeps them: the true angles stay in [lo, hi] (the limits less the margin) by
+   clamping after each step, and a joint on its bound whose step points outside leaves the Jacobian and
+   the pull for the next step (ik's active set; the fixed point then has that joint on its bound and the
+   others reaching the goal). Where the pull holds joints on their bounds short of the goal (a
+   least-squares point: the others cannot reach it), steps of the task alone follow, in which they may
+   leave them (ik's polish). A command the effects push past the margin is solved again with the bounds
+   of q_true moved by dq (``correct``'s passes).
+4. Effects. A compliance and an eccentricity (the model's robot effects, q_true = q_cmd + dq) are linear
    in (tau, sin q, cos q); the command q_cmd = q_true - dq(q_cmd) is the fixed point started from the
    previous goal's correction: two passes (two gravity evaluations) a goal, since each shrinks the error by
    c dtau/dq (~1e-3) and the first starts from the path's change of dq between goals. The gravity torques
    are :mod:`solver.kinematics.gravity`'s on the same chain.
-4. Anything else -- a step limit of iterations reached, a command outside the limits less the margin, a
-   half-turn of orientation error -- goes to :meth:`Robot.ik` (``correct``'s solver, restarts and limit
-   handling) for that goal; :attr:`Corrector.last` says so, and whether the goal was reached.
+5. Anything else -- :data:`MAX_STEPS` steps (of each phase) without converging, e.g. a goal a tenth of a
+   radian from the last command (a joint at 100 rad/s: no path an arm follows), a half-turn of orientation
+   error, a command still outside the margin -- goes to :meth:`Robot.ik` (``correct``'s solver, restarts
+   and limit handling) for that goal; :attr:`Corrector.last` says so, and whether the goal was reached.
 """
 
 from __future__ import annotations
@@ -47,15 +58,16 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.solver.control.correct import true_angles
+from lasercal.solver.control.correct import _LIMIT_PASSES, _LIMIT_TOL, true_angles
 from lasercal.solver.errors import FormatError, ModelError
 from lasercal.solver.kinematics.gravity import G as GRAVITY
 from lasercal.solver.kinematics.gravity import wrist_centre
 from lasercal.solver.kinematics.ik import tool_frames
 from lasercal.solver.kinematics.poe import inv_T
 
-MAX_STEPS = 6  # Newton steps before the goal goes to the full solver
+MAX_STEPS = 6  # Newton steps before the goal goes to the full solver (two suffice along a path at 1 kHz)
 STEP_TOL = 2e-6  # rad: a step this short leaves an error of second order, < 1e-7 mm on a 1 m arm
+_REACH_TOL = 1e-6  # mm (task units): a converged step's linear model must reach the goal to this
 _HALF_TURN = 3.0  # rad: beyond this the rotation's log is taken by scipy (near pi its axis is ill-posed)
 _EFFECT_PASSES = 2  # fixed-point passes of q_cmd = q_true - dq(q_cmd): each shrinks the error ~1e3 times
 _CHECK_TOL = 1e-9  # mm, rad: the Python-float chain and effects must reproduce lasercal's own to this
@@ -197,27 +209,6 @@ class _Chain:
         return tau
 
 
-def _cholesky_solve(A: list, b: list) -> list:
-    """x of A x = b for a small symmetric positive definite A (its lower half: row i holds A_i0 .. A_ii),
-    by Cholesky A = L L^T (inner products by ``sum(map(mul, ...))``: C loops, no Python per term)."""
-    k = len(b)
-    L: list = []
-    for i in range(k):
-        Li = []
-        for j in range(i):
-            Lj = L[j]
-            Li.append((A[i][j] - sum(map(mul, Li, Lj))) / Lj[j])
-        Li.append(math.sqrt(A[i][i] - sum(map(mul, Li, Li))))
-        L.append(Li)
-    y: list = []
-    for i in range(k):
-        y.append((b[i] - sum(map(mul, L[i], y))) / L[i][i])
-    x = [0.0] * k
-    for i in range(k - 1, -1, -1):
-        x[i] = (y[i] - sum(L[t][i] * x[t] for t in range(i + 1, k))) / L[i][i]
-    return x
-
-
 def _log_rotation(Rg: tuple, R: tuple) -> tuple | None:
     """The rotation vector of Rg R^T (9-float rotations, row by row), rad; None near a half turn."""
     g00, g01, g02, g10, g11, g12, g20, g21, g22 = Rg
@@ -240,6 +231,17 @@ def _log_rotation(Rg: tuple, R: tuple) -> tuple | None:
         return None
     k = 0.5 + t * t / 12.0 if t < 1e-4 else 0.5 * t / s  # t / (2 sin t), its series near 0
     return (k * vx, k * vy, k * vz)
+
+
+def _step(cols: list, e: list, pull: list, lam: float) -> list:
+    """dq = J^T (J J^T + lambda I)^-1 (e - J pull) + pull (n floats): the minimum-norm step of the module
+    docstring (2) for the Jacobian's columns ``cols`` (n tuples of the task's k rows) and the seed's pull.
+    The (k, k) system by LAPACK: a 6 x 6 solve in Python floats cost three times numpy's call overhead."""
+    J = np.array(cols).T[: len(e)]
+    p = np.array(pull)
+    A = J @ J.T
+    A.flat[:: len(e) + 1] += lam
+    return (J.T @ np.linalg.solve(A, np.array(e) - J @ p) + p).tolist()
 
 
 class Corrector:
@@ -297,26 +299,16 @@ class Corrector:
             raise FormatError("q0", f"a warm start is {self._cal.n} finite joint angles (rad), got {q.shape}")
         self._q = [float(v) for v in q]
         self._dq = self._effect_dq(self._q) if self._effect else [0.0] * self._cal.n
-        self._qt = [a + b for a, b in zip(self._q, self._dq)]
+        self._qt = self._qt_prev = [a + b for a, b in zip(self._q, self._dq)]
 
     def __call__(self, goal) -> np.ndarray:
         """The joint command (n,) rad for one goal: a (4, 4) frame, a (6,) pose (mm, rotation vector rad)
         or a (3,) position (mm), base frame, for the tool; warm-started from the previous command."""
         pg, Rg = _goal(goal)
-        qt = self._newton(pg, Rg)
-        if qt is None:
-            return self._fallback(goal)
-        if self._effect:  # q_cmd = q_true - dq(q_cmd) from the previous goal's correction (docstring, 3)
-            dq = self._dq
-            for _ in range(_EFFECT_PASSES):
-                dq = self._effect_dq([a - b for a, b in zip(qt, dq)])
-            q = [a - b for a, b in zip(qt, dq)]
-        else:
-            dq, q = self._dq, qt
-        if any(v < lo or v > hi for v, lo, hi in zip(q, self._lo, self._hi)):
-            return self._fallback(goal)
-        self._q, self._qt, self._dq = q, qt, dq
-        return np.array(q)
+        # from where the last tick's motion carries the true angles (module docstring, 2)
+        start = [a + a - b for a, b in zip(self._qt, self._qt_prev)]
+        q = self._solve(pg, Rg, start)
+        return self._fallback(goal) if q is None else np.array(q)
 
     def nominal_pose(self, q=None) -> np.ndarray:
         """The nominal model's tool frame (4, 4) mm at the command q (default the last): the Cartesian command
@@ -327,11 +319,32 @@ class Corrector:
         return T
 
     # ------------------------------------------------------------------ the steps
-    def _newton(self, pg: tuple, Rg: tuple | None) -> list | None:
-        """The true angles reaching the goal from the previous ones (module docstring, 2), or None."""
+    def _solve(self, pg: tuple, Rg: tuple | None, start: list) -> list | None:
+        """The command for a goal: Newton steps from ``start`` (true angles), the effects, the limit passes
+        (module docstring, 2-4); None when the steps do not reach it."""
+        dq, shift = self._dq, [0.0] * self._cal.n
+        for _ in range(_LIMIT_PASSES):
+            lo, hi = [a + b for a, b in zip(self._lo, shift)], [a + b for a, b in zip(self._hi, shift)]
+            qt = self._newton(pg, Rg, start, lo, hi)
+            if qt is None:
+                return None
+            if self._effect:  # q_cmd = q_true - dq(q_cmd) from the previous correction (docstring, 4)
+                for _ in range(_EFFECT_PASSES):
+                    dq = self._effect_dq([a - b for a, b in zip(qt, dq)])
+            q = [a - b for a, b in zip(qt, dq)]
+            if not any(v < a - _LIMIT_TOL or v > b + _LIMIT_TOL for v, a, b in zip(q, self._lo, self._hi)):
+                self._q, self._qt_prev, self._qt, self._dq = q, self._qt, qt, dq
+                return q
+            start, shift = qt, dq  # as correct: solved again with the bounds of q_true moved by dq (3)
+        return None
+
+    def _newton(self, pg: tuple, Rg: tuple | None, start: list, lo: list, hi: list) -> list | None:
+        """The true angles in [lo, hi] reaching the goal, from ``start`` (module docstring, 2), or None."""
         chain, L, n = self._cal, self._L, self._cal.n
-        seed, q = self._q, list(self._qt)  # correct's seed: the previous command
-        for k in range(MAX_STEPS):
+        seed = self._q  # correct's seed: the previous command
+        q = [min(max(v, a), b) for v, a, b in zip(start, lo, hi)]
+        pulled, k, last = True, 0, MAX_STEPS
+        while k < last:
             R, p, zs, os_, _ = chain.run(q)
             e = [pg[0] - p[0], pg[1] - p[1], pg[2] - p[2]]
             cols = []
@@ -348,23 +361,33 @@ class Corrector:
                 if w is None:
                     return None
                 e += [L * w[0], L * w[1], L * w[2]]
-            rows = list(zip(*cols))[: len(e)]  # J, task row by row
             err2 = sum(map(mul, e, e))
-            pull = [s - v for s, v in zip(seed, q)] if err2 < 1.0 else [0.0] * n  # ik's pull_within_mm = 1
-            rhs = [ei - sum(map(mul, r, pull)) for ei, r in zip(e, rows)]
+            near = pulled and err2 < 1.0  # ik's pull_within_mm = 1
+            pull = [s - v for s, v in zip(seed, q)] if near else [0.0] * n
             lam = 0.5 * err2 + self._lam0
-            A = [[sum(map(mul, ri, rj)) for rj in rows[: i + 1]] for i, ri in enumerate(rows)]  # lower half
-            for i in range(len(e)):
-                A[i][i] += lam
-            u = _cholesky_solve(A, rhs)
-            dq = [sum(map(mul, c, u)) + pl for c, pl in zip(cols, pull)]
+            dq = _step(cols, e, pull, lam)
+            # a joint on a bound whose step points outside leaves the Jacobian and the pull (docstring, 3)
+            blocked = [(v <= a and d < 0) or (v >= b and d > 0) for v, d, a, b in zip(q, dq, lo, hi)]
+            if any(blocked):
+                zero = (0.0,) * len(cols[0])
+                cols = [zero if bl else c for c, bl in zip(cols, blocked)]
+                dq = _step(cols, e, [0.0 if bl else v for v, bl in zip(pull, blocked)], lam)
+                dq = [0.0 if bl else v for v, bl in zip(dq, blocked)]
             big = max(abs(v) for v in dq)
             if big > 0.5:  # ik's max_step
                 dq = [v * 0.5 / big for v in dq]
-            q = [a + b for a, b in zip(q, dq)]
+            q = [min(max(v + d, a), b) for v, d, a, b in zip(q, dq, lo, hi)]
+            k += 1
             if big < STEP_TOL:
-                self.last = Step(k + 1, big)
-                return q
+                rows = list(zip(*cols))[: len(e)]  # the linear model's error after the step: ~0 at the goal
+                if sum((ei - sum(map(mul, r, dq))) ** 2 for ei, r in zip(e, rows)) < _REACH_TOL**2:
+                    self.last = Step(k, big)
+                    return q
+                if not pulled:
+                    return None
+                # a least-squares point short of the goal, joints the pull held on their bounds: ik's polish,
+                # steps of the task alone, in which they may leave them (docstring, 3)
+                pulled, last = False, k + MAX_STEPS
         return None
 
     def _fallback(self, goal) -> np.ndarray:
@@ -375,7 +398,7 @@ class Corrector:
         if c.ok[0]:
             self._q = q
             self._dq = self._effect_dq(q) if self._effect else [0.0] * self._cal.n
-            self._qt = [a + b for a, b in zip(q, self._dq)]
+            self._qt = self._qt_prev = [a + b for a, b in zip(q, self._dq)]
         return np.array(q)
 
     def _effect_dq(self, q: list) -> list:

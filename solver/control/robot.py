@@ -38,8 +38,8 @@ from lasercal.solver.control.nominal import gravity_robot, nominal_model
 from lasercal.solver.control.tools import FLANGE, Tool, flange, identified_points, make_tool
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model as load_robot_model
-from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.ik import DEFAULT_IK, IKOptions, tool_frames
+from lasercal.solver.kinematics.joint_map import model_extension
 from lasercal.solver.kinematics.model import RobotModel
 
 
@@ -96,7 +96,7 @@ class Robot:
     ):
         self.model, self.nominal, self.options, self.path = model, nominal, options, path
         self.gravity = gravity_robot(model, path, nominal, payload)  # the effects' torques: the fit's
-        self.extension = extension_from_model(model.extensions, path or model.name, model.n)
+        self.extension = model_extension(model.extensions, path or model.name, model.n)  # the joint map too
         joint_effect(self.extension)
         self.flange = flange(model)
         self.nominal_flange = flange(nominal)

@@ -188,16 +188,28 @@ def read_series(folder) -> dict:
     return {"q": q, "T": T, "std": std, "temperature": temp, "file": path}
 
 
-def write_ipa_session(folder, out) -> int:
-    """Import one series folder as a pose session (robot ur10) in ``out``; returns the number of captures."""
+HALVES = ("first", "second")  # a series split in recording order: rows [0, m // 2) and [m // 2, m)
+
+
+def write_ipa_session(folder, out, half: str | None = None) -> int:
+    """Import one series folder as a pose session (robot ur10) in ``out``; returns the number of captures.
+
+    ``half``: 'first' or 'second' -- only that half of the series in recording order (rows [0, m // 2) or
+    [m // 2, m), the split of :func:`~lasercal.solver.analysis.pose_cv.half_scores`): a later series
+    split to register a model on one half and predict the other. t keeps the row's place in the series."""
     from lasercal.solver.formats.poses import pose_meta, write_pose_session
 
     s = read_series(folder)
+    m = len(s["q"])
+    if half is not None and m < 2:
+        raise FormatError(s["file"], f"{m} row: too few to split in halves", line=2)
+    rows = slice(0, m) if half is None else slice(0, m // 2) if half == HALVES[0] else slice(m // 2, m)
     meta = pose_meta(
         "ur10",
         sensor="laser tracker with a Leica T-Mac probe on the flange (ipa-robot-accuracy)",
         source=f"{s['file'].parent.name}/{s['file'].name}: Euler {EULER} (deg) -> rotation vector (rad); "
-        "t is the row order (the published timestamps are truncated in B and C)",
+        "t is the row order (the published timestamps are truncated in B and C)"
+        + ("" if half is None else f"; its {half} half, rows {rows.start + 1}-{rows.stop} of {m}"),
     )
     if s["std"] is None:
         meta["uncertainty"] = (
@@ -205,5 +217,7 @@ def write_ipa_session(folder, out) -> int:
             "from "
             "its residuals"
         )
-    write_pose_session(out, meta, s["q"], s["T"], s["std"], None, s["temperature"])
-    return len(s["q"])
+    cut = lambda a: None if a is None else a[rows]  # noqa: E731
+    t = np.arange(m, dtype=float)[rows]
+    write_pose_session(out, meta, s["q"][rows], s["T"][rows], cut(s["std"]), t, cut(s["temperature"]))
+    return rows.stop - rows.start

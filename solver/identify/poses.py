@@ -143,7 +143,7 @@ class PoseParams:
         if jmap:
             self.names += jmap.names
             self.kinds += jmap.kinds
-            self.map_idx, self.map_G = jmap.regressors(q_all)
+            self.map_idx, self.map_G = jmap.hats(q_all)
             self.map_G = self.map_G.tocsr()
 
     def col(self, k: int) -> int:
