@@ -23,10 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from lasercal.collector.errors import RobotConnectionError
+from lasercal.collector.hardware import truearm
 from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
 from lasercal.collector.hardware.fakeeffects import ArmEffects, arm_effects
 from lasercal.solver.errors import AimingError
-from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.model import RobotModel
@@ -313,7 +313,11 @@ class FakeRobot(RobotAdapter):
         truth's effects), rad."""
         return self._links_at(self.clock.now())[0]
 
+    def true_beam(self) -> tuple[np.ndarray, np.ndarray]:
+        """The true laser beam now, by the world's own kinematics (:mod:`collector.hardware.truearm`):
+        aperture (3,) mm and unit direction (3,)."""
+        return truearm.beam(self.truth, self.true_q())
+
     def true_spot(self, z: float) -> tuple[np.ndarray, float]:
         """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""
-        spot, length = predict_spots(self.truth, self.true_q()[None], z)
-        return spot[0], float(length[0])
+        return truearm.plane_spot(*self.true_beam(), z)

@@ -181,3 +181,25 @@ class FakeExposure:
         if prop == cv2.CAP_PROP_EXPOSURE:
             self.exposure = float(value)
         return True
+
+
+class CountedPhotos(FakeExposure):
+    """A validation's fake camera: the photos' noise is keyed by their count, a live frame (the view's) has
+    noise of its own, so a view leaves the validation's photos as they would be without it. A subclass
+    renders one picture with ``_render(seed)`` and sets ``seed``."""
+
+    seed: int = 0
+    _count = _frames = 0  # photos and frames taken (set on the instance by the first of each)
+
+    def photo(self) -> np.ndarray:
+        """One photo, (h, w, 3) BGR uint8."""
+        self._count += 1
+        return self._render(self.seed + self._count)
+
+    def frame(self) -> np.ndarray:
+        """A live frame for the view: rendered as a photo is, with noise of its own."""
+        self._frames += 1
+        return self._render(self.seed - self._frames)
+
+    def _render(self, seed: int) -> np.ndarray:
+        raise NotImplementedError

@@ -18,28 +18,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from lasercal.collector.errors import SessionError
-from lasercal.collector.hardware import fakeworld
-from lasercal.collector.hardware.fakeworld import World, arm_capsules, camera_pose, hidden
-from lasercal.collector.sessions.exposure import FakeExposure
+from lasercal.collector.hardware import fakeworld, truearm
+from lasercal.collector.hardware.fakeworld import World, camera_pose, hidden
+from lasercal.collector.hardware.truelens import SheetView, SpaceCamera
+from lasercal.collector.hardware.truespot import footprint
+from lasercal.collector.sessions.exposure import CountedPhotos, FakeExposure
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout
-from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.model import RobotModel
-from lasercal.solver.kinematics.sheet import SheetPose
 from lasercal.vision.errors import VisionError
 
 PSF_PX = 0.8  # the fake camera's lens blur, px
-SPOT_PEAK = 0.3  # the spot's peak at normal incidence, of full scale: exposed not to clip on the paper
 INK_PX = 0.5  # a spot on printed ink: the bias ink causes, added to its uncertainty (measured: 0.3-0.5 px)
 # In a camera session the operator aims beside each cross, on white paper (sheet frame, mm): the camera
 # measures where the spot is, and a spot on ink would be biased by the ink that swallows part of it.
 BESIDE_MM = (10.0, 10.0)
 
 
-def sheet_cross(centre: np.ndarray, scale: np.ndarray):
+def sheet_cross(centre: np.ndarray):
     """A cross as ``lasercal sheet`` prints it (vision.sheet: arms from 1.5 to 7 mm off its centre, lines
-    0.35 mm, the centre left white), at ``centre`` (base x, y, mm; the sheet's axes along the base's up to
-    its yaw, which the texture ignores: crosses are symmetric), scaled by the printer."""
+    0.35 mm, the centre left white), at ``centre`` (the layout's printed x, y, mm)."""
     from lasercal.vision.render import Print, square_corners
     from lasercal.vision.sheet import ARM, LINE
 
@@ -51,7 +49,7 @@ def sheet_cross(centre: np.ndarray, scale: np.ndarray):
     on_arm = (np.abs(c) >= ARM[0]) & (np.abs(c) <= ARM[1])
     img[np.ix_(on_line, on_arm)] = 0.05
     img[np.ix_(on_arm, on_line)] = 0.05
-    return Print(img, square_corners(centre, 2 * ARM[1] * float(np.mean(scale))))
+    return Print(img, square_corners(centre, 2 * ARM[1]))
 
 
 @dataclass(frozen=True)
@@ -91,55 +89,44 @@ class StatedTruth:
 
 
 class SheetCamera(FakeExposure):
-    """Photos of the fake robot's true spot on the printed sheet, from the camera's stated pose.
+    """Photos of the fake robot's true spot on the printed sheet, from the camera's stated pose, all by the
+    world's own code: the beam (:mod:`~collector.hardware.truearm`), where it meets the paper as it truly
+    lies (:class:`~collector.hardware.truesheet.PaperSheet`), the lens (:mod:`~collector.hardware.truelens`)
+    and the spot (:func:`~collector.hardware.truespot.footprint`); the markers and crosses are printed in
+    the layout's coordinates, the paper carries them where they truly are.
 
     Parameters
     ----------
     robot : FakeRobot or StatedTruth (``true_q()`` and ``truth``)
     markers : vision.plane.MarkerLayout, the layout's markers (sheet frame)
     crosses : (k, 2) array, the layout's points on the sheet, mm
-    pose : SheetPose, where the sheet truly lies in the true robot's frame
-    plane_z : float, the sheet's stated height, mm
+    paper : PaperSheet, where the sheet truly lies in the true robot's frame
     world : World, the effects on
     seed : int, seed of the image noise
     exposure : float or None, a gain on all the light, set through OpenCV's properties
         (:class:`~collector.sessions.exposure.FakeExposure`); None: fixed at 1, as a device that refuses
+
+    Attributes
+    ----------
+    lens : vision.camera.Camera or None, the correction a measurement applies: the world's calibration
+        estimate (``distortion``), None without distortion
     """
 
     name = "fake"
 
     def __init__(
-        self,
-        robot,
-        markers,
-        crosses,
-        pose: SheetPose,
-        plane_z: float,
-        world: World,
-        seed: int = 0,
-        exposure: float | None = None,
+        self, robot, markers, crosses, paper, world: World, seed: int = 0, exposure: float | None = None
     ):
-        from lasercal.vision.camera import Camera
-        from lasercal.vision.render import aruco_print, pose_view, reflectance
+        from lasercal.vision.render import aruco_print, reflectance
 
-        self.robot, self.pose, self.world, self.seed, self.exposure = robot, pose, world, seed, exposure
-        self.z = plane_z + world.sheet_dz  # the sheet's true surface
-        centre = pose.to_base(np.zeros((1, 2)), self.z)[0]
-        R, t = camera_pose(centre, np.radians(pose.yaw_deg))
-        self.eye = -R.T @ t
-        w, h = fakeworld.CAMERA_PX
-        f = np.linalg.norm(self.eye - centre) / fakeworld.CAMERA_MM_PER_PX
-        K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
-        dist = np.array(fakeworld.DISTORTION if world.has("distortion") else np.zeros(5), dtype=float)
-        self.view = pose_view((w, h), K, dist, R, t, self.z)
-        self.lens = Camera((w, h), K, dist) if world.has("distortion") else None
-        S = world.print_scale
-
-        def printed(xy):  # sheet mm as printed (scaled) to base-frame x, y
-            return pose.to_base(np.asarray(xy, dtype=float) * S, self.z)[:, :2]
-
-        prints = tuple(aruco_print(markers.dictionary, i, printed(c)) for i, c in markers.corners.items())
-        prints += tuple(sheet_cross(printed(p[None])[0], S) for p in np.atleast_2d(crosses))
+        self.robot, self.paper, self.world, self.seed, self.exposure = robot, paper, world, seed, exposure
+        centre = paper.surface(np.zeros((1, 2)))[0]
+        R, t = camera_pose(centre, paper.yaw)
+        self.view = SheetView(SpaceCamera(fakeworld.camera_lens(world), R, t), paper)
+        self.eye = self.view.camera.eye
+        self.lens = world.correction
+        prints = tuple(aruco_print(markers.dictionary, i, c) for i, c in markers.corners.items())
+        prints += tuple(sheet_cross(p) for p in np.atleast_2d(crosses))
         self.background = reflectance(self.view, prints, PSF_PX)  # the same for every photo: pasted once
 
     def photo(self) -> np.ndarray:
@@ -147,13 +134,15 @@ class SheetCamera(FakeExposure):
         from lasercal.vision.render import Photo, render
 
         truth, q = self.robot.truth, self.robot.true_q()
-        P = LaserParams(truth)
-        b = P.beam(P.x0(), q[None])
-        a, d = b.aperture[0], b.direction[0]
-        spot = a + (self.z - a[2]) / d[2] * d
+        a, d = truearm.beam(truth, q)
+        uv, spot, s = self.paper.hit(a, d)
         spots = ()
-        if d[2] < 0 and not (self.world.has("occlusion") and hidden(arm_capsules(truth, q), self.eye, spot)):
-            spots = (self._spot(spot[:2], d),)
+        seen = not (self.world.has("occlusion") and hidden(truearm.arm_segments(truth, q), self.eye, spot[0]))
+        if s[0] > 0 and seen:
+            w = self.world
+            spots = footprint(
+                self.view, self.paper, uv[0], d, w.has("ellipse"), w.has("subsurface"), self.gain
+            )
         g = self.gain
         photo = Photo(
             self.view,
@@ -168,29 +157,50 @@ class SheetCamera(FakeExposure):
         # the image noise keyed by the pose (itself keyed by the capture): a resumed session repeats itself
         return render(photo, seed=self.seed * 1_000_003 + zlib.crc32(q.tobytes()))
 
-    def _spot(self, xy: np.ndarray, d: np.ndarray):
-        """The footprint of a beam of direction d at xy (mm) as a LaserSpot in pixels: round on the sheet
-        (sigma BEAM_SIGMA_MM), stretched by 1/cos(tilt) along its azimuth with ``ellipse``, through the
-        view's local Jacobian."""
-        from lasercal.vision.render import LaserSpot
+    def close(self) -> None:
+        """Nothing to release."""
 
-        cov = np.eye(2) * fakeworld.BEAM_SIGMA_MM**2
-        horiz = np.hypot(d[0], d[1])
-        if self.world.has("ellipse") and horiz > 1e-9:
-            az = d[:2] / horiz
-            cos_t = -d[2]
-            cov += (1 / cos_t**2 - 1) * fakeworld.BEAM_SIGMA_MM**2 * np.outer(az, az)
-        h = 0.01
-        uv = self.view.project(xy[None])[0]
-        project = self.view.project
-        J = np.column_stack([(project(xy + e) - project(xy - e))[0] / (2 * h) for e in np.eye(2) * h])
-        C = J @ cov @ J.T
-        val, vec = np.linalg.eigh(C)
-        major = np.sqrt(val[1])
-        angle = np.degrees(np.arctan2(vec[1, 1], vec[0, 1]))
-        irradiance = self.gain * SPOT_PEAK * fakeworld.BEAM_SIGMA_MM**2 / np.sqrt(np.linalg.det(cov))
-        aspect = np.sqrt(val[0]) / major
-        return LaserSpot(uv[0], uv[1], major, irradiance, 0.2, aspect=aspect, angle_deg=angle)
+
+class PaperTopCamera(CountedPhotos):
+    """``validate``'s fake camera over a simulated sheet: a known view straight down at a point of the
+    paper as it truly lies (800 mm above it, ``size`` px at ``mm_per_px`` there, no lens distortion), the
+    true beam's spot on the paper rendered by the world's own code (:func:`truespot.footprint`, the paper's
+    effects on: ``ellipse``, ``subsurface``); ``validate.measure_known_view`` reads the spot's printed
+    coordinates back through the same view (it is known: validation measures the model, not the detector).
+
+    Parameters
+    ----------
+    robot : FakeRobot (``true_beam()``)
+    paper : PaperSheet, where the sheet truly lies in the true robot's frame
+    centre : (2,) array, the printed point (the layout's x, y, mm) the camera looks at
+    world : World, the effects on
+    seed : int, seed of the image noise
+    size : (w, h) px; mm_per_px : float, at the point
+    """
+
+    name = "fake"
+
+    def __init__(self, robot, paper, centre, world: World, seed: int = 0, size=(800, 600), mm_per_px=0.2):
+        from lasercal.collector.hardware.truelens import Lens, look_at
+
+        self.robot, self.paper, self.world, self.seed = robot, paper, world, seed
+        below = paper.surface(np.asarray(centre, dtype=float)[None])[0]
+        R, t = look_at(below + [0.0, 0.0, 800.0], below, up=(np.cos(paper.yaw), np.sin(paper.yaw), 0.0))
+        f = 800.0 / mm_per_px
+        K = np.array([[f, 0, (size[0] - 1) / 2], [0, f, (size[1] - 1) / 2], [0, 0, 1.0]])
+        self.view = SheetView(SpaceCamera(Lens(tuple(size), K), R, t), paper)
+
+    def _render(self, seed: int) -> np.ndarray:
+        """A photo of the blank paper with the true beam's spot, (h, w, 3) BGR uint8."""
+        from lasercal.vision.render import Photo, render
+
+        a, d = self.robot.true_beam()
+        uv, _, s = self.paper.hit(a, d)
+        w = self.world
+        spots = footprint(self.view, self.paper, uv[0], d, w.has("ellipse"), w.has("subsurface"), self.gain)
+        spots = spots if s[0] > 0 else ()
+        photo = Photo(self.view, (), spots, paper=Photo.paper * self.gain, camera=self.sensor)
+        return render(photo, seed=seed)
 
     def close(self) -> None:
         """Nothing to release."""
@@ -265,7 +275,8 @@ def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_fi
                 f"{', '.join(world.effects) or 'none'}\n"
             )
         crosses = np.array([p[:2] for p in layout.points.values()])
-        cam = SheetCamera(arm, markers, crosses, layout.sheet, layout.plane_z, world, cfg["seed"])
+        paper = world.paper(layout.sheet, layout.plane_z)
+        cam = SheetCamera(arm, markers, crosses, paper, world, cfg["seed"])
         return cam, lambda img, name: measure_spot(img, name, markers, cam.lens)
     if spec == "mujoco":  # the MuJoCo world's camera: photos measured as a real camera's are
         from lasercal.collector.hardware.mujoco import mujoco_camera

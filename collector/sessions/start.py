@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import sys
 from contextlib import ExitStack, contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from lasercal.collector.hardware import SIMULATED, make_rangefinder, make_robot
 from lasercal.collector.hardware.base import RobotAdapter
-from lasercal.collector.hardware.fakeworld import World, on_table, table_points
+from lasercal.collector.hardware.fakeworld import World, on_table, paper_half_length, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
 from lasercal.collector.sessions.anywhere import session_layout_file
 from lasercal.collector.sessions.capture import (
@@ -36,6 +36,7 @@ from lasercal.collector.sessions.world import (
     SimulatedWorld,
     check_same_frame,
     model_session,
+    stored_effects,
     validation_world,
 )
 from lasercal.solver.errors import FormatError, LasercalError
@@ -203,7 +204,12 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
             "--auto needs --backend fake or mujoco (only the simulated operator can trigger by itself)"
         )
     nominal = load_model(cfg["robot"])
-    world = World.draw(cfg.get("effects") or (), cfg["seed"])
+    # a resumed session goes on in the world it recorded (its draws, the camera's calibration)
+    world = (
+        stored_effects(settings.folder)
+        if settings.resume
+        else World.draw(cfg.get("effects") or (), cfg["seed"], paper_half_length(layout))
+    )
     camera_spec = cfg.get("camera")
     layout_file = session_layout_file(cfg, settings.folder) if settings.resume else settings.layout_path
     spots = aim_cells(cfg, guide, layout, layout_file, settings.resume)
@@ -407,14 +413,12 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     nominal = load_model(cfg["robot"])
     effects = world.effects if world is not None else World()
     robot = make_robot(cfg, nominal, layout, truth=world and world.truth, repeat_sigma=effects.repeat_sigma)
-    # where the simulated table holds the sheet, as printed: the markers read the printer's coordinates
-    placed = (
-        world
-        and world.sheet
-        and replace(world.sheet, scale_x=effects.print_scale[0], scale_y=effects.print_scale[1])
-    )
+    # where the simulated table holds the sheet, as printed and laid (collector.hardware.truesheet)
+    paper = None
+    if world is not None and world.sheet is not None and sheet is not None:
+        paper = effects.paper(world.sheet, layout.plane_z)
     camera, measure = make_camera(
-        run["camera"], cfg, robot, layout, point, layout.path, sheet, placed, effects.sheet_dz
+        run["camera"], cfg, robot, layout, point, layout.path, sheet, paper, effects
     )
     trigger = None
     if run["guide"] or not robot.can_move:

@@ -25,7 +25,7 @@ from lasercal.collector.errors import DeviceError, RobotConnectionError, Session
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.sessions.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import StateStream, wait_still
-from lasercal.collector.sessions.exposure import FakeExposure, readable_by, settle_exposure
+from lasercal.collector.sessions.exposure import CountedPhotos, readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
 from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
 from lasercal.collector.sessions.state import ACTIONS, SessionState
@@ -65,7 +65,7 @@ class SpotLook:
     speckle: float = 0.2
 
 
-class FakeCamera(FakeExposure):
+class FakeCamera(CountedPhotos):
     """Photos of the spot the fake robot's true beam makes on a blank sheet.
 
     No reference marks are printed: ink under the spot would bias its centroid, and the
@@ -95,17 +95,6 @@ class FakeCamera(FakeExposure):
     ):
         self.robot, self.view, self.plane_z, self.seed, self.look = robot, view, plane_z, seed, look
         self.exposure = exposure
-        self._count = self._frames = 0
-
-    def photo(self) -> np.ndarray:
-        self._count += 1
-        return self._render(self.seed + self._count)
-
-    def frame(self) -> np.ndarray:
-        """A live frame for the view: rendered as a photo is, with noise of its own (the photos' noise is
-        keyed by their count, so a view leaves the validation's photos as they would be without it)."""
-        self._frames += 1
-        return self._render(self.seed - self._frames)
 
     def _render(self, seed: int) -> np.ndarray:
         spot, _ = self.robot.true_spot(self.plane_z)
@@ -149,8 +138,8 @@ def make_camera(
     point: str,
     layout_path,
     sheet=None,
-    placed=None,
-    sheet_dz: float = 0.0,
+    paper=None,
+    world=None,
 ):
     """The camera a validation photographs with, and how its photos are measured.
 
@@ -163,9 +152,10 @@ def make_camera(
     layout : Layout (base frame); point : str, the validation point
     layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
     sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
-    placed : SheetPose or None, where the simulated table holds that sheet (the fake camera's spots,
-        in the simulated robot's frame, go to the sheet through it and to the model's frame through ``sheet``)
-    sheet_dz : float, the simulated sheet's height above the layout's plane, mm (the true beam meets it there)
+    paper : collector.hardware.truesheet.PaperSheet or None, where the simulated table holds that sheet: the
+        fake camera looks down at the point on it (:class:`~collector.sessions.spotcam.PaperTopCamera`), its
+        spots read in the sheet's printed mm and go to the model's frame through ``sheet``
+    world : collector.hardware.fakeworld.World or None, the simulated world's effects on the spot
 
     Returns
     -------
@@ -176,15 +166,20 @@ def make_camera(
     if spec == "fake":
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
+        if paper is not None:  # a simulated sheet: the spot read in its printed mm, then the model's frame
+            from lasercal.collector.sessions.spotcam import PaperTopCamera
+
+            centre = sheet.from_base(layout.points[point][None])[0]
+            cam = PaperTopCamera(robot, paper, centre, world, cfg["seed"], FAKE_VIEW_PX, FAKE_MM_PER_PX)
+
+            def on_sheet(img, name):
+                xy, advice = measure_known_view(img, name, cam.view)
+                return sheet.to_base(xy[None], layout.plane_z)[0, :2], advice
+
+            return cam, on_sheet
         view = fake_view(layout.points[point][:2], layout.plane_z, FAKE_VIEW_PX, FAKE_MM_PER_PX)
-
-        def measure(img, name):
-            xy, advice = measure_known_view(img, name, view)
-            if placed is not None:
-                xy = sheet.to_base(placed.from_base(xy[None]), layout.plane_z)[0, :2]
-            return xy, advice
-
-        return FakeCamera(robot, view, layout.plane_z + sheet_dz, seed=cfg["seed"]), measure
+        camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
+        return camera, lambda img, name: measure_known_view(img, name, view)
     if spec is None:
         raise SessionError(
             "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"

@@ -111,12 +111,24 @@ def session_world(folder) -> SimulatedWorld | None:
     )
 
 
+def stored_effects(folder) -> World:
+    """The simulated world's effects a session recorded (``simulated.world`` of its session.yaml; none when it
+    records none): what a resumed capture goes on in, as drawn when it started."""
+    meta = load_yaml(Path(folder) / "session.yaml")
+    sim = meta.get("simulated") if isinstance(meta, dict) else None
+    return World.from_dict(sim.get("world") if isinstance(sim, dict) else None)
+
+
 def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tuple[SheetPose, np.ndarray]:
     """Where a simulated sheet truly lies in the frame ``solve`` reports its pose in: the true robot's own
     base frame (eq. S2: joint 1 as the nominal's, joint 2 pointing as the nominal's), not the truth file's.
 
-    A truth whose base differs from the nominal's (the thesis's Panda: turned 0.44 deg about joint 1) puts
-    a sheet laid at its placement (450, 0, 0) elsewhere in its own frame (y -4.0 mm): the number ``solve``
+    Read off the world's own paper (:meth:`collector.hardware.fakeworld.World.paper`: the printer's scale
+    and skew, the table's slope, the sheet's height) at the layout's origin: the pose, print scale and tilt
+    eq. S3 would give it there (the paper's bulge, which eq. S3 cannot hold, left out; the printer's skew,
+    neither, split evenly between the axes: the yaw the rotation nearest the print's axes). A
+    truth whose base differs from the nominal's (the thesis's Panda: turned 0.44 deg about joint 1) puts a
+    sheet laid at its placement (450, 0, 0) elsewhere in its own frame (y -4.0 mm): the number ``solve``
     finds, within its sigma.
 
     Parameters
@@ -131,18 +143,17 @@ def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tup
     own, mm
     """
     G = own_frame(world.truth, nominal)
-    yaw = np.radians(world.sheet.yaw_deg)
-    origin = G[:3, :3] @ np.r_[world.sheet.x_mm, world.sheet.y_mm, z] + G[:3, 3]
-    x_axis = G[:3, :3] @ np.r_[np.cos(yaw), np.sin(yaw), 0.0]
-    yaw_deg = float(np.degrees(np.arctan2(x_axis[1], x_axis[0])))
-    scale = world.effects.print_scale  # the printer's (eq. S3): solve finds it with the pose
-    # the table is level in the truth's file frame: in its own, it rises along the sheet's axes (eq. S3)
-    n = G[:3, 2]
-    rise = -n[:2] / n[2]
-    along = np.array([[np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))], [0.0, 0.0]])
-    along[1] = [-along[0, 1], along[0, 0]]
-    tilt = along @ rise
-    pose = SheetPose(float(origin[0]), float(origin[1]), yaw_deg, *map(float, scale), *map(float, tilt))
+    paper = world.effects.paper(world.sheet, z)
+    origin = G[:3, :3] @ paper.surface(np.zeros((1, 2)))[0] + G[:3, 3]
+    T = G[:3, :3] @ paper.tangents(np.zeros((1, 2)))[0]  # (3, 2): how a printed mm moves, own frame
+    A = T[:2]  # its horizontal part: eq. S3's Rz(yaw) diag(scale), but for the printer's skew
+    yaw = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])  # the rotation nearest A (a skew split evenly)
+    c, s = np.cos(yaw), np.sin(yaw)
+    scale = np.diag(np.array([[c, s], [-s, c]]) @ A)
+    tilt = T[2] / scale  # the rise per printed mm, over the scale (eq. S3)
+    pose = SheetPose(
+        float(origin[0]), float(origin[1]), float(np.degrees(yaw)), *map(float, scale), *map(float, tilt)
+    )
     return pose, G
 
 
@@ -212,3 +223,56 @@ def validation_world(
     if world is not None:
         return world
     return SimulatedWorld(fake_truth(cfg, nominal), placement, "the layout's placement")
+
+
+def floors(session, layout_file, point: str, n: int = 30, seed: int = 0) -> tuple[float, float]:
+    """What no model can beat at ``point`` in a simulated session's world: the true robot itself, aimed at
+    the point where it truly lies on the paper (its bulge, skew, slope and height included) and commanded
+    through its own effects, validated as ``validate --backend fake -n N`` photographs (the same camera,
+    spot and repeatability; the configurations the truth's aiming IK finds with ``seed``).
+
+    Parameters
+    ----------
+    session : a simulated sheet session's folder (``capture --backend fake``)
+    layout_file : its layout (the sheet's printed points)
+    point : str, the point to validate at
+    n : int, configurations; seed : int, their seed (validate's ``--seed``)
+
+    Returns
+    -------
+    (honest, repeatability) : mean distances on the paper, mm: the honest floor (the spot as the camera
+    measures it, against the printed point) and the repeatability floor (where the true beam truly meets the
+    paper, the camera left out)
+    """
+    from lasercal.collector.hardware import make_robot
+    from lasercal.collector.sessions.capture import wait_still
+    from lasercal.collector.sessions.spotcam import PaperTopCamera
+    from lasercal.collector.sessions.validate import (
+        FAKE_MM_PER_PX,
+        FAKE_VIEW_PX,
+        ValidateOptions,
+        measure_known_view,
+    )
+    from lasercal.solver.formats.session import load_layout
+    from lasercal.solver.kinematics.aim import aim
+
+    world = session_world(session)
+    layout = load_layout(layout_file)
+    effects = world.effects
+    paper = effects.paper(world.sheet, layout.plane_z)
+    printed = np.asarray(layout.points[point][:2], dtype=float)
+    cfg = {**load_yaml(Path(session) / "session.yaml")["collector"], "seed": seed}
+    robot = make_robot(
+        cfg, load_model(cfg["robot"]), layout, truth=world.truth, repeat_sigma=effects.repeat_sigma
+    )
+    camera = PaperTopCamera(robot, paper, printed, effects, seed, FAKE_VIEW_PX, FAKE_MM_PER_PX)
+    robot.connect()
+    opts = ValidateOptions()
+    measured, true = [], []
+    for q in aim(world.truth, paper.surface(printed[None])[0], n, seed, **layout.aim_kwargs()):
+        robot.move_to(robot.effects.encoders(q[None], robot.clock.now())[0])
+        wait_still(robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)  # as validate waits
+        a, d = robot.true_beam()
+        true.append(np.linalg.norm(paper.hit(a, d)[0][0] - printed))
+        measured.append(np.linalg.norm(measure_known_view(camera.photo(), "floor", camera.view)[0] - printed))
+    return float(np.mean(measured)), float(np.mean(true))
