@@ -4,7 +4,7 @@ and what no model can beat in the same simulated world.
 As the outside check runs it: ``lasercal sheet --place 450 0 0``, ``capture --backend fake --auto
 --per-point 9`` with ``--aim-noise 0.5`` (eye) and with ``--aim-noise 3 --camera fake`` (camera), each
 ``solve --extend auto``, then ``validate --backend fake -n 30 --point P6``; the figure is validate's
-``error mean``. The floors (:func:`collector.sessions.world.floors`), in the session's own world (the
+``error mean``. The floors (:func:`collector.sessions.floors.floors`), in the session's own world (the
 world's own code: the paper as printed, skewed, bulged, on a sloping table, the lens corrected by
 camera-calibrate's estimate, the spot's subsurface glow):
 
@@ -75,7 +75,7 @@ def sheet_sigmas(where: Path) -> list[float]:
 def run(options: str, where: Path) -> tuple[float, float, float, float, list[float]]:
     """(error mean, honest floor, repeatability floor, simulated seconds of the capture, the sheet's
     found - true scale and tilt in sigmas) of one session."""
-    from lasercal.collector.sessions.world import floors
+    from lasercal.collector.sessions.floors import floors
     from lasercal.solver.formats.session import load_session
 
     lasercal("sheet", "-o", "sheet", "--place", "450", "0", "0", cwd=where)

@@ -167,7 +167,7 @@ def test_solve_recovers_a_drawn_print_scale_and_tilt_within_its_sigma(scaled_ses
 def test_the_honest_floor_is_the_repeatability_and_the_camera(scaled_session):
     """The true robot aimed at P6 where it truly lies, photographed as validate does: its error is the arm's
     repeatability (0.05-0.06 mm at P6 over 15 poses) with the camera's few hundredths on top."""
-    from lasercal.collector.sessions.world import floors
+    from lasercal.collector.sessions.floors import floors
 
     honest, repeat = floors(scaled_session / "s", scaled_session / "sheet" / "layout.yaml", "P6", 15, 0)
     assert 0.03 < repeat < 0.09, repeat

@@ -23,9 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from lasercal.collector.errors import RobotConnectionError
-from lasercal.collector.hardware import truearm
 from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
 from lasercal.collector.hardware.fakeeffects import ArmEffects, arm_effects
+from lasercal.collector.hardware.truearm import beam as true_beam_of
+from lasercal.collector.hardware.truearm import plane_spot
 from lasercal.solver.errors import AimingError
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams
@@ -316,8 +317,8 @@ class FakeRobot(RobotAdapter):
     def true_beam(self) -> tuple[np.ndarray, np.ndarray]:
         """The true laser beam now, by the world's own kinematics (:mod:`collector.hardware.truearm`):
         aperture (3,) mm and unit direction (3,)."""
-        return truearm.beam(self.truth, self.true_q())
+        return true_beam_of(self.truth, self.true_q())
 
     def true_spot(self, z: float) -> tuple[np.ndarray, float]:
         """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""
-        return truearm.plane_spot(*self.true_beam(), z)
+        return plane_spot(*self.true_beam(), z)
