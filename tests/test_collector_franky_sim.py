@@ -569,10 +569,20 @@ def test_hands_free_camera_session_on_franky_sim_measures_the_nominal_fr3s_beam(
     measured = np.array([[float(row["camera_x"]), float(row["camera_y"])] for row in rows])
     sigma = np.array([[float(row["camera_sx"]), float(row["camera_sy"])] for row in rows])
     assert sigma.min() > 0 and sigma.max() < 0.1  # the fake camera's 0.02-0.05 mm per axis
-    # each spot within 4 of its stated sigmas plus 0.01 mm: twice that chatter bound, and ~0.4 sigma for
-    # the stated sigmas' ~15 % shortfall in this clean world (the benchmark's 90 z-scores: RMS 1.15); of 30
-    # values one fails by chance ~0.4 % of runs
-    assert np.all(np.abs(measured - true) <= 4 * sigma + 0.01), (measured - true) / sigma
+    # each spot where the beam met the sheet, as well as the fake camera measures in this clean world
+    # (benchmarks/bench_camera_sigma_clean.py, 500 photos of such poses: error RMS 0.028 mm per axis, max
+    # 0.103; z-scores RMS 1.26, the centroid's stated sigma 1.48x short in px, the plane map's error 0.002
+    # mm). A per-spot bound in stated sigmas is no test of that: the sigma of one photo is itself an
+    # estimate, 0.012-0.063 mm, and its z-scores have tails (above 4: 0.5 %; a 4-sigma + 0.01 mm bound
+    # failed 8.6 % of 15-photo sessions, as CI saw). Over the 15 photos, bounds that the benchmark's
+    # 200,000 resampled sessions stay inside at their 99.99 % quantile (in brackets): a spot misplaced
+    # (the wrong pose photographed, a frame off) moves the mean or the largest error; a sigma that lies by
+    # 2x moves the z-score RMS.
+    err = measured - true
+    assert np.abs(err.mean(axis=0)).max() < 0.04, err.mean(axis=0)  # (0.030)
+    assert np.abs(err).max() < 0.15, err  # (0.103)
+    z_rms = float(np.sqrt(np.mean((err / sigma) ** 2)))
+    assert 0.5 < z_rms < 2.4, (z_rms, err / sigma)  # (0.62, 2.14)
     # solve on it: every capture fitted as measured, the sheet found where it was placed (the arm is the
     # nominal FR3, so the robot's own base frame is the nominal's)
     assert r["solve_rc"] == 0
