@@ -528,7 +528,11 @@ def test_a_fake_camera_off_the_fake_backend_photographs_the_stated_nominal_beam(
             m = measure(camera.photo(), name)
             true = layout.sheet.from_base(predict_spots(fr3, q[None], layout.plane_z)[0])[0]
             np.testing.assert_allclose(true, layout.points[name][:2] + BESIDE_MM, atol=1e-3)  # aimed there
-            assert np.all(np.abs(m.xy - true) <= 4 * m.sigma), (m.xy - true, m.sigma)
+            # the fake camera's error in a clean world: RMS 0.028 mm per axis, 0.11 mm the largest of 2,000
+            # (benchmarks/bench_camera_sigma_clean.py); a per-spot bound in its stated sigmas would fail on
+            # another CPU's rounding ~6 % of the time (the photo's noise is keyed by q's bytes; tails: 0.5 %
+            # above 4 sigma). The wrong arm or joint angles put the spot millimetres off.
+            assert np.all(np.abs(m.xy - true) < 0.15), (m.xy - true, m.sigma)
 
 
 def test_hands_free_camera_session_on_franky_sim_measures_the_nominal_fr3s_beam(tmp_path):

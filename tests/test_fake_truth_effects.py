@@ -114,7 +114,9 @@ def test_the_fake_camera_photographs_the_spot_of_the_truly_bent_arm(sheet):
         spot_rigid = predict_spots(TRUTH, q[None], layout.plane_z)[0]
         on_sheet = layout.sheet.from_base(spot_bent)[0]
         assert np.linalg.norm(layout.sheet.from_base(spot_rigid)[0] - on_sheet) > 0.5  # 10 sigma apart
-        assert np.all(np.abs(m.xy - on_sheet) < 4 * m.sigma + 0.02), (m.xy, on_sheet, m.sigma)
+        # within 0.15 mm: the fake camera's largest error of 2,000 photos in a clean world is 0.11 mm
+        # (benchmarks/bench_camera_sigma_clean.py; its stated sigmas run short, tails 0.5 % above 4 sigma)
+        assert np.all(np.abs(m.xy - on_sheet) < 0.15), (m.xy, on_sheet, m.sigma)
 
 
 def test_a_drift_runs_on_the_sessions_clock_across_a_resume(tmp_path):
