@@ -417,6 +417,9 @@ MODEL_BAD = {
     "model extension nan": _yaml(
         "model.yaml", _set("extensions", {"joint_compliance": {"joints": [2], "c": [nan]}})
     ),
+    "model drift t0 text": _yaml(
+        "model.yaml", _set("extensions", {"drift": {"joints": [2], "r": [1e-6], "t0_s": "noon"}})
+    ),
     "model link mass negative": _yaml("model.yaml", _set("links", [{"mass": -1.0, "com": [0, 0, 0]}] * 7)),
     "model home outside limits": _yaml("model.yaml", _set("home", [10.0] * 7)),
     "model units m": _yaml("model.yaml", _set("units", {"length": "m", "angle": "rad"})),

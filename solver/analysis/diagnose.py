@@ -742,7 +742,9 @@ def diagnose(
     pts = list(dict.fromkeys(session.point[~session.measured])) if offsets else []
     clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
     lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
-    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral, session.robot.joint_names)
+    # a drift is zero at the mean capture time: the geometry written is the arm's then (Extension.t0)
+    t0 = float(np.mean(session.t)) if clock_ok else 0.0
+    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral, session.robot.joint_names, t0)
     cannot = untested(
         session.measurement,
         tau is not None,

@@ -4,7 +4,7 @@ Each effect adds a few parameters and is linear in them:
 
 * ``joint_compliance``      q_true_i = q_logged_i + c_i tau_i             (c: rad/Nm)
 * ``encoder_eccentricity``  q_true_i = q_logged_i + a_i sin q_i + b_i cos q_i   (a, b: rad)
-* ``drift``                 q_true_i = q_logged_i + r_i t                 (r: rad/s)
+* ``drift``                 q_true_i = q_logged_i + r_i (t - t0)          (r: rad/s; t0 s, 0 in a model file)
 * ``reference_point_offset`` the true point is the session's point + (dx, dy)    (mm)
 * ``lateral_compliance``    q_true_i = 0 + c_i tau_i on a lateral axis i (an axis across a joint about
   which its link bends, :mod:`solver.kinematics.tree`; tau_i the moment of gravity about it)  (c: rad/Nm)
@@ -72,6 +72,10 @@ class Extension:
     params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     std_errors: np.ndarray | None = None
     joint_names: tuple = field(default=(), compare=False, repr=False)
+    # drift: the instant (s, the session's clock) at which it is zero, so that the geometry fitted beside it
+    # is the arm's then. A diagnosis sets the session's mean capture time: the geometry's least-uncertain
+    # instant, and the one a geometric fit without the drift describes (a spurious drift cannot move it)
+    t0: float = 0.0
 
     @property
     def size(self) -> int:
@@ -156,7 +160,7 @@ class Extension:
             elif self.effect == "encoder_eccentricity":
                 cols += [np.sin(q[:, i]), np.cos(q[:, i])]
             elif self.effect == "drift":
-                cols.append(t)
+                cols.append(t - self.t0)
             joints += [i] * len(_PARAMS[self.effect])
         return np.array(joints, dtype=int), np.stack(cols, axis=1) if cols else np.zeros((len(q), 0))
 
@@ -201,6 +205,8 @@ class Extension:
             d["point"] = self.point
         else:
             d["joints"] = [int(j) for j in self.joints]
+        if self.effect == "drift" and self.t0:
+            d["t0_s"] = float(self.t0)
         for k, name in enumerate(_PARAMS[self.effect]):
             vals = self.params[k :: len(_PARAMS[self.effect])]
             d[name] = [float(v) for v in vals]
@@ -327,11 +333,20 @@ def extension_from_model(
                 f"extension {name}: one value per joint, joints numbered 1..{n}",
                 field=f"extensions.{name}",
             )
-        parts.append(Extension(name, joints, None, np.stack(cols, axis=1).ravel()))
+        t0 = d.get("t0_s", 0.0) if name == "drift" else 0.0
+        if not isinstance(t0, (int, float)) or not np.isfinite(t0):
+            raise FormatError(
+                path,
+                f"extension drift: t0_s must be a finite number of s, got {t0!r}",
+                field="extensions.drift.t0_s",
+            )
+        parts.append(Extension(name, joints, None, np.stack(cols, axis=1).ravel(), t0=float(t0)))
     return combine(parts) if parts else None
 
 
-def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_names=()) -> list[Extension]:
+def candidates(
+    n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_names=(), t0: float = 0.0
+) -> list[Extension]:
     """Every single-joint (or single-point) extension the data can test.
 
     Parameters
@@ -342,6 +357,7 @@ def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_nam
     has_t : bool, a real clock that changes (``clock: seconds``): drift needs time, not row order
     lateral : 1-based joints that are lateral axes (they only bend: ``lateral_compliance`` is their effect)
     joint_names : the model's n joint names (how the candidates name their joints), optional
+    t0 : float, s, the instant at which a drift candidate is zero (:attr:`Extension.t0`)
     """
     out = []
     for effect in JOINT_EFFECTS:
@@ -350,7 +366,11 @@ def candidates(n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_nam
         ):
             continue
         on = [j for j in range(1, n + 1) if (j in lateral) == (effect == "lateral_compliance")]
-        out += [Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect])), None, joint_names) for j in on]
+        zero = np.zeros(len(_PARAMS[effect]))
+        out += [
+            Extension(effect, (j,), None, zero, None, joint_names, t0 if effect == "drift" else 0.0)
+            for j in on
+        ]
     out += [Extension("reference_point_offset", (), p, np.zeros(2)) for p in points]
     return out
 
