@@ -114,6 +114,9 @@ def test_session_effect_is_fitted_reported_not_exported_and_predict_needs_q_only
     assert model.extensions == {}  # drift explains this session, it is not part of the robot
     assert model.identification["diagnosis"]["effect"] == "drift"
     assert not model.identification["diagnosis"]["exported"]
+    # the instant the written geometry describes, said and recorded: the mean capture time
+    assert model.identification["diagnosis"]["t0_s"] == pytest.approx(np.mean(s.t), abs=1e-6)
+    assert f"it is zero at t = {np.mean(s.t):.1f} s, the mean capture time" in out
     assert predict_rms(capsys, tmp_path / "m.yaml", q_only_csv(s.path, tmp_path / "q.csv")) < 3.0
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lasercal.solver.kinematics.effects import drift_t0
 from lasercal.solver.kinematics.sheet import SheetPose
 
 
@@ -106,7 +107,13 @@ def format_diagnosis(d) -> str:
             + "  (posterior / prior sigma)"
         )
     if d.extension is not None and d.robot_extension is None:
-        lines.append(f"{d.effect} is a session effect: fitted and reported, not written to the robot model")
+        line = f"{d.effect} is a session effect: fitted and reported, not written to the robot model"
+        t0 = drift_t0(d.extension)
+        if t0 is not None:
+            line += (
+                f"; it is zero at t = {t0:.1f} s, the mean capture time, the instant the geometry describes"
+            )
+        lines.append(line)
     lines.append("candidates (F test against the geometric model, Bonferroni over all):")
     for t in d.tests[:6]:
         lines.append(f"  {t.label:38} F = {t.F:9.3f}  df {t.df}  p = {t.p:.3g}  corrected {t.p_adjusted:.3g}")

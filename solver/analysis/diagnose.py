@@ -66,6 +66,7 @@ from lasercal.solver.kinematics.effects import (
     Extension,
     candidates,
     combine,
+    drift_t0,
     untested,
 )
 from lasercal.solver.kinematics.gravity import gravity_torques, model_torques
@@ -187,6 +188,7 @@ class Diagnosis:
             else [],
             "label": ext.label if ext else "none",
             "parameters": params,
+            **({} if drift_t0(ext) is None else {"t0_s": round(drift_t0(ext), 6)}),
             "p_value": float(self.p_value),
             "holdout_rms_mm": {k: round(float(v), 6) for k, v in self.holdout_rms.items()},
             "gain_percent": round(self.gain_percent, 3),

@@ -344,6 +344,12 @@ def extension_from_model(
     return combine(parts) if parts else None
 
 
+def drift_t0(extension) -> float | None:
+    """The instant (s) at which an extension's drift is zero (:attr:`Extension.t0`), None without a drift."""
+    parts = [] if extension is None else [e for e in extension.parts if e.effect == "drift"]
+    return float(parts[0].t0) if parts else None
+
+
 def candidates(
     n: int, points, has_tau: bool, has_t: bool, lateral=(), joint_names=(), t0: float = 0.0
 ) -> list[Extension]:
