@@ -170,6 +170,7 @@ class Diagnosis:
     def as_dict(self) -> dict:
         """The ``lasercal diagnose --json`` object."""
         ext = self.extension
+        t0 = drift_t0(ext)
         params = {}
         if ext is not None:
             for nm, v, se, u in zip(
@@ -188,7 +189,7 @@ class Diagnosis:
             else [],
             "label": ext.label if ext else "none",
             "parameters": params,
-            **({} if drift_t0(ext) is None else {"t0_s": round(drift_t0(ext), 6)}),
+            **({} if t0 is None else {"t0_s": round(t0, 6)}),
             "p_value": float(self.p_value),
             "holdout_rms_mm": {k: round(float(v), 6) for k, v in self.holdout_rms.items()},
             "gain_percent": round(self.gain_percent, 3),

@@ -372,10 +372,9 @@ def candidates(
         ):
             continue
         on = [j for j in range(1, n + 1) if (j in lateral) == (effect == "lateral_compliance")]
-        zero = np.zeros(len(_PARAMS[effect]))
+        at = t0 if effect == "drift" else 0.0
         out += [
-            Extension(effect, (j,), None, zero, None, joint_names, t0 if effect == "drift" else 0.0)
-            for j in on
+            Extension(effect, (j,), None, np.zeros(len(_PARAMS[effect])), None, joint_names, at) for j in on
         ]
     out += [Extension("reference_point_offset", (), p, np.zeros(2)) for p in points]
     return out
