@@ -59,14 +59,19 @@ def main(n: int = 40, first: int = 100) -> None:
         print(f"{seed:4d}   " + "  ".join(f"{v:10.2f}" for v in z), flush=True)
     z = np.array(zs)
     worst = np.abs(z).max(axis=1)
-    print(f"\n{n} sessions: z RMS per key " + ", ".join(f"{k} {v:.2f}" for k, v in zip(KEYS, np.sqrt(np.mean(z**2, 0)))))
-    print(f"pooled z RMS {np.sqrt(np.mean(z**2)):.2f}; largest |z| of a session: median {np.median(worst):.2f}, "
-          f"90 % {np.quantile(worst, 0.9):.2f}, max {worst.max():.2f}")
+    print(
+        f"\n{n} sessions: z RMS per key "
+        + ", ".join(f"{k} {v:.2f}" for k, v in zip(KEYS, np.sqrt(np.mean(z**2, 0))))
+    )
+    print(
+        f"pooled z RMS {np.sqrt(np.mean(z**2)):.2f}; largest |z| of a session: "
+        f"median {np.median(worst):.2f}, 90 % {np.quantile(worst, 0.9):.2f}, max {worst.max():.2f}"
+    )
     # the test's bound: a session's largest |z| under N(0, s^2) per value, s the measured RMS, at 99.9 %
     s = float(np.sqrt(np.mean(z**2)))
     from scipy.stats import norm
 
-    q = s * norm.isf((1 - 0.999 ** 0.25) / 2)
+    q = s * norm.isf((1 - 0.999**0.25) / 2)
     print(f"99.9 % quantile of a session's largest |z| (4 values, N(0, {s:.2f}^2)): {q:.2f}")
 
 
