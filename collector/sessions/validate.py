@@ -546,11 +546,8 @@ class ValidationRun:
         """The next configuration: the arm moved there, or the operator guides it and triggers."""
         if self.k >= len(self.todo):
             return None
-        page = self.state.take()
-        if page == "stop":
-            self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
-            self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
-            return None
+        if self.state.stop_asked():  # the page's stop, asked in any phase before
+            return self.stopped()
         i, opts = self.todo[self.k], self.opts
         q = self.planned[i]
         if self.guided:
@@ -561,9 +558,7 @@ class ValidationRun:
             self.say(f"\n{line}\n  now off by {np.round(q - now, 3).tolist()} rad   [{self.trigger.hint}]\n")
             cmd = self.trigger.wait()
             if cmd == "quit":
-                self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
-                self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
-                return None
+                return self.stopped()
             if cmd == "discard":
                 self.say(f"configuration {i + 1} skipped\n")
                 self.k += 1
@@ -572,13 +567,23 @@ class ValidationRun:
             steps = self.plan.steps[self.plan.target_of == self.k]
             self.state.phase("moving", f"moving to configuration {i + 1}/{opts.n}", ACTIONS[2:])
             for step in steps:
+                if self.state.stop_asked():  # between two steps: the arm stays where it is
+                    return self.stopped()
                 self.robot.move_to(step)
         return self.settle
+
+    def stopped(self):
+        """The operator stopped the run (the terminal's quit, or the page's stop at a safe point)."""
+        self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
+        self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
+        return None
 
     def settle(self):
         opts, i = self.opts, self.todo[self.k]
         self.state.phase("settling", "waiting for the arm to be still", ACTIONS[2:])
         state, peak = wait_still(self.robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
+        if self.state.stop_asked():  # nothing photographed after a stop
+            return self.stopped()
         if state is None:
             self.failed += 1
             msg = f"configuration {i + 1}: the arm did not come to rest (max |dq| {peak:.4f} rad/s): skipped"
