@@ -28,7 +28,13 @@ from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
-from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.photos import (
+    ALL_PNG,
+    PhotoPolicy,
+    estimate_line,
+    start_estimate_line,
+    written_line,
+)
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
@@ -718,8 +724,12 @@ class CaptureRun:
             pol = self.opts.photos
             self.say(
                 f"camera: each capture is photographed and its spot measured at once (captures.csv); photos "
-                f"kept: {pol.keep}, {pol.fmt.upper()} ({pol.choices()})\n"
+                f"kept: {pol.words()} ({pol.choices()})\n"
             )
+            left = sum(max(self.opts.per_point - k, 0) for k in self.counts.values())
+            need = start_estimate_line(pol, left, len(self.requested))
+            if need:
+                self.say(need + "\n")
         # the session's t keeps increasing across resumes; a simulated clock that continues the session's
         # time shifts it by exactly 0, so a resumed session's t is the unbroken one's to the bit
         self.t_shift = max(store.t, default=0.0) - robot.clock.now()

@@ -27,7 +27,13 @@ from lasercal.collector.sessions.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import StateStream, wait_still
 from lasercal.collector.sessions.exposure import CountedPhotos, readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
-from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.photos import (
+    ALL_PNG,
+    PhotoPolicy,
+    estimate_line,
+    start_estimate_line,
+    written_line,
+)
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
@@ -229,10 +235,19 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
     p = layout.points[point]
     for nm in layout.calibration:
         if np.linalg.norm(layout.points[nm] - p) < SAME_POINT_MM:
+            others = [
+                k
+                for k in layout.points
+                if all(
+                    np.linalg.norm(layout.points[c] - layout.points[k]) >= SAME_POINT_MM
+                    for c in layout.calibration
+                )
+            ]
+            hint = f", e.g. --point {others[0]}" if others else ""
             raise FormatError(
                 layout.path,
                 f"validation point {point} is calibration point {nm} (expected a point the model was not "
-                "fitted to: pass --point)",
+                f"fitted to{hint})",
                 field="points",
             )
     if model.plane_z is not None and abs(model.plane_z - layout.plane_z) > SAME_POINT_MM:
@@ -467,8 +482,12 @@ class ValidationRun:
         policy = self.policy
         self.say(
             f"every photo {'is measured at once (validation.csv) and ' if self.measure else ''}kept as the "
-            f"options say: {policy.keep}, {policy.fmt.upper()} ({policy.choices()})\n"
+            f"options say: {policy.words()} ({policy.choices()})\n"
         )
+        kept = len(self.todo) if opts.keep_photos is None else min(len(self.todo), opts.keep_photos)
+        need = start_estimate_line(policy, kept, 1)
+        if need:
+            self.say(need + "\n")
         if resume:
             self.say(
                 f"resuming {folder}: {len(self.done)} of {opts.n} configurations done, {len(self.todo)} to "
