@@ -612,8 +612,8 @@ def view_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--view-host",
         metavar="ADDR",
-        help="with --view: serve it on this address instead (another device, e.g. a tablet, can then open "
-        "it); a one-time token is printed that the page asks for",
+        help="with --view: serve it on this address instead, for another device (a phone, a tablet): its "
+        "link is printed with the run's token; 0.0.0.0: every address of this machine, one link each",
     )
     p.add_argument(
         "--view-port",
