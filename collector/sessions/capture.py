@@ -28,7 +28,13 @@ from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
-from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.photos import (
+    ALL_PNG,
+    PhotoPolicy,
+    estimate_line,
+    start_estimate_line,
+    written_line,
+)
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
@@ -611,6 +617,9 @@ class CaptureRun:
         self.photo_tries = 0  # photos retaken at this capture because the arm moved during one
         self.status = None  # the coach's last status
         self.name, self.aim, self.cmd = "", None, ""  # the capture under way: its point, the coach's aim
+        # the page's capture or discard brought the session here: the arm stays until the terminal releases
+        # the next move (the page never moves the arm)
+        self.from_page = False
         self.t_shift = 0.0
 
     # ------------------------------------------------------------------ what the terminal and page show
@@ -715,8 +724,12 @@ class CaptureRun:
             pol = self.opts.photos
             self.say(
                 f"camera: each capture is photographed and its spot measured at once (captures.csv); photos "
-                f"kept: {pol.keep}, {pol.fmt.upper()} ({pol.choices()})\n"
+                f"kept: {pol.words()} ({pol.choices()})\n"
             )
+            left = sum(max(self.opts.per_point - k, 0) for k in self.counts.values())
+            need = start_estimate_line(pol, left, len(self.requested))
+            if need:
+                self.say(need + "\n")
         # the session's t keeps increasing across resumes; a simulated clock that continues the session's
         # time shifts it by exactly 0, so a resumed session's t is the unbroken one's to the bit
         self.t_shift = max(store.t, default=0.0) - robot.clock.now()
@@ -736,6 +749,7 @@ class CaptureRun:
         page = self.state.take()  # the page's stop or discard, taken before anything moves
         if page is not None:
             self.cmd = "quit" if page == "stop" else page
+            self.from_page = True
             return self.command
         todo = self.todo()
         if not todo:
@@ -766,10 +780,39 @@ class CaptureRun:
             xy, words = (lay.points[name] + self.beside)[:2], name
         self.state.update(target={"xy": [float(v) for v in xy], "tol_mm": AIM_TOL_MM, "label": words})
 
+    def released(self) -> bool:
+        """After the page's capture or discard the arm stays where it is: the move to the next pose waits
+        for the terminal (its trigger: Enter, a pedal, the simulated operator), which releases this one
+        move; the terminal's quit, or the page's stop, ends the session, the terminal's discard is taken
+        (and releases the move after it). True when released."""
+        wait = getattr(self.trigger, "wait_terminal", None)
+        if wait is None:  # no page: every command is the terminal's
+            self.from_page = False
+            return True
+        line = (
+            "the arm stays here: the move to the next pose waits for the terminal (the page cannot move it)"
+        )
+        self.state.phase("confirm", line, ("stop",))
+        self.say(f"  {line}; the terminal's capture releases it   [{self.trigger.hint}]\n")
+        cmd = wait()
+        self.from_page = False
+        if cmd == "capture":
+            self.say("  released at the terminal: moving\n")
+            return True
+        self.cmd = cmd  # quit, or discard: taken by ``command`` (a discard's move is the terminal's)
+        return False
+
     def move_to(self, q: np.ndarray) -> bool:
-        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move. False
-        when the page asked to stop (or discard) between two steps: the arm stays where it is."""
+        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move, and
+        after a page's capture or discard released at the terminal (:meth:`released`). False when the
+        session does not move now: stopped (the page's stop between two steps: the arm stays where it is),
+        or a discard asked instead."""
         robot, opts = self.robot, self.opts
+        if self.state.stop_asked():
+            self.cmd = "quit"
+            return False
+        if self.from_page and not self.released():
+            return False
         plan = plan_moves(robot.read().q, q[None], self.nominal, opts.max_step)
         self.say(preview(plan))
         if not self.confirmed:
@@ -813,6 +856,7 @@ class CaptureRun:
         self.state.phase("aiming", line, ACTIONS)
         self.say(f"{line}   [{self.trigger.hint}]\n")
         self.cmd = self.trigger.wait()
+        self.from_page = getattr(self.trigger, "source", "terminal") == "page"
         return self.command
 
     def command(self):
@@ -858,6 +902,9 @@ class CaptureRun:
             self.robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll, countdown
         )
         self.state.update(standstill=None)
+        if self.state.stop_asked():  # the page's stop while the arm settled: nothing photographed
+            self.cmd = "quit"
+            return self.command
         if self.still is None:
             msg = (
                 f"the arm did not come to rest within {opts.still_timeout:g} s (max |dq| {peak:.4f} "
