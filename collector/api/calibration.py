@@ -21,6 +21,7 @@ The command line's ``lasercal solve`` is this function, its :meth:`Calibration.s
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -324,7 +325,19 @@ def model_file(
         meta["diagnosis"] = {**d, "details": {k: v for k, v in d["details"].items() if k != "seconds"}}
     ref = source.robot_source or (source.meta["robot"], source.path)
     return ident.model.replace(
-        identification=meta,
+        identification=_defined(meta),
         extensions=robot_extensions(ident.model.extensions),
         nominal=robot_reference(*ref),
     )
+
+
+def _defined(record):
+    """A record with every figure that is not defined (a held-out error when every fold failed: NaN) as
+    None, written ``null``: model files hold no ``.nan``, which every loader refuses as a torn file."""
+    if isinstance(record, dict):
+        return {k: _defined(v) for k, v in record.items()}
+    if isinstance(record, list | tuple):
+        return [_defined(v) for v in record]
+    if isinstance(record, float) and not math.isfinite(record):
+        return None
+    return record
