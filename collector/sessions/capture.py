@@ -423,6 +423,12 @@ class Seen:
         return "camera_x" in self.cells
 
 
+def read_unclipped(seen: Seen) -> bool:
+    """The photo's spot was measured, and not so clipped that the measurement advises a lower exposure
+    (:func:`vision.exposure.exposure_advice`: clipped over more than ``CLIPPED_MAX`` px)."""
+    return seen.measured and "spot clipped over" not in seen.cells.get("camera_note", "")
+
+
 def spot_cells(
     folder: Path,
     camera,
@@ -612,7 +618,8 @@ class CaptureRun:
         # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the
         # camera measures each; a pose whose spot it cannot measure is guided by hand once (then aimed)
         self.hands_free = opts.move and camera is not None
-        self.settled = False  # the camera's exposure, set on the first photo (sessions.exposure)
+        self.settled = False  # the camera's exposure, set until a spot is read unclipped (sessions.exposure)
+        self.estimated = False  # the disk the photos will take, said after the first photo
         self.by_hand = False
         self.photo_tries = 0  # photos retaken at this capture because the arm moved during one
         self.status = None  # the coach's last status
@@ -931,9 +938,9 @@ class CaptureRun:
         seen, got = "", None
         if camera is not None:
             self.state.phase("photo", "photographing the spot")
-            # the exposure is settled on the session's first photo, with the laser on a point
+            # the exposure is set with the laser on a point, and again at each capture until a photo's spot
+            # was read unclipped: a first spot off the markers' area, or one that clips later, does not fix it
             first = None if self.settled else settle_exposure(camera, readable_by(self.measure))
-            self.settled = True
             aimed_at = self.points[name] if aim is None else aim[1]
             got = spot_cells(
                 store.folder,
@@ -946,7 +953,9 @@ class CaptureRun:
                 opts.photos,
                 counts[name] == 0,
             )
-            if first is not None:  # the run's first photo: its size says what the photos will take
+            self.settled = self.settled or read_unclipped(got)
+            if first is not None and not self.estimated:  # the run's first photo: what the photos will take
+                self.estimated = True
                 left = sum(max(opts.per_point - k, 0) for k in counts.values())
                 self.say(estimate_line(opts.photos, got.nbytes, left, len(self.requested)) + "\n")
             moved = moved_during_photo(self.robot, state, self.nominal, lay.plane_z)

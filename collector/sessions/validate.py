@@ -619,10 +619,11 @@ class ValidationRun:
         opts, policy, i, state, p = self.opts, self.policy, self.todo[self.k], self.still, self.p
         self.state.phase("photo", f"photographing configuration {i + 1}/{opts.n}")
         q = self.planned[i]
-        # the exposure is settled on the first photo, with the laser on the point
-        first = not self.settled
+        # the exposure is set with the laser on the point, and again at each photo until a spot was read
+        # unclipped (an advice to lower it is a clipped spot): one photo off the markers does not fix it
+        first = self.photos == 0
         img = self.camera.photo() if self.settled else settle_exposure(self.camera, readable_by(self.measure))
-        self.settled = True
+        self.settled |= self.measure is None  # nothing to read the spot by: set once, on the first photo
         name = f"photos/{i:04d}.{policy.fmt}"
         row = {"index": str(i), **{f"q{j + 1}": v for j, v in enumerate(state.q)}}
         seen, last = "", {"point": self.point, "number": i + 1, "measured": False}
@@ -635,6 +636,7 @@ class ValidationRun:
                 self.state.problem(f"configuration {i + 1}: the spot could not be measured ({e})", img)
             else:
                 row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
+                self.settled = self.settled or not (advice and "spot clipped over" in advice)
                 self.spots.append(xy)
                 err = float(np.hypot(*(xy - p[:2])))
                 seen = f", spot {err:.2f} mm from {self.point}"
