@@ -1,6 +1,6 @@
 """Issue 51: the distribution of tests/test_vision_wild.py's counts over seeds the rule was not tuned on.
 
-    python benchmarks/bench_vision_wild.py [--first 1000] [--count 100] [--out FILE]
+    python benchmarks/bench_vision_wild_seeds.py [--first 1000] [--count 100] [--out FILE]
 
 Per scene kind of ``vision.render_wild`` and seed: whether the true spot is found (a reported spot within
 4 px of the truth) and how many false spots are reported (farther than 3 x the core radius + 6 px), as the
