@@ -17,7 +17,8 @@ from lasercal.vision.render_wild import SCENES
 # Scored on seeds the rule was not tuned on (issue 51: issue 47 tuned RULE on seeds 0-5, and the bounds were
 # the counts those seeds gave). The bounds below are quantiles of the counts' distribution over these 6
 # seeds, from each kind's per-photo rates measured on seeds 1000-1111
-# (benchmarks/bench_vision_wild_seeds.py; the test's seeds among them): a count of 6 photos is Binomial(6, rate), and a bound is its 0.1 % (found) or
+# (benchmarks/bench_vision_wild_seeds.py; the test's seeds among them): a count of 6 photos is
+# Binomial(6, rate), and a bound is its 0.1 % (found) or
 # 99.9 % (false spots) quantile -- so that another CPU's rounding, flipping a borderline photo, fails it at
 # most 1 in 1,000. A rate measured as 0 (or 1) on all N seeds gives the bound 0 (or 6): its true rate is
 # below 3/N (95 %), i.e. such a photo turns up in this test's 6 at most ~6 x 3/N of the time.
