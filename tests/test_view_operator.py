@@ -12,7 +12,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import queue
 import re
 import shutil
 import socket
@@ -38,6 +37,7 @@ from lasercal.collector.sessions.settings import capture_settings  # noqa: E402
 from lasercal.collector.sessions.start import CaptureGuide, start_capture  # noqa: E402
 from lasercal.collector.sessions.state import PHASES, SessionState  # noqa: E402
 from lasercal.collector.view import ViewOptions  # noqa: E402
+from tests.test_view import Typed as Terminal  # noqa: E402  (the terminal the test types into)
 
 needs_view = pytest.mark.skipif(aiohttp is None, reason="the live view needs the test extra's aiohttp")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -72,23 +72,6 @@ class Releases:
 
     def __getattr__(self, name):
         return getattr(self._robot, name)
-
-
-class Terminal:
-    """The terminal's trigger, typed by the test: each command it gives is logged as the terminal's."""
-
-    hint = "the test's terminal"
-
-    def __init__(self, log: list):
-        self.log, self.typed = log, queue.Queue()
-
-    def wait(self) -> str:
-        cmd = self.typed.get()
-        self.log.append("terminal")
-        return cmd
-
-    def close(self) -> None:
-        """Nothing to release."""
 
 
 def _session(started, out, **view):
