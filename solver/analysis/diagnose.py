@@ -128,7 +128,10 @@ class Diagnosis:
     acceptance : dict, the held-out decision: 'decided_by' ('cross-validation' or 'F test only'),
         'accepted', 'folds', 'grouping', 'failed_folds', 'fold_rms_mm' (model -> per fold; a camera
         session's in units of each capture's noise, :func:`acceptance`), 'gain_percent_folds',
-        'gain_percent_ci95', 'holdout_by_kind' (a camera session: kind -> model -> held-out RMS mm)
+        'gain_percent_ci95', 'holdout_by_kind' (a camera session: kind -> model -> held-out RMS mm);
+        'selection' (how the folds chose), and with ``--extend auto`` the outer folds' own choices
+        (:func:`~lasercal.solver.analysis.nested.fold_agreement`: 'fold_choices', 'folds_agree',
+        'folds_same_cause', 'folds_needed', 'folds_agreed', 'disagreement')
     statistics : dict, model ('nominal', 'geometric', 'extended') -> 'train' and 'holdout' RMS, mm
         (over the captures the robust geometric fit keeps; holdout None without cross-validation)
     untested : dict effect -> why the data cannot test it
