@@ -20,7 +20,14 @@ def format_diagnosis(d) -> str:
         lines.append(f"finding: none -- the geometric model and {what} explain the data ({best})")
     else:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
-        lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
+        line = f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g}"
+        if "folds_agree" in d.acceptance:  # the gain of the selection made inside each fold
+            acc = d.acceptance
+            line += (
+                f"; held-out gain {o['gain_percent']:.1f} %, chosen by {acc['folds_agree']} of "
+                f"{len(acc['fold_choices'])} folds"
+            )
+        lines.append(line + ")")
         for nm, v in o["parameters"].items():
             if not nm.startswith("map"):  # a joint map's hundreds of knots: one line below
                 lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
@@ -76,6 +83,15 @@ def format_diagnosis(d) -> str:
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
             + f"  (torques: {d.torque_source})"
         )
+        if "fold_choices" in acc:
+            chose = {}
+            for c in acc["fold_choices"]:
+                chose[c["label"]] = chose.get(c["label"], 0) + 1
+            lines.append(
+                "  each fold's own choice, from its training rows alone: "
+                + ", ".join(f"{lb} in {n}" for lb, n in chose.items())
+                + f" (a cause is named when {acc['folds_needed']} of them agree)"
+            )
         for i, why in acc.get("failed_folds", {}).items():
             lines.append(f"  fold {i} could not be fitted: {why}")
     else:
@@ -88,7 +104,7 @@ def format_diagnosis(d) -> str:
             f"{jm['label']} ({jm['knots']} knots), held-out ({jm['folds']} folds by configuration): "
             f"{h['without']:.3f} mm without, {h['with']:.3f} mm with; gain per fold "
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
-            + f": {verdict}"
+            + f" (the keep decision's own folds): {verdict}"
         )
     if st:
         lines.append(f"{'RMS (mm)':10} {'nominal':>9} {'geometric':>10} {'extended':>9}")
