@@ -109,7 +109,7 @@ class SheetPose:
         exact = (self.scale_x, self.scale_y, self.tilt_x_rad, self.tilt_y_rad) == (1.0, 1.0, 0.0, 0.0)
         keys = KEYS + (() if exact and not self.shaped else SCALE_KEYS + TILT_KEYS)
         keys += SHAPE_KEYS if self.shaped else ()
-        return {k: float(round(getattr(self, k), 9 if k in KEYS else 15)) for k in keys}
+        return {k: float(round(getattr(self, k), 9 if k in KEYS else 12)) for k in keys}
 
     def to_base(self, p_sheet: np.ndarray, z: float) -> np.ndarray:
         """Sheet points (k, 2) or (k, 3) (their z ignored) to the base frame (k, 3), mm, on a sheet whose
