@@ -143,3 +143,38 @@ def test_a_flat_paper_is_not_named(tmp_path):
     shape = decide_sheet_shape(session, flat)
     print(shape.as_dict())
     assert shape.tested and not shape.kept, shape.reason
+
+
+def test_the_finding_names_the_sheet_and_where_structure_remains():
+    """The finding line names the sheet (never a joint); not kept, residual structure beyond the noise is
+    given by its size and cell, not as 0.000."""
+    from lasercal.collector.report.text import sheet_shape_line
+
+    kept = {
+        "tested": True,
+        "kept": True,
+        "F": 27.8,
+        "p_value": 1.8e-12,
+        "curl_mm": 1.6,
+        "shear_mm_per_m": -0.4,
+        "holdout": {"flat_mm": 0.59, "shaped_mm": 0.14},
+        "reason": "",
+        "camera_warp_mm": 0.0,
+    }
+    line = sheet_shape_line(kept)
+    assert line.startswith(
+        "finding (the sheet): not flat -- curl 1.60 mm over the sheet, shear 0.40 mm per m"
+    )
+    assert "joint" not in line
+    cells = {"x0 y0": {"n": 5, "mean_mm": [0.3, 0.4]}, "x- y-": {"n": 5, "mean_mm": [0.0, 0.01]}}
+    flat = {
+        **kept,
+        "kept": False,
+        "reason": "not significant",
+        "F": 2.0,
+        "p_value": 0.05,
+        "regions": {"cells": cells, "p": 0.001, "structure_mm": 0.145, "worst": "x0 y0"},
+    }
+    line = sheet_shape_line(flat)
+    assert "0.145 mm RMS" in line and "x0 y0 (0.500 mm)" in line and "0.000" not in line
+    assert "beyond their noise" not in sheet_shape_line({**flat, "regions": {**flat["regions"], "p": 0.5}})
