@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from lasercal.solver.kinematics.effects import drift_t0
-from lasercal.solver.kinematics.sheet import SheetPose
+from lasercal.solver.kinematics.sheet import SHAPE_KEYS, SheetPose
 
 
 def format_diagnosis(d) -> str:
@@ -159,6 +159,35 @@ def _print_and_tilt(pose, std=None) -> str:
     return f"printed at {scale} %, tilted {tilt} mrad along its x, y"
 
 
+def sheet_shape_line(d: dict) -> str:
+    """``solve``'s finding on the sheet's shape (:mod:`solver.identify.sheetshape`'s record), one line that
+    names the sheet, never a joint: 'finding (the sheet): not flat -- curl 1.6 mm over the sheet, shear
+    0.4 mm per m; modelled (F = 27.8, p = 1.8e-12; held out 0.594 -> 0.356 mm)'."""
+    if not d.get("tested"):
+        return f"finding (the sheet): shape not tested -- {d.get('reason', '')}"
+    ho = d.get("holdout") or {}
+    held = f"; held out {ho['flat_mm']:.3f} -> {ho['shaped_mm']:.3f} mm" if ho else "; no folds"
+    test = f"F = {d['F']:.3g}, p = {d['p_value']:.2g}{held}" if d.get("F") is not None else d["reason"]
+    sizes = f"curl {d['curl_mm']:.2f} mm over the sheet, shear {abs(d['shear_mm_per_m']):.2f} mm per m"
+    if d["kept"]:
+        cam = d.get("camera_warp_mm") or 0.0
+        seen = (
+            f"; the camera saw the raised paper {cam:.2f} mm RMS askew, this session's (eq. S7)"
+            if cam
+            else ""
+        )
+        return f"finding (the sheet): not flat -- {sizes}; modelled ({test}){seen}"
+    reg = d.get("regions") or {}
+    line = f"finding (the sheet): flat and square within what the data see ({test}; {d['reason']})"
+    if reg and reg["p"] < 0.01:  # structure beyond the noise that no sheet term holds: its size and where
+        worst = reg["cells"][reg["worst"]]["mean_mm"]
+        line += (
+            f"; yet its residuals vary over the sheet beyond their noise: {reg['structure_mm']:.3f} mm RMS "
+            f"(p = {reg['p']:.2g}), most at {reg['worst']} ({np.hypot(*worst):.3f} mm)"
+        )
+    return line
+
+
 def format_true_sheet(found, true, laid, G) -> str:
     """A simulated sheet session's check of ``solve``'s sheet pose against the truth (one line).
 
@@ -172,7 +201,7 @@ def format_true_sheet(found, true, laid, G) -> str:
     turn = np.degrees(np.arctan2(G[1, 0], G[0, 0]))
     tilt = np.degrees(np.arccos(np.clip(G[2, 2], -1.0, 1.0)))
     found = SheetPose(**{k: v for k, v in found.items() if k != "std"}).as_dict() | {"std": found["std"]}
-    keys = [k for k in found["std"] if k in found]
+    keys = [k for k in found["std"] if k in found and k not in SHAPE_KEYS]  # the truth's shape: not a pose's
     z = [(found[k] - getattr(true, k)) / max(found["std"][k], 1e-12) for k in keys]
     return (
         f"simulated: the sheet truly lies at x {true.x_mm:.2f} mm, y {true.y_mm:.2f} mm, yaw "
@@ -279,6 +308,8 @@ def format_solve(rep: dict) -> str:
             "nominal's; a robot whose base differs from the nominal's sees a sheet laid at its placement "
             "elsewhere, docs/formats.md)\n"
         )
+    if rep.get("sheet_shape"):
+        w(sheet_shape_line(rep["sheet_shape"]) + "\n")
     if rep["outliers"]:
         w(
             f"outlier captures (left out): {len(rep['outliers'])}: "
