@@ -21,7 +21,7 @@ Run: python benchmarks/bench_camera_sigma.py EFFECTS [PER_POINT] [SEED] [WORLD_S
      (EFFECTS none, all or both, each pose photographed in each world in turn; defaults both 200 7 3 50:
      1,000 poses, ~30 min on an idle core; --save keeps PREFIX-none.npz, PREFIX-all.npz every 5 rounds)
      python benchmarks/bench_camera_sigma.py --report F.npz [SESSION]   (the report of saved photos)
-     python benchmarks/bench_camera_sigma.py --bounds F.npz N [N ...]
+     python benchmarks/bench_camera_sigma.py --bounds F.npz[,G.npz] N [N ...]
      (the tests' bounds from saved photos: for sessions of N photos resampled 200,000 times, the 0.1 % and
      99.9 % quantiles of the z RMS and the 99.9 % quantile of the largest error, and how often a sigma
      scaled by 1.5 or 1 / 1.5 leaves that band)
@@ -162,8 +162,9 @@ def report(res: dict, session: int, label: str) -> None:
 
 def bounds(path: str, sizes, draws: int = 200_000) -> None:
     """The bounds a test of ``sizes`` photos asserts, from the photos saved in ``path`` (see above)."""
-    res = np.load(path)
-    z, err = res["err"] / res["sig"], res["err"]
+    res = [np.load(p) for p in path.split(",")]  # several runs' photos pooled
+    err = np.concatenate([r["err"] for r in res])
+    z = err / np.concatenate([r["sig"] for r in res])
     print(f"{path}: {len(z)} photos, z RMS {rms(z):.3f}")
     for n in sizes:
         idx = np.random.default_rng(n).integers(0, len(z), (draws, n))
