@@ -20,6 +20,8 @@ import warnings
 from contextlib import contextmanager
 from typing import NamedTuple
 
+from lasercal.solver.errors import LasercalError  # one small module: no numpy
+
 
 class Command(NamedTuple):
     """One subcommand: ``module`` (in lasercal.collector.cli) holds ``args_<name>`` and ``handler``."""
@@ -175,7 +177,7 @@ COMMANDS = (
 BY_NAME = {c.name: c for c in COMMANDS}
 
 
-class UsageError(Exception):
+class UsageError(LasercalError):
     """The command line itself is wrong (argparse's message); ``prog`` the parser's name."""
 
     def __init__(self, message: str, prog: str):
