@@ -1,6 +1,6 @@
 """The diagnosis where the world holds more than its candidate list (issue 52, item 4).
 
-Run: python benchmarks/bench_diagnose_messy.py [SEEDS] [KINDS] [CASES]   (prints a table; no assertions)
+Run: python benchmarks/bench_diagnose_messy.py [SEEDS] [KINDS] [CASES] [FIRST] (a table)
      e.g. python benchmarks/bench_diagnose_messy.py 20 camera,eye none
 
 Every session is made by the public commands, in-process, as the outside check makes them: a sheet printed
@@ -102,7 +102,9 @@ def robot_joints(d: dict) -> set:
     return {(p["effect"], j) for p in parts for j in p["joints"]}
 
 
-def main_(seeds: int = 20, kinds: str = "eye,camera", cases: str = ",".join(CASES)) -> None:
+def main_(
+    seeds: int = 20, kinds: str = "eye,camera", cases: str = ",".join(CASES), first: str = "1000"
+) -> None:
     tmp = Path(tempfile.mkdtemp(prefix="bench_messy_"))
     assert run(["sheet", "-o", str(tmp / "sheet"), "--place", "450", "0", "0"])[0] == 0
     head = ("kind", "case", "sessions", "named", "false robot", "gain %", "folds")
@@ -113,7 +115,7 @@ def main_(seeds: int = 20, kinds: str = "eye,camera", cases: str = ",".join(CASE
             named = false = errors = 0
             gains, agree = [], []
             for seed in range(seeds):
-                d = one(tmp, kind, label, 1000 + seed)
+                d = one(tmp, kind, label, int(first) + seed)
                 if "error" in d:
                     errors += 1
                     continue
@@ -128,7 +130,7 @@ def main_(seeds: int = 20, kinds: str = "eye,camera", cases: str = ",".join(CASE
                 if a is not None:
                     agree.append(a)
                 print(
-                    f"    seed {1000 + seed}: {d['effect']} {d.get('label')} gain {d['gain_percent']:.1f} %",
+                    f"    seed {int(first) + seed}: {d['effect']} {d.get('label')} gain {d['gain_percent']:.1f} %",
                     flush=True,
                 )
             n = seeds - errors
