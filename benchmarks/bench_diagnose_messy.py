@@ -129,10 +129,8 @@ def main_(
                 a = d.get("acceptance", {}).get("folds_agree")
                 if a is not None:
                     agree.append(a)
-                print(
-                    f"    seed {int(first) + seed}: {d['effect']} {d.get('label')} gain {d['gain_percent']:.1f} %",
-                    flush=True,
-                )
+                said = f"{d['effect']} {d.get('label')} gain {d['gain_percent']:.1f} %"
+                print(f"    seed {int(first) + seed}: {said}", flush=True)
             n = seeds - errors
             g = f"{np.mean(gains):.1f}" if gains else "-"
             f = f"{np.mean(agree):.1f}" if agree else "-"
