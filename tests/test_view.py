@@ -88,10 +88,12 @@ class Gated(SessionState):
         self._hold("end")
 
 
-def _get(url: str, token: str | None = None, data: dict | None = None):
+def _get(url: str, token: str | None = None, data: dict | None = None, headers: dict | None = None):
     req = urllib.request.Request(url, method="POST" if data is not None else "GET")
     if token:
         req.add_header("X-Token", token)
+    for k, v in (headers or {}).items():
+        req.add_header(k, v)
     body = None if data is None else json.dumps(data).encode()
     try:
         with urllib.request.urlopen(req, body, timeout=10) as r:

@@ -18,8 +18,6 @@ import socket
 import subprocess
 import threading
 import time
-import urllib.error
-import urllib.request
 from dataclasses import replace
 
 import pytest
@@ -38,25 +36,12 @@ from lasercal.collector.sessions.start import CaptureGuide, start_capture  # noq
 from lasercal.collector.sessions.state import PHASES, SessionState  # noqa: E402
 from lasercal.collector.view import ViewOptions  # noqa: E402
 from tests.test_view import Typed as Terminal  # noqa: E402  (the terminal the test types into)
+from tests.test_view import _get  # noqa: E402
 
 needs_view = pytest.mark.skipif(aiohttp is None, reason="the live view needs the test extra's aiohttp")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 BROWSER_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
-
-
-def _get(url: str, token: str | None = None, data: dict | None = None, headers: dict | None = None):
-    req = urllib.request.Request(url, method="POST" if data is not None else "GET")
-    if token:
-        req.add_header("X-Token", token)
-    for k, v in (headers or {}).items():
-        req.add_header(k, v)
-    body = None if data is None else json.dumps(data).encode()
-    try:
-        with urllib.request.urlopen(req, body, timeout=10) as r:
-            return r.status, r.read()
-    except urllib.error.HTTPError as e:
-        return e.code, e.read()
 
 
 class Releases:
