@@ -27,6 +27,7 @@ PAGES = {
     "start-up and a whole `solve`": ("results.md",),
     "diagnosis power": ("results.md", "diagnosis.md"),
     "diagnosis on the user's path": ("diagnosis.md",),
+    "diagnosis where the world holds more": ("diagnosis.md",),
     "vision, phone photos": ("results.md", "vision.md"),
     "capture coach vs": ("results.md", "coach.md"),
     "real Pandas (MUKCa)": ("results.md", "real-data.md"),
