@@ -87,14 +87,9 @@ def test_consistency_matches_mukca_definitions():
 
 
 # ------------------------------------------------------------------ the real data
-@pytest.fixture(scope="module")
-def quick_report(tmp_path_factory):
-    """The CLI's --quick study of panda_1 and panda_4 (and their cleaned subsets), run once, one robot after
-    the other (``--jobs 1``): the serial study the parallel one is compared with."""
-    if not (MUKCA / "panda_4").is_dir():
-        pytest.skip(f"MUKCa data not found at {MUKCA}")
-    out = tmp_path_factory.mktemp("study")
-    args = [
+def study_args(out, jobs: int) -> list[str]:
+    """``study-mukca``'s --quick study of panda_1 and panda_4 into ``out``, ``jobs`` robots at once."""
+    return [
         "study-mukca",
         str(MUKCA),
         "-o",
@@ -103,9 +98,18 @@ def quick_report(tmp_path_factory):
         "panda_1,panda_4",
         "--quick",
         "--jobs",
-        "1",
+        str(jobs),
     ]
-    assert main(args) == 0
+
+
+@pytest.fixture(scope="module")
+def quick_report(tmp_path_factory):
+    """The CLI's --quick study of panda_1 and panda_4 (and their cleaned subsets), run once, one robot after
+    the other (``--jobs 1``): the serial study the parallel one is compared with."""
+    if not (MUKCA / "panda_4").is_dir():
+        pytest.skip(f"MUKCa data not found at {MUKCA}")
+    out = tmp_path_factory.mktemp("study")
+    assert main(study_args(out, jobs=1)) == 0
     return out, json.loads((out / "report.json").read_text())
 
 
@@ -234,18 +238,7 @@ def test_format_error_crosses_a_process_boundary_whole():
 @needs_data
 def test_parallel_study_equals_the_serial_one(quick_report, tmp_path):
     out = tmp_path / "2"
-    args = [
-        "study-mukca",
-        str(MUKCA),
-        "-o",
-        str(out),
-        "--robots",
-        "panda_1,panda_4",
-        "--quick",
-        "--jobs",
-        "2",
-    ]
-    assert main(args) == 0
+    assert main(study_args(out, jobs=2)) == 0
     reports = [quick_report[1], json.loads((out / "report.json").read_text())]
 
     def untimed(d):  # the timings differ; nothing else may
