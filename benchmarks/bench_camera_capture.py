@@ -4,7 +4,7 @@ and what no model can beat in the same simulated world.
 As the outside check runs it: ``lasercal sheet --place 450 0 0``, ``capture --backend fake --auto
 --per-point 9`` with ``--aim-noise 0.5`` (eye) and with ``--aim-noise 3 --camera fake`` (camera), each
 ``solve --extend auto``, then ``validate --backend fake -n 30 --point P6``; the figure is validate's
-``error mean``. The floors (:func:`collector.sessions.floors.floors`), in the session's own world (the
+``error mean``. The floors (:func:`collector.studies.floors.floors`), in the session's own world (the
 world's own code: the paper as printed, skewed, bulged, on a sloping table, the lens corrected by
 camera-calibrate's estimate, the spot's subsurface glow):
 
@@ -14,7 +14,7 @@ camera-calibrate's estimate, the spot's subsurface glow):
 * repeatability: the same poses, where the true beam truly meets the paper (no camera).
 
 Each line also gives what ``solve`` found of the sheet against the world's own paper
-(:func:`collector.sessions.world.true_sheet_pose`): found - true print scale x, y and tilt x, y, in the
+(:func:`collector.worlds.record.true_sheet_pose`): found - true print scale x, y and tilt x, y, in the
 sigmas ``solve`` reports (eq. S4: residuals in the printed sheet's mm, so the common scale has no bias to
 pay).
 
@@ -32,7 +32,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from lasercal.collector.hardware.fakeworld import EFFECTS
+from lasercal.collector.worlds.fakeworld import EFFECTS
 
 RUNS = {
     "eye (clean world, the default)": "--aim-noise 0.5",
@@ -61,7 +61,7 @@ def sheet_sigmas(where: Path) -> list[float]:
     """Found - true print scale x, y and tilt x, y of the solved sheet (m.yaml), in its reported sigmas."""
     import yaml
 
-    from lasercal.collector.sessions.world import session_world, true_sheet_pose
+    from lasercal.collector.worlds.record import session_world, true_sheet_pose
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout
 
@@ -75,7 +75,7 @@ def sheet_sigmas(where: Path) -> list[float]:
 def run(options: str, where: Path) -> tuple[float, float, float, float, list[float]]:
     """(error mean, honest floor, repeatability floor, simulated seconds of the capture, the sheet's
     found - true scale and tilt in sigmas) of one session."""
-    from lasercal.collector.sessions.floors import floors
+    from lasercal.collector.studies.floors import floors
     from lasercal.solver.formats.session import load_session
 
     lasercal("sheet", "-o", "sheet", "--place", "450", "0", "0", cwd=where)

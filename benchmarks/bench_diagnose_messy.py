@@ -5,7 +5,7 @@ Run: python benchmarks/bench_diagnose_messy.py [SEEDS] [KINDS] [CASES] [FIRST] (
 
 Every session is made by the public commands, in-process, as the outside check makes them: a sheet printed
 for ``--place 450 0 0``; ``lasercal capture --backend fake --auto --per-point 9 --effects all`` (the fake
-world of collector/hardware/fakeworld.py with every effect it has: repeatability, the printer's scale and
+world of collector/worlds/fakeworld.py with every effect it has: repeatability, the printer's scale and
 shear, the paper's curl and bulge, the sheet's height, the table's slope, a lens undone by camera-calibrate's
 estimate, elliptic spots with a subsurface glow, occlusion) and, for a planted robot effect, ``--truth T``
 with T the thesis's Panda whose ``extensions`` hold it; then ``lasercal solve S -o M.yaml --extend auto

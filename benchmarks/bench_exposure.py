@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.collector.sessions.exposure import clipped_px, readable_by, settle_exposure
-from lasercal.collector.sessions.validate import FakeCamera, SpotLook, fake_view, measure_known_view
+from lasercal.collector.sessions.validate import measure_known_view
+from lasercal.collector.worlds.cameras import FakeCamera, SpotLook, fake_view
 
 N = 40
 PEAK = 6.0
@@ -57,8 +58,8 @@ def validate_camera(control: bool, seed: int = 1, n: int = N):
 def sheet_camera(control: bool, seed: int = 3, n: int = N):
     """As :func:`validate_camera` for capture's camera on an A4 sheet (markers), spots beside its crosses."""
     from lasercal.collector.hardware import make_robot
-    from lasercal.collector.hardware.fakeworld import World, table_points
     from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
+    from lasercal.collector.worlds.fakeworld import World, table_points
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout
     from lasercal.vision.errors import VisionError

@@ -44,7 +44,7 @@ def vision_error(session: Path, world_file: Path) -> np.ndarray:
     """Measured spot minus MuJoCo's ray hit on the printed sheet (k, 2) mm, at each measured capture."""
     import yaml
 
-    from lasercal.collector.hardware.mujoco import MujocoWorld
+    from lasercal.collector.worlds.mujoco import MujocoWorld
 
     scale = np.array(yaml.safe_load((world_file.parent / "scene.yaml").read_text())["sheet"]["print_scale"])
     world = MujocoWorld(world_file)

@@ -24,7 +24,7 @@ import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from lasercal.collector.hardware.mujoco import MujocoWorld  # noqa: E402
+from lasercal.collector.worlds.mujoco import MujocoWorld  # noqa: E402
 from lasercal.solver.formats.robots import load_model  # noqa: E402
 from lasercal.solver.formats.session import load_layout  # noqa: E402
 from lasercal.solver.kinematics.aim import aim  # noqa: E402

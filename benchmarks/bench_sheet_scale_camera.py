@@ -30,7 +30,7 @@ KEYS = ("scale_x", "scale_y", "tilt_x_rad", "tilt_y_rad")
 def session_z(work: Path, seed: int) -> np.ndarray:
     """The four z-scores of one camera session in a world drawn with ``seed`` (as the test's fixture)."""
     from lasercal.collector.cli.main import main
-    from lasercal.collector.sessions.world import session_world, true_sheet_pose
+    from lasercal.collector.worlds.record import session_world, true_sheet_pose
     from lasercal.solver.formats.robots import load_model
 
     d = work / f"s{seed}"

@@ -33,19 +33,18 @@ import numpy as np
 from lasercal.calibration import calibrate
 from lasercal.collector.errors import SessionError
 from lasercal.collector.hardware.base import FakeClock, JointState
-from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 from lasercal.collector.hardware.triggers import AutoTrigger
 from lasercal.collector.report.html import load_validation
 from lasercal.collector.sessions.capture import CaptureOptions, run_capture
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.collector.sessions.validate import (
-    FakeCamera,
     ValidateOptions,
     ValidationResult,
-    fake_view,
     measure_known_view,
     run_validation,
 )
+from lasercal.collector.worlds.cameras import FakeCamera, fake_view
+from lasercal.collector.worlds.fake import FakeOperator, FakeRobot
 from lasercal.solver.analysis.stats import spot_stats
 from lasercal.solver.control.robot import Robot
 from lasercal.solver.control.robot import load_model as load_robot

@@ -15,6 +15,10 @@
 - no file-level import circles anywhere, lazy (function-level) and annotation-only imports included: two
   files that need each other share a name that belongs in a third, or in one of them.
 - every command in the table imports and declares its arguments and handler.
+- the simulated worlds live in one room, ``collector.worlds``: everything else reaches a world only through
+  the backend factory (``collector.hardware``; the demo, which stages its own bench, is the one listed
+  exception, :data:`WORLD_GATES`); a world imports no session, command line, view or report; parsing a
+  command imports no world.
 """
 
 from __future__ import annotations
@@ -47,6 +51,15 @@ UPWARD = {("lasercal.solver.formats.fullpose_io", "lasercal.solver.identify.circ
 # what the top floor may reach of the application, inside its functions
 # the front door's functions may reach the reports, vision and what a camera session's coach plans with
 API_REACHES = ("lasercal.collector.report", "lasercal.vision", "lasercal.collector.sessions.anywhere")
+
+
+# the only modules outside collector.worlds that import a world: the backend factory, and the demo (a bench it
+# stages itself: a robot with one hidden effect, a camera that ticks the robot's clock)
+WORLD_GATES = {"lasercal.collector.hardware", "lasercal.collector.demo"}
+WORLDS = "lasercal.collector.worlds"
+# what a world may import of the application: the hardware interfaces and its errors, nothing that runs a
+# session
+WORLD_REACHES = ("lasercal.collector.hardware", "lasercal.collector.errors", WORLDS)
 
 
 def module_name(f: Path) -> str:
@@ -187,6 +200,67 @@ def test_only_the_command_line_imports_the_command_line():
         for name, f in modules(pkg).items():
             if not name.startswith("lasercal.collector.cli"):
                 assert not [m for m in imports(f) if m.startswith("lasercal.collector.cli")], name
+
+
+def world_arrows() -> tuple[list, list]:
+    """(modules outside the worlds' room that import a world, other than :data:`WORLD_GATES`; a world's
+    imports of the application outside :data:`WORLD_REACHES`), as (importer, imported) pairs."""
+    into, out = [], []
+    for name, f in every_module().items():
+        inside = name == WORLDS or name.startswith(WORLDS + ".")
+        for m in imports(f):
+            if not inside and m.startswith(WORLDS) and name not in WORLD_GATES:
+                into.append((name, m))
+            if (
+                inside
+                and (m.startswith("lasercal.collector") or room(m) == "api")
+                and not m.startswith(WORLD_REACHES)
+            ):
+                out.append((name, m))
+    return into, out
+
+
+def test_the_worlds_are_reached_only_through_the_backend_factory():
+    into, out = world_arrows()
+    assert into == [], into
+    assert out == [], out
+    factory = ROOT / "collector" / "hardware" / "__init__.py"
+    assert any(m.startswith(WORLDS) for m in imports(factory))  # the gate is used, not a dead rule
+    assert not any(m.startswith(WORLDS) for m in imports(factory, top_level_only=True))  # and lazily
+
+
+def test_a_session_importing_a_world_breaks_the_rule(monkeypatch, tmp_path):
+    """The rule sees a session that imports a world directly, lazily, by its own name."""
+    rogue = ROOT / "collector" / "sessions" / "capture.py"
+    rogue_import = "\n\ndef _rogue():\n    from lasercal.collector.worlds.fake import FakeRobot\n"
+    text = rogue.read_text() + rogue_import
+    real = Path.read_text
+    monkeypatch.setattr(
+        Path, "read_text", lambda self, *a, **k: text if self == rogue else real(self, *a, **k)
+    )
+    into, _ = world_arrows()
+    assert ("lasercal.collector.sessions.capture", "lasercal.collector.worlds.fake") in into
+
+
+def test_parsing_a_command_imports_no_world(tmp_path):
+    """The capture command's options (a fake backend, its effects) are parsed and turned into a session's
+    settings without loading a world: the names live in collector.hardware.simulated."""
+    layout = ROOT / "data" / "layouts" / "thesis.yaml"
+    code = (
+        "import sys\n"
+        "from lasercal.collector.cli.main import build_parser\n"
+        "from lasercal.collector.sessions.settings import capture_settings\n"
+        "args = ['capture', '--backend', 'fake', '--effects', 'paper-curl,print-shear', '--robot', 'panda']\n"
+        f"args += ['--per-point', '2', '--layout', {str(layout)!r}, '-o', {str(tmp_path / 's')!r}]\n"
+        "a = build_parser('capture').parse_args(args)\n"
+        "s = capture_settings({'backend': 'fake', 'effects': a.effects, 'robot': 'panda', 'per_point': 2},\n"
+        "                     a.layout, a.output)\n"
+        "print(s.cfg['effects'])\n"
+        "print(sorted(m for m in sys.modules if m.startswith('lasercal.collector.worlds')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == ["['paper-curl', 'print-shear']", "[]"], out.stdout
 
 
 def test_solver_never_prints_nor_parses_arguments():

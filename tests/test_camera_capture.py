@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from lasercal.collector.hardware import make_robot
-from lasercal.collector.hardware.fakeworld import EFFECTS, World, table_points
 from lasercal.collector.sessions.settings import capture_settings
 from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
 from lasercal.collector.sessions.start import CaptureGuide, start_capture
+from lasercal.collector.worlds.fakeworld import EFFECTS, World, table_points
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session, session_meta, write_session
 from lasercal.solver.identify.spot import identify_lm, predict_spots

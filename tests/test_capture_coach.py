@@ -9,11 +9,11 @@ import pytest
 
 from lasercal.collector.cli.main import main
 from lasercal.collector.hardware.base import FakeClock
-from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger
 from lasercal.collector.sessions.capture import CaptureOptions, run_capture
 from lasercal.collector.sessions.motion import MotionRefused
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.collector.worlds.fake import FakeOperator, FakeRobot
 from lasercal.solver.analysis.design import Coach
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session, session_meta

@@ -11,9 +11,9 @@ import pytest
 
 from lasercal.collector.errors import RobotConnectionError
 from lasercal.collector.hardware.base import FakeClock
-from lasercal.collector.hardware.fake import FakeRobot, perturbed_model
 from lasercal.collector.hardware.pandapy import PandaPyRobot
 from lasercal.collector.hardware.ros import RosRobot, arm_joint_names
+from lasercal.collector.worlds.fake import FakeRobot, perturbed_model
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout

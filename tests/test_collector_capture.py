@@ -9,11 +9,11 @@ import pytest
 
 from lasercal.collector.errors import RobotConnectionError
 from lasercal.collector.hardware.base import FakeClock
-from lasercal.collector.hardware.fake import FakeOperator, FakeRobot, Motion
 from lasercal.collector.hardware.rangefinder import FakeRangefinder
 from lasercal.collector.hardware.triggers import AutoTrigger, EnterTrigger
 from lasercal.collector.sessions.capture import CaptureOptions, run_capture
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.collector.worlds.fake import FakeOperator, FakeRobot, Motion
 from lasercal.solver.analysis.stats import cross_validate, solve_report
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model

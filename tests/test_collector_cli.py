@@ -251,7 +251,8 @@ def test_opencv_camera_reads_a_capture_device(tmp_path):
 
 
 def test_photos_of_a_layout_with_markers_are_measured_through_vision(tmp_path):
-    from lasercal.collector.sessions.validate import fake_view, measure_with_markers
+    from lasercal.collector.sessions.validate import measure_with_markers
+    from lasercal.collector.worlds.cameras import fake_view
     from lasercal.vision.plane import load_markers
     from lasercal.vision.render import LaserSpot, Photo, aruco_print, render, square_corners
 

@@ -348,8 +348,8 @@ def camera_scenario(workdir: str, host: str, per_point: int = 3) -> dict:
 
     from lasercal.collector.cli.main import main
     from lasercal.collector.hardware.franky import FrankyRobot
-    from lasercal.collector.sessions.spotcam import StatedTruth
     from lasercal.collector.sessions.store import CaptureStore
+    from lasercal.collector.worlds.cameras import StatedTruth
 
     report: dict = {}
     work = Path(workdir)
@@ -501,8 +501,9 @@ def test_a_fake_camera_off_the_fake_backend_photographs_the_stated_nominal_beam(
     refuses a sheet without a placement."""
     from lasercal.collector.errors import SessionError
     from lasercal.collector.hardware.base import JointState
-    from lasercal.collector.hardware.fakeworld import World
-    from lasercal.collector.sessions.spotcam import BESIDE_MM, StatedTruth, capture_camera
+    from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
+    from lasercal.collector.worlds.cameras import StatedTruth
+    from lasercal.collector.worlds.fakeworld import World
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout
     from lasercal.solver.identify.spot import predict_spots

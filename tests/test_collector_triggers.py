@@ -12,12 +12,12 @@ import serial
 
 from lasercal.collector.errors import DeviceError, InputEnded
 from lasercal.collector.hardware.base import FakeClock
-from lasercal.collector.hardware.fake import FakeOperator, FakeRobot
 from lasercal.collector.hardware.franky import FrankyPilot
 from lasercal.collector.hardware.rangefinder import SerialRangefinder, parse_reading
 from lasercal.collector.hardware.triggers import EnterTrigger, PilotTrigger, SerialTrigger, make_trigger
 from lasercal.collector.sessions.capture import CaptureOptions, run_capture
 from lasercal.collector.sessions.store import CaptureStore
+from lasercal.collector.worlds.fake import FakeOperator, FakeRobot
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session, session_meta

@@ -29,7 +29,7 @@ def scenario(workdir: str, host: str) -> dict:
     import franky
     from franky_corrector import circle, follow
 
-    from lasercal.collector.hardware.fake import perturbed_model
+    from lasercal.collector.worlds.fake import perturbed_model
     from lasercal.solver.control.corrector import Corrector
     from lasercal.solver.control.robot import Robot
     from lasercal.solver.formats.robots import load_model

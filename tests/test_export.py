@@ -14,7 +14,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from lasercal.collector.cli.main import main
-from lasercal.collector.hardware.fake import perturbed_model
+from lasercal.collector.worlds.fake import perturbed_model
 from lasercal.solver.formats.export import FRANKA_ORIGINS, export, kinematic_frames, to_dh, to_urdf
 from lasercal.solver.formats.robots import load_model, model_from_dict
 from lasercal.solver.formats.urdf import EE_LINK, load_urdf

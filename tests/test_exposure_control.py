@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 from lasercal.collector.hardware import make_robot
-from lasercal.collector.hardware.fakeworld import World, table_points
-from lasercal.collector.sessions.cameras import OpenCVCamera
+from lasercal.collector.hardware.cameras import OpenCVCamera
 from lasercal.collector.sessions.exposure import clipped_px, readable_by, settle_exposure
 from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
-from lasercal.collector.sessions.validate import FakeCamera, SpotLook, fake_view, measure_known_view
+from lasercal.collector.sessions.validate import measure_known_view
+from lasercal.collector.worlds.cameras import FakeCamera, SpotLook, fake_view
+from lasercal.collector.worlds.fakeworld import World, table_points
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout
 from lasercal.vision.errors import VisionError

@@ -15,10 +15,10 @@ import yaml
 
 from lasercal.collector.cli.main import main
 from lasercal.collector.hardware import make_robot
-from lasercal.collector.hardware.fakeworld import World
 from lasercal.collector.sessions.settings import capture_settings
 from lasercal.collector.sessions.spotcam import capture_camera
 from lasercal.collector.sessions.start import CaptureGuide, start_capture
+from lasercal.collector.worlds.fakeworld import World
 from lasercal.solver.formats.data import builtin_dir
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import load_layout, load_session

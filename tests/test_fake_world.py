@@ -10,10 +10,10 @@ import yaml
 
 from lasercal.collector.cli.main import main
 from lasercal.collector.hardware import truearm
-from lasercal.collector.hardware.fakeworld import EFFECTS, World, camera_lens, lens_estimate
-from lasercal.collector.hardware.truelens import Lens, SheetView, SpaceCamera, look_at
-from lasercal.collector.hardware.truesheet import PaperSheet
-from lasercal.collector.hardware.truespot import GLOW_FRACTION, PAPER_INDEX, SCATTER_DEPTH_MM, footprint
+from lasercal.collector.worlds.fakeworld import EFFECTS, World, camera_lens, lens_estimate
+from lasercal.collector.worlds.truelens import Lens, SheetView, SpaceCamera, look_at
+from lasercal.collector.worlds.truesheet import PaperSheet
+from lasercal.collector.worlds.truespot import GLOW_FRACTION, PAPER_INDEX, SCATTER_DEPTH_MM, footprint
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim
@@ -145,10 +145,10 @@ def scaled_session(tmp_path_factory):
 
 def test_solve_recovers_a_drawn_print_scale_and_tilt_within_its_sigma(scaled_session):
     """The found print scale and tilt against the world's own (read off its paper in the robot's own frame,
-    collector.sessions.world.true_sheet_pose), in the sigmas solve reports; the tilt and the difference of
+    collector.worlds.record.true_sheet_pose), in the sigmas solve reports; the tilt and the difference of
     the two scales are the data's (sigmas far below the draws), the common scale is the robot's size and
     the sheet's at once (what the prior holds, ~0.14 %)."""
-    from lasercal.collector.sessions.world import session_world, true_sheet_pose
+    from lasercal.collector.worlds.record import session_world, true_sheet_pose
 
     d = scaled_session
     model = yaml.safe_load((d / "m.yaml").read_text())
@@ -173,7 +173,7 @@ def test_solve_recovers_a_drawn_print_scale_and_tilt_within_its_sigma(scaled_ses
 def test_the_honest_floor_is_the_repeatability_and_the_camera(scaled_session):
     """The true robot aimed at P6 where it truly lies, photographed as validate does: its error is the arm's
     repeatability (0.05-0.06 mm at P6 over 15 poses) with the camera's few hundredths on top."""
-    from lasercal.collector.sessions.floors import floors
+    from lasercal.collector.studies.floors import floors
 
     honest, repeat = floors(scaled_session / "s", scaled_session / "sheet" / "layout.yaml", "P6", 15, 0)
     assert 0.03 < repeat < 0.09, repeat

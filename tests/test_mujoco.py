@@ -27,9 +27,9 @@ pytest.importorskip(
 )
 pytest.importorskip("pypdfium2", reason="the sheet's texture needs pypdfium2: pip install 'lasercal[mujoco]'")
 
-from lasercal.collector.hardware.mujoco import MujocoCamera, MujocoRobot, MujocoWorld  # noqa: E402
 from lasercal.collector.sessions.capture import wait_still  # noqa: E402
 from lasercal.collector.sessions.spotcam import measure_spot  # noqa: E402
+from lasercal.collector.worlds.mujoco import MujocoCamera, MujocoRobot, MujocoWorld  # noqa: E402
 from lasercal.solver.formats.robots import load_model  # noqa: E402
 from lasercal.solver.formats.session import load_layout  # noqa: E402
 from lasercal.solver.identify.spot import predict_spots  # noqa: E402
@@ -143,7 +143,7 @@ def test_the_simulated_operator_puts_mujoco_beam_on_the_printed_point(scenes):
     """Hand-guiding without noise: from a pose of the nominal robot the operator nudges the arm, watching
     MuJoCo's spot, until the beam meets the point where the sheet body holds it (the perturbed world with
     its spring, where the nominal pose misses by millimetres)."""
-    from lasercal.collector.hardware.mujoco import make_mujoco_robot
+    from lasercal.collector.worlds.mujoco import make_mujoco_robot
 
     layout = load_layout(scenes / "sheet" / "layout.yaml")
     cfg = {"world": scenes / "spring" / "scene.xml", "aim_noise": 0.0, "seed": 0}

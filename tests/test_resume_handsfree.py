@@ -16,7 +16,7 @@ from lasercal.collector.cli.main import main
 KILL = """
 import os, signal, sys
 from pathlib import Path
-from lasercal.collector.hardware.fake import FakeRobot
+from lasercal.collector.worlds.fake import FakeRobot
 from lasercal.collector.cli.main import main
 
 folder, after = Path(sys.argv[1]), int(sys.argv[2])

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lasercal.collector.hardware.fake import FakeOperator
+from lasercal.collector.worlds.fake import FakeOperator
 from lasercal.solver.analysis.simulate import simulate_captures, validation_spots
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Session, load_layout

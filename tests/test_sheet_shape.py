@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from lasercal.collector.cli.main import main
 from lasercal.collector.hardware import fakeworld
-from lasercal.collector.hardware.truesheet import PaperSheet
+from lasercal.collector.worlds.truesheet import PaperSheet
 from lasercal.solver.formats.robots import load_model, model_from_dict
 from lasercal.solver.formats.session import load_session
 from lasercal.solver.identify.measurement import fit
@@ -60,7 +60,7 @@ def test_print_shear_and_height_field_against_a_direct_construction():
 
 
 def test_the_print_map_is_the_fake_worlds_and_from_base_inverts_it():
-    """Eq. S5 against the fake world's own eq. W1 (collector.hardware.truesheet: a = s_x u + g' s_y v, b = s_y
+    """Eq. S5 against the fake world's own eq. W1 (collector.worlds.truesheet: a = s_x u + g' s_y v, b = s_y
     v, its skew g' = g / s_y), and from_base against its inverse (printed)."""
     pose = SheetPose.from_vector(V)
     paper = PaperSheet(np.zeros(3), 0.0, np.array([pose.scale_x, pose.scale_y]), pose.shear / pose.scale_y)

@@ -236,7 +236,7 @@ def test_every_output_folder_gets_the_permissions_mkdir_gives(walkthrough, tmp_p
 def test_the_world_of_each_kind_of_session(walkthrough, tmp_path):
     """simulate on a sheet without --sheet-pose lays the sheet at its placement under the truth it names (in
     the truth file's frame); a measured session has no simulated world."""
-    from lasercal.collector.sessions.world import session_world
+    from lasercal.collector.worlds.record import session_world
 
     layout = str(walkthrough / "sheet" / "layout.yaml")
     s = tmp_path / "s"

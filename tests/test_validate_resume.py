@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 
 from lasercal.collector.cli.main import main
-from lasercal.collector.hardware.fake import FakeRobot
 from lasercal.collector.sessions.motion import MotionRefused, confirm, joint_steps, plan_moves, preview
+from lasercal.collector.worlds.fake import FakeRobot
 from lasercal.solver.formats.robots import load_model
 
 N = 12

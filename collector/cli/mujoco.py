@@ -1,4 +1,4 @@
-"""``lasercal mujoco-scene``: a default MuJoCo world for a printed sheet (:mod:`hardware.mujoco_scene`)."""
+"""``lasercal mujoco-scene``: a default MuJoCo world for a printed sheet (:mod:`worlds.mujoco_scene`)."""
 
 from __future__ import annotations
 
@@ -96,16 +96,14 @@ def args_mujoco_scene(p: argparse.ArgumentParser) -> None:
 
 
 def passives(args):
-    """The passive joints the options ask for (:class:`hardware.mujoco_scene.Passive`), one per joint.
+    """The passive joints the options ask for, one per joint: dicts of :class:`worlds.mujoco_scene.Passive`'s
+    fields (``joint``, ``axis``, ``compliance``, ``backlash``, ``friction``).
 
     Raises
     ------
     LasercalError
         Two passive joints after one joint, or friction without a passive joint to act on.
     """
-    from dataclasses import replace
-
-    from lasercal.collector.hardware.mujoco_scene import Passive
     from lasercal.solver.errors import LasercalError
 
     out = {}
@@ -116,26 +114,26 @@ def passives(args):
     )
     for flag, axis, key in kinds:
         for j, v in getattr(args, flag) or ():
-            old = out.get(j, Passive(j, axis=axis))
-            if old.axis != axis or getattr(old, key):
+            old = out.get(j, {"joint": j, "axis": axis})
+            if old["axis"] != axis or old.get(key):
                 raise LasercalError(
                     f"argument --{flag}: joint {j} has a passive joint of another kind already"
                 )
-            out[j] = replace(old, **{key: v})
+            out[j] = {**old, key: v}
     for j, nm in args.friction or ():
         if j not in out:
             raise LasercalError(
                 f"argument --friction: {j}:{nm:g} acts on the passive joint after joint {j}: add --spring, "
                 f"--bend or --backlash {j}:..."
             )
-        out[j] = replace(out[j], friction=nm)
+        out[j] = {**out[j], "friction": nm}
     return tuple(out[j] for j in sorted(out))
 
 
 def cmd_mujoco_scene(args) -> int:
     from pathlib import Path
 
-    from lasercal.collector.hardware.mujoco_scene import SceneOptions, write_scene
+    from lasercal.collector.hardware import write_mujoco_scene
     from lasercal.collector.sessions.store import atomic_output
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.session import load_layout
@@ -152,11 +150,9 @@ def cmd_mujoco_scene(args) -> int:
     pdf = Path(layout.path).parent / "sheet.pdf"
     if not pdf.is_file():
         raise FormatError(layout.path, f"no sheet.pdf beside it (expected {pdf}: lasercal sheet writes both)")
-    options = SceneOptions(
-        None if args.exact else args.seed, passive=passive, light=args.light, shadows=args.shadows
-    )
     with atomic_output(args.output, folder=True) as tmp:
-        info = write_scene(tmp, layout, pdf, options)
+        seed = None if args.exact else args.seed
+        info = write_mujoco_scene(tmp, layout, pdf, seed, passive, args.light, args.shadows)
         head = (
             "# What lasercal mujoco-scene drew: lengths mm, angles rad (yaw deg), compliance rad/Nm, "
             "friction Nm.\n"
@@ -176,7 +172,7 @@ def cmd_mujoco_scene(args) -> int:
         f"wrote {args.output}/scene.xml: {info['arm'].split(' from ')[0]} "
         f"({'exact' if args.exact else f'perturbed, seed {args.seed}'}), the sheet at x {s['x_mm']:.2f} mm, "
         f"y {s['y_mm']:.2f} mm, yaw {s['yaw_deg']:.3f} deg"
-        + "".join(f"; {p.name}: {_passive_text(p)}" for p in options.passive)
+        + "".join(f"; passive_joint{p['joint']}: {_passive_text(p)}" for p in passive)
     )
     print(
         f"next: lasercal capture --backend mujoco --world {args.output}/scene.xml --robot fr3 --layout "
@@ -187,10 +183,11 @@ def cmd_mujoco_scene(args) -> int:
 
 def _passive_text(p) -> str:
     parts = []
-    if p.compliance:
-        parts.append(f"spring {p.compliance:g} rad/Nm about {'its joint' if p.axis == 'joint' else p.axis}")
-    if p.backlash:
-        parts.append(f"backlash {p.backlash:g} rad")
-    if p.friction:
-        parts.append(f"friction {p.friction:g} Nm")
+    if p.get("compliance"):
+        where = "its joint" if p["axis"] == "joint" else p["axis"]
+        parts.append(f"spring {p['compliance']:g} rad/Nm about {where}")
+    if p.get("backlash"):
+        parts.append(f"backlash {p['backlash']:g} rad")
+    if p.get("friction"):
+        parts.append(f"friction {p['friction']:g} Nm")
     return ", ".join(parts)

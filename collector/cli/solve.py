@@ -168,8 +168,8 @@ def args_simulate(p: argparse.ArgumentParser) -> None:
 def simulated_sheet(folder, session, model) -> str:
     """A simulated sheet session's truth beside ``solve``'s sheet pose (a line), or '' for any other session:
     the figure a user cannot check against a truth says what it is relative to."""
+    from lasercal.collector.hardware import session_world, true_sheet_pose
     from lasercal.collector.report.text import format_true_sheet
-    from lasercal.collector.sessions.world import session_world, true_sheet_pose
 
     if model.sheet is None:
         return ""

@@ -495,9 +495,9 @@ def beam_check_command(args) -> int:
 def _beam_photos(args) -> list[str]:
     """``beam-check --device``: the photos taken live, with the live view if asked."""
     from lasercal.collector.errors import SessionError
+    from lasercal.collector.hardware.cameras import OpenCVCamera
     from lasercal.collector.hardware.triggers import EnterTrigger
     from lasercal.collector.sessions.beamphotos import take_beam_photos
-    from lasercal.collector.sessions.cameras import OpenCVCamera
 
     if args.images or not args.save:
         raise SessionError("beam-check --device takes its photos live: drop IMAGE..., give --save FOLDER")

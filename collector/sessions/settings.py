@@ -156,7 +156,7 @@ def capture_settings(
             raise SessionError(f"a new session needs {', '.join(missing)} (or --resume SESSION)")
         cfg = {**DEFAULTS, **given}
         if cfg["backend"] == "fake":  # the simulated world's effects, as a list (stored: a resume keeps them)
-            from lasercal.collector.hardware.fakeworld import parse_effects
+            from lasercal.collector.hardware.simulated import parse_effects
 
             cfg["effects"] = list(parse_effects(cfg.get("effects"), cfg.get("camera") == "fake"))
         elif cfg.get("effects") is not None:

@@ -12,9 +12,17 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from lasercal.collector.hardware import SIMULATED, make_rangefinder, make_robot
+from lasercal.collector.hardware import (
+    SIMULATED,
+    draw_world,
+    fake_table,
+    make_rangefinder,
+    make_robot,
+    no_effects,
+    recorded_world,
+    validation_world,
+)
 from lasercal.collector.hardware.base import RobotAdapter
-from lasercal.collector.hardware.fakeworld import World, on_table, paper_half_length, table_points
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
 from lasercal.collector.sessions.anywhere import session_layout_file
 from lasercal.collector.sessions.capture import (
@@ -29,16 +37,10 @@ from lasercal.collector.sessions.capture import (
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
 from lasercal.collector.sessions.photos import PhotoPolicy
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings
+from lasercal.collector.sessions.sheetframe import check_same_frame, model_session
 from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
 from lasercal.collector.sessions.state import EitherTrigger, SessionState
 from lasercal.collector.sessions.store import CaptureStore
-from lasercal.collector.sessions.world import (
-    SimulatedWorld,
-    check_same_frame,
-    model_session,
-    stored_effects,
-    validation_world,
-)
 from lasercal.solver.errors import FormatError, LasercalError
 from lasercal.solver.formats.robots import load_model
 from lasercal.solver.formats.session import Layout, load_layout
@@ -206,9 +208,9 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     nominal = load_model(cfg["robot"])
     # a resumed session goes on in the world it recorded (its draws, the camera's calibration)
     world = (
-        stored_effects(settings.folder)
+        recorded_world(settings.folder)
         if settings.resume
-        else World.draw(cfg.get("effects") or (), cfg["seed"], paper_half_length(layout))
+        else draw_world(cfg.get("effects"), cfg["seed"], layout)
     )
     camera_spec = cfg.get("camera")
     layout_file = session_layout_file(cfg, settings.folder) if settings.resume else settings.layout_path
@@ -216,14 +218,15 @@ def start_capture(settings: CaptureSettings, guide: CaptureGuide) -> StartedCapt
     beside = BESIDE_MM if camera_spec and spots is None else (0.0, 0.0)
     # a sheet's points where its placement says: the simulated operator's table (as printed, on the sheet's
     # true surface; beside the crosses with a camera that aims at them), the coach's aim
+    points, place = fake_table(layout, world, beside)
     robot = make_robot(
         cfg,
         nominal,
         layout.in_base(),
         cfg["per_point"],
-        points=table_points(layout, world, beside),
+        points=points,
         repeat_sigma=world.repeat_sigma,
-        place=lambda xy: on_table(layout, world, xy),
+        place=place,
         placement=layout.sheet if layout.frame == "sheet" else None,
         printed=layout.frame == "sheet",
     )
@@ -324,7 +327,7 @@ class StartedValidation:
     measure: object
     trigger: Trigger | None
     opts: ValidateOptions
-    world: SimulatedWorld | None = None
+    world: object | None = None  # collector.worlds.record.SimulatedWorld
 
     def run(self, out=sys.stdout, view=None) -> ValidationResult:
         """Run the validation (:func:`run_validation`) on screen ``out``; it closes the robot and camera.
@@ -411,9 +414,9 @@ def start_validation(settings: ValidateSettings, yes: bool = False) -> StartedVa
     if sheet is not None:  # a printed sheet: its points where a calibration found the sheet (eq. S1)
         layout = layout.in_base(sheet)
     nominal = load_model(cfg["robot"])
-    effects = world.effects if world is not None else World()
+    effects = world.effects if world is not None else no_effects()
     robot = make_robot(cfg, nominal, layout, truth=world and world.truth, repeat_sigma=effects.repeat_sigma)
-    # where the simulated table holds the sheet, as printed and laid (collector.hardware.truesheet)
+    # where the simulated table holds the sheet, as printed and laid (collector.worlds.truesheet)
     paper = None
     if world is not None and world.sheet is not None and sheet is not None:
         paper = effects.paper(world.sheet, layout.plane_z)
@@ -465,7 +468,7 @@ def sheet_world(
 
     The sheet's pose is the one a calibration identified: ``sheet_from``'s (any model, the nominal
     included, can be validated with it) or the model's own. On the fake backend the simulated world is
-    :func:`sessions.world.validation_world`'s: ``pose`` (the sheet's true pose), else the session the
+    :func:`worlds.record.validation_world`'s: ``pose`` (the sheet's true pose), else the session the
     sheet's pose was identified from, else the layout's placement.
 
     Parameters

@@ -22,10 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from lasercal.collector.errors import DeviceError, RobotConnectionError, SessionError
+from lasercal.collector.hardware import mujoco_camera, top_camera
 from lasercal.collector.hardware.base import RobotAdapter
-from lasercal.collector.sessions.cameras import OpenCVCamera
+from lasercal.collector.hardware.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import StateStream, wait_still
-from lasercal.collector.sessions.exposure import CountedPhotos, readable_by, settle_exposure
+from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
 from lasercal.collector.sessions.photos import (
     ALL_PNG,
@@ -44,74 +45,9 @@ from lasercal.solver.whole import dump_yaml
 from lasercal.vision.detect import detect_spots
 from lasercal.vision.errors import VisionError
 from lasercal.vision.exposure import exposure_advice
-from lasercal.vision.render import LaserSpot, Photo, View, look_down, render
+from lasercal.vision.render import View
 
 VALIDATION_FORMAT = "lasercal-validation/1"
-
-
-def fake_view(centre_xy, plane_z: float, size=(1600, 1200), mm_per_px: float = 0.1) -> View:
-    """A camera 800 mm above the table looking straight down at ``centre_xy`` (mm)."""
-    return look_down(size=size, mm_per_px=mm_per_px, centre=tuple(centre_xy), height=800.0, z=plane_z)
-
-
-# The fake camera of `validate`: 160 x 120 mm around the point (a nominal model's spots land up to ~30 mm
-# off) at 0.2 mm/px, where the spot (sigma 2.5 px, 0.5 mm) is measured to ~0.01 mm; a quarter of the pixels
-# of 0.1 mm/px, which made rendering, measuring and storing the photos 80 % of a run's time.
-FAKE_VIEW_PX = (800, 600)
-FAKE_MM_PER_PX = 0.2
-PAPER = Photo.paper  # the blank sheet's brightness at exposure 1, of full scale
-
-
-@dataclass(frozen=True)
-class SpotLook:
-    """How the fake laser spot looks: Gaussian sigma (px), peak (full scale), speckle contrast."""
-
-    sigma: float = 2.5
-    peak: float = 0.8
-    speckle: float = 0.2
-
-
-class FakeCamera(CountedPhotos):
-    """Photos of the spot the fake robot's true beam makes on a blank sheet.
-
-    No reference marks are printed: ink under the spot would bias its centroid, and the
-    validation measures the model, not the spot detector.
-
-    Parameters
-    ----------
-    robot : FakeRobot (anything with ``true_spot(z) -> (spot, length)``)
-    view : vision.render.View
-    plane_z : float, mm
-    seed : int, seed of the image noise
-    look : SpotLook
-    exposure : float or None, a gain on all the light, set through OpenCV's properties
-        (:class:`~collector.sessions.exposure.FakeExposure`); None: fixed at 1, as a device that refuses
-    """
-
-    name = "fake"
-
-    def __init__(
-        self,
-        robot,
-        view: View,
-        plane_z: float,
-        seed: int = 0,
-        look: SpotLook = SpotLook(),
-        exposure: float | None = None,
-    ):
-        self.robot, self.view, self.plane_z, self.seed, self.look = robot, view, plane_z, seed, look
-        self.exposure = exposure
-
-    def _render(self, seed: int) -> np.ndarray:
-        spot, _ = self.robot.true_spot(self.plane_z)
-        u, v = self.view.project(spot[:2])[0]
-        lk, g = self.look, self.gain
-        spot = LaserSpot(u, v, lk.sigma, lk.peak * g, lk.speckle)
-        photo = Photo(self.view, (), (spot,), paper=PAPER * g, camera=self.sensor)
-        return render(photo, seed=seed)
-
-    def close(self) -> None:
-        """Nothing to release."""
 
 
 def measure_known_view(img: np.ndarray, name: str, view: View) -> tuple[np.ndarray, str | None]:
@@ -158,10 +94,10 @@ def make_camera(
     layout : Layout (base frame); point : str, the validation point
     layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
     sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
-    paper : collector.hardware.truesheet.PaperSheet or None, where the simulated table holds that sheet: the
+    paper : collector.worlds.truesheet.PaperSheet or None, where the simulated table holds that sheet: the
         fake camera looks down at the point on it (:class:`~collector.sessions.spotcam.PaperTopCamera`), its
         spots read in the sheet's printed mm and go to the model's frame through ``sheet``
-    world : collector.hardware.fakeworld.World or None, the simulated world's effects on the spot
+    world : collector.worlds.fakeworld.World or None, the simulated world's effects on the spot
 
     Returns
     -------
@@ -173,19 +109,16 @@ def make_camera(
         if cfg["backend"] != "fake":
             raise SessionError("--camera fake needs --backend fake (it renders the fake robot's true spot)")
         if paper is not None:  # a simulated sheet: the spot read in its printed mm, then the model's frame
-            from lasercal.collector.sessions.spotcam import PaperTopCamera
-
             centre = sheet.from_base(layout.points[point][None])[0]
-            cam = PaperTopCamera(robot, paper, centre, world, cfg["seed"], FAKE_VIEW_PX, FAKE_MM_PER_PX)
+            cam = top_camera(robot, centre, layout.plane_z, cfg["seed"], paper, world)
 
             def on_sheet(img, name):
                 xy, advice = measure_known_view(img, name, cam.view)
                 return sheet.to_base(xy[None], layout.plane_z)[0, :2], advice
 
             return cam, on_sheet
-        view = fake_view(layout.points[point][:2], layout.plane_z, FAKE_VIEW_PX, FAKE_MM_PER_PX)
-        camera = FakeCamera(robot, view, layout.plane_z, seed=cfg["seed"])
-        return camera, lambda img, name: measure_known_view(img, name, view)
+        camera = top_camera(robot, layout.points[point][:2], layout.plane_z, cfg["seed"])
+        return camera, lambda img, name: measure_known_view(img, name, camera.view)
     if spec is None:
         raise SessionError(
             "validate needs --camera (an OpenCV device index, URL or image sequence) for a real robot"
@@ -195,8 +128,6 @@ def make_camera(
     markers = load_markers(layout_path)
     measure = None if markers is None else (lambda img, name: measure_with_markers(img, name, markers, sheet))
     if spec == "mujoco":  # the MuJoCo world's camera, measured as a real camera's photos are
-        from lasercal.collector.hardware.mujoco import mujoco_camera
-
         return mujoco_camera(robot), measure
     return OpenCVCamera(int(spec) if spec.isdigit() else spec), measure
 
@@ -257,7 +188,7 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
             f"{model.plane_z:g} mm (expected the layout of the table the model was calibrated on)",
             field="plane",
         )
-    from lasercal.collector.sessions.world import model_session
+    from lasercal.collector.sessions.sheetframe import model_session
 
     session = model_session(model, model_ref)
     if session is not None:

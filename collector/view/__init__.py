@@ -51,10 +51,10 @@ def sheet_outline(layout_file) -> np.ndarray | None:
 def simulated_scene(camera):
     """What a fake camera's picture depends on (:class:`~.live.LiveFeed`'s ``scene``): the fake arm's true
     pose and the exposure; None for any other camera (each frame is read)."""
-    from lasercal.collector.hardware.fake import FakeRobot
+    from lasercal.collector.hardware import simulated_arm
 
     robot = getattr(camera, "robot", None)
-    if not isinstance(robot, FakeRobot):
+    if not simulated_arm(robot):
         return None
     return lambda: (robot.true_q().tobytes(), getattr(camera, "gain", 1.0))
 

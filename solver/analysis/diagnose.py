@@ -233,7 +233,7 @@ class Diagnosis:
 
 # The torque sensor's noise (std, Nm) a session with logged torques is read with (none states its own): the
 # simulated Panda's and the fake arm's sensor noise (tau_noise of solver/analysis/simulate.py and of
-# collector/hardware/fake.py; docs/sessions.md, "gravity torques of the true robot + 0.05 Nm noise").
+# collector/worlds/fake.py; docs/sessions.md, "gravity torques of the true robot + 0.05 Nm noise").
 TORQUE_NOISE_NM = 0.05
 # A logged-torque regressor (a compliance's tau_j) is testable when its std over the captures is at least this
 # many times the sensor's noise: the noise is then at most 1 / 5^2 = 4 % of its variance, and a compliance

@@ -1,8 +1,8 @@
 """The floors a camera session's error is measured against (issue 45 item 8): what the true robot itself
 achieves at a point of the fake world's true paper, photographed as ``validate`` does.
 
-Apart from :mod:`sessions.world` (the world's record) because it runs a validation's pieces, and
-``validate`` reads the world's record: one module each way, no circle.
+A study, not a world: it runs a validation's pieces (standstill, measurement) in a world it reaches through
+the backend factory, as a session does.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.collector.sessions.world import session_world
+from lasercal.collector.hardware import make_robot, session_world, top_camera
 from lasercal.solver.formats.robots import load_model, load_yaml
 
 
@@ -34,15 +34,8 @@ def floors(session, layout_file, point: str, n: int = 30, seed: int = 0) -> tupl
     measures it, against the printed point) and the repeatability floor (where the true beam truly meets the
     paper, the camera left out)
     """
-    from lasercal.collector.hardware import make_robot
     from lasercal.collector.sessions.capture import wait_still
-    from lasercal.collector.sessions.spotcam import PaperTopCamera
-    from lasercal.collector.sessions.validate import (
-        FAKE_MM_PER_PX,
-        FAKE_VIEW_PX,
-        ValidateOptions,
-        measure_known_view,
-    )
+    from lasercal.collector.sessions.validate import ValidateOptions, measure_known_view
     from lasercal.solver.formats.session import load_layout
     from lasercal.solver.kinematics.aim import aim
 
@@ -55,7 +48,7 @@ def floors(session, layout_file, point: str, n: int = 30, seed: int = 0) -> tupl
     robot = make_robot(
         cfg, load_model(cfg["robot"]), layout, truth=world.truth, repeat_sigma=effects.repeat_sigma
     )
-    camera = PaperTopCamera(robot, paper, printed, effects, seed, FAKE_VIEW_PX, FAKE_MM_PER_PX)
+    camera = top_camera(robot, printed, layout.plane_z, seed, paper, effects)
     robot.connect()
     opts = ValidateOptions()
     measured, true = [], []

@@ -202,7 +202,7 @@ def write_scene(out: Path, layout, pdf: Path, options: SceneOptions) -> dict:
     -------
     dict, what was drawn and built (``scene.yaml``'s content: units m, rad, mm where named)
     """
-    from lasercal.collector.hardware.mujoco import import_mujoco
+    from lasercal.collector.worlds.mujoco import import_mujoco
     from lasercal.solver.formats.robots import load_yaml
 
     mujoco = import_mujoco("lasercal mujoco-scene")

@@ -4,9 +4,9 @@ Each effect can be switched (``capture --effects``); a camera session (``--camer
 by default, an aimed one none (the world the README's and docs' figures were measured in). The values
 that vary from table to table are drawn once per session from its seed and stored in session.yaml
 (``simulated.world``), so that ``validate`` sees the same world. The world is computed by its own code,
-not by the functions the fit uses: the arm's beam (:mod:`collector.hardware.truearm`), the paper
-(:mod:`collector.hardware.truesheet`), the lens (:mod:`collector.hardware.truelens`), the spot
-(:mod:`collector.hardware.truespot`).
+not by the functions the fit uses: the arm's beam (:mod:`collector.worlds.truearm`), the paper
+(:mod:`collector.worlds.truesheet`), the lens (:mod:`collector.worlds.truelens`), the spot
+(:mod:`collector.worlds.truespot`).
 
 * ``repeatability``: the pose the arm reaches differs from what its encoders report, by Gaussian joint
   noise of :data:`REPEAT_SIGMA_RAD` per joint -- Franka's datasheet repeatability, ISO 9283's RP
@@ -43,22 +43,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from lasercal.collector.hardware.truelens import PRISM, RADIAL, TANGENTIAL, Lens, calibrated
-from lasercal.collector.hardware.truesheet import PaperSheet
-from lasercal.solver.errors import LasercalError
+from lasercal.collector.hardware.simulated import EFFECTS
+from lasercal.collector.worlds.truelens import PRISM, RADIAL, TANGENTIAL, Lens, calibrated
+from lasercal.collector.worlds.truesheet import PaperSheet
 
-EFFECTS = (
-    "repeatability",
-    "distortion",
-    "occlusion",
-    "ellipse",
-    "print-scale",
-    "sheet-height",
-    "table-slope",
-    "paper-curl",
-    "print-shear",
-    "subsurface",
-)
 REPEAT_SIGMA_RAD = 4.7e-5  # per joint: RP 0.1 mm at the aperture (ISO 9283), see the module docstring
 PRINT_SCALE = 0.002  # a printer scales each axis by up to +-0.2 %
 PRINT_SHEAR = 1.5e-3  # and feeds the paper askew by up to this skew (mm per mm)
@@ -73,36 +61,6 @@ CAMERA_PX = (1280, 960)
 CAMERA_MM_PER_PX = 0.33
 CAMERA_OFFSET_MM = (350.0, 0.0, 600.0)
 CALIBRATION_SEED = 0  # the fake camera is one device, calibrated once (as a user calibrates theirs)
-
-
-def parse_effects(text: str | None, camera: bool) -> tuple:
-    """The effects a ``--effects`` value switches on: ``all``, ``none`` or names separated by commas.
-
-    Parameters
-    ----------
-    text : str or None, the option's value (None: all with a fake camera, none without)
-    camera : bool, the session has a fake camera
-
-    Raises
-    ------
-    LasercalError
-        An unknown name, naming the option and the names it takes.
-    """
-    if text is None:
-        return EFFECTS if camera else ()
-    text = text.strip()
-    if text == "all":
-        return EFFECTS
-    if text == "none":
-        return ()
-    names = [t.strip() for t in text.split(",")]
-    bad = [t for t in names if t not in EFFECTS]
-    if bad or not names:
-        raise LasercalError(
-            f"--effects {text!r}: unknown effect {bad[0] if bad else ''!r} (expected all, none or a comma "
-            f"list of {', '.join(EFFECTS)})"
-        )
-    return tuple(e for e in EFFECTS if e in names)
 
 
 @dataclass(frozen=True)
@@ -176,7 +134,7 @@ class World:
         return effect in self.effects
 
     def paper(self, placement, plane_z: float) -> PaperSheet:
-        """The printed sheet as it truly lies (:class:`~collector.hardware.truesheet.PaperSheet`), the
+        """The printed sheet as it truly lies (:class:`~collector.worlds.truesheet.PaperSheet`), the
         layout's origin placed at ``placement`` (x_mm, y_mm, yaw_deg: a SheetPose's numbers) on the plane
         ``plane_z`` (mm), its scale and slope ``placement``'s (a stated true pose's) with this world's on
         top."""
@@ -252,7 +210,7 @@ def camera_lens(world: World) -> Lens:
 @lru_cache(maxsize=1)
 def lens_estimate():
     """The fake camera's calibration: ``camera-calibrate``'s estimate from chessboard photos rendered through
-    its true lens (:func:`collector.hardware.truelens.calibrated`; ~10 s, once per process)."""
+    its true lens (:func:`collector.worlds.truelens.calibrated`; ~10 s, once per process)."""
     return calibrated(
         camera_lens(World(("distortion",))), float(np.linalg.norm(CAMERA_OFFSET_MM)), CALIBRATION_SEED
     )

@@ -12,7 +12,7 @@
   wait for it. Torques: the true robot's gravity torques at the pose its links stand in, plus sensor noise.
 * The true robot's ``extensions`` (compliance, eccentricity, drift, a joint map, a point offset): the
   encoders report q while the links stand where the effects put them
-  (:mod:`collector.hardware.fakeeffects`).
+  (:mod:`collector.worlds.fakeeffects`).
 """
 
 from __future__ import annotations
@@ -24,10 +24,11 @@ import numpy as np
 
 from lasercal.collector.errors import RobotConnectionError
 from lasercal.collector.hardware.base import FakeClock, JointState, RobotAdapter
-from lasercal.collector.hardware.fakeeffects import ArmEffects, arm_effects
-from lasercal.collector.hardware.truearm import beam as true_beam_of
-from lasercal.collector.hardware.truearm import plane_spot
-from lasercal.solver.errors import AimingError
+from lasercal.collector.worlds.fakeeffects import ArmEffects, arm_effects
+from lasercal.collector.worlds.truearm import beam as true_beam_of
+from lasercal.collector.worlds.truearm import plane_spot
+from lasercal.solver.errors import AimingError, FormatError
+from lasercal.solver.formats.robots import load_model, resolve_robot_path
 from lasercal.solver.kinematics.aim import aim, polish, spot_error
 from lasercal.solver.kinematics.laser import LaserParams
 from lasercal.solver.kinematics.model import RobotModel
@@ -153,12 +154,12 @@ class FakeRobot(RobotAdapter):
     motion : Motion
     seed : int, seed of the motion and sensor noise
     disconnect_at : float or None, simulated time after which every read fails, s (tests)
-    repeat_sigma : float, the arm's repeatability (:mod:`collector.hardware.fakeworld`): the pose it
+    repeat_sigma : float, the arm's repeatability (:mod:`collector.worlds.fakeworld`): the pose it
         reaches differs from what its encoders report by Gaussian joint noise of this std, rad (0: exact),
         a new draw keyed like the motion for every pose reached
     place : callable (k, 2) -> (k, 3) or None, where spots of the layout's frame truly are on the table
-        (:func:`collector.hardware.fakeworld.on_table`): the simulated operator aims at a planned spot there
-    effects : ArmEffects or None, the truth's extensions (:mod:`collector.hardware.fakeeffects`; None:
+        (:func:`collector.worlds.fakeworld.on_table`): the simulated operator aims at a planned spot there
+    effects : ArmEffects or None, the truth's extensions (:mod:`collector.worlds.fakeeffects`; None:
         those of ``truth``, refused with its name when the fake arm cannot simulate them)
     """
 
@@ -315,10 +316,41 @@ class FakeRobot(RobotAdapter):
         return self._links_at(self.clock.now())[0]
 
     def true_beam(self) -> tuple[np.ndarray, np.ndarray]:
-        """The true laser beam now, by the world's own kinematics (:mod:`collector.hardware.truearm`):
+        """The true laser beam now, by the world's own kinematics (:mod:`collector.worlds.truearm`):
         aperture (3,) mm and unit direction (3,)."""
         return true_beam_of(self.truth, self.true_q())
 
     def true_spot(self, z: float) -> tuple[np.ndarray, float]:
         """Where the true beam meets the plane z now: spot (3,) mm and laser length, mm."""
         return plane_spot(*self.true_beam(), z)
+
+
+def fake_truth(cfg: dict, nominal, base=None):
+    """The fake backend's true robot of the settings ``cfg``: ``perturb_seed`` (a seeded perturbation of
+    ``nominal``) or ``truth`` (a robot file or name; a relative path tried in the folder ``base`` first).
+
+    Returns
+    -------
+    RobotModel
+
+    Raises
+    ------
+    FormatError
+        A truth whose ``extensions`` the fake arm cannot simulate, naming its file and the field
+        (:func:`collector.worlds.fakeeffects.arm_effects`).
+    """
+    if cfg.get("perturb_seed") is not None:
+        return perturbed_model(nominal, cfg["perturb_seed"])
+    truth = load_model(cfg["truth"], base=base)
+    arm_effects(truth, truth_file(cfg["truth"], base))  # refused now, naming the file
+    return truth
+
+
+def truth_file(ref, base=None) -> str:
+    """How errors name the truth ``ref``: its file (a built-in name resolved), else ``ref`` as given."""
+    if str(ref).lower().endswith(".urdf"):
+        return str(ref)
+    try:
+        return str(resolve_robot_path(ref, base))
+    except FormatError:
+        return str(ref)

@@ -104,7 +104,7 @@ class SheetView:
     ----------
     camera : SpaceCamera
     paper : object with ``surface(uv) -> (k, 3)`` and ``hit(o, d) -> (uv, p, s)``
-        (:class:`~collector.hardware.truesheet.PaperSheet`, or :class:`Board`)
+        (:class:`~collector.worlds.truesheet.PaperSheet`, or :class:`Board`)
     """
 
     camera: SpaceCamera

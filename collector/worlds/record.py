@@ -21,15 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from lasercal.collector.hardware import fake_truth
-from lasercal.collector.hardware.fakeworld import World
+from lasercal.collector.worlds.fake import fake_truth
+from lasercal.collector.worlds.fakeworld import World
 from lasercal.solver.errors import FormatError
 from lasercal.solver.formats.robots import load_model, load_yaml, sheet_pose
 from lasercal.solver.kinematics.frames import moved, own_frame
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import SheetPose
-
-SAME_AXIS_MM = 1e-3  # two models share a base frame when joint 1's screws agree this well (mm, and 1e-6 rad)
 
 
 @dataclass(frozen=True)
@@ -41,7 +39,7 @@ class SimulatedWorld:
     truth : RobotModel, the true robot (in the frame the sheet's pose is given in)
     sheet : SheetPose or None, where the sheet truly lies in the truth's base frame (None: no sheet)
     source : str, where both come from (one line, for the operator and validation.yaml)
-    effects : World, what a real table, camera and arm add (:mod:`collector.hardware.fakeworld`): the
+    effects : World, what a real table, camera and arm add (:mod:`collector.worlds.fakeworld`): the
         session's, so that the arm is as repeatable and the sheet as high in validation as in capture
     """
 
@@ -123,7 +121,7 @@ def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tup
     """Where a simulated sheet truly lies in the frame ``solve`` reports its pose in: the true robot's own
     base frame (eq. S2: joint 1 as the nominal's, joint 2 pointing as the nominal's), not the truth file's.
 
-    Read off the world's own paper (:meth:`collector.hardware.fakeworld.World.paper`: the printer's scale
+    Read off the world's own paper (:meth:`collector.worlds.fakeworld.World.paper`: the printer's scale
     and skew, the table's slope, the sheet's height) at the layout's origin: the pose, print scale and tilt
     eq. S3 would give it there (the paper's bulge, which eq. S3 cannot hold, left out; the printer's skew,
     neither, split evenly between the axes: the yaw the rotation nearest the print's axes). A
@@ -155,43 +153,6 @@ def true_sheet_pose(world: SimulatedWorld, nominal: RobotModel, z: float) -> tup
         float(origin[0]), float(origin[1]), float(np.degrees(yaw)), *map(float, scale), *map(float, tilt)
     )
     return pose, G
-
-
-def model_session(model: RobotModel, model_path) -> Path | None:
-    """The session folder a model was identified from (``identification.session``, relative to the model
-    file's folder or absolute), or None when it names none or it is gone."""
-    ref = model.identification.get("session")
-    if not ref:
-        return None
-    p = Path(str(ref))
-    if not p.is_absolute():
-        p = Path(model_path).parent / p
-    return p if (p / "session.yaml").is_file() else None
-
-
-def check_same_frame(model: RobotModel, model_ref: str, sheet_model: RobotModel, sheet_ref: str) -> None:
-    """A sheet's pose identified with ``sheet_model`` is in its robot's own base frame (eq. S2): joint 1
-    as the nominal's. ``model`` must have that joint 1 too (the nominal does; so does every model solved
-    on a sheet of the same robot).
-
-    Raises
-    ------
-    FormatError
-        Naming the sheet model's file: the two models' joint 1 differ.
-    """
-    a, b = model.screws[0], sheet_model.screws[0]
-    if (
-        model.n != sheet_model.n
-        or np.abs(a[:3] - b[:3]).max() > 1e-6
-        or np.abs(a[3:] - b[3:]).max() > SAME_AXIS_MM
-    ):
-        raise FormatError(
-            sheet_ref,
-            f"its sheet pose is in its robot's own base frame (joint 1 as the nominal's), but joint 1 of "
-            f"{model_ref} is not that robot's (expected models of one robot: the nominal, or one solved on "
-            "the sheet)",
-            field="sheet",
-        )
 
 
 def validation_world(

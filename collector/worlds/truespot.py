@@ -41,7 +41,7 @@ def footprint(view, paper, uv: np.ndarray, d: np.ndarray, ellipse: bool, subsurf
     Parameters
     ----------
     view : object with ``project(uv (k, 2)) -> (k, 2) px``
-    paper : :class:`~collector.hardware.truesheet.PaperSheet` (``tangents``, ``normal``)
+    paper : :class:`~collector.worlds.truesheet.PaperSheet` (``tangents``, ``normal``)
     uv : (2,) array, the beam's hit in the layout's printed coordinates, mm
     d : (3,) array, the beam's unit direction
     ellipse, subsurface : bool, the effects on (eqs. F1, F2)

@@ -331,7 +331,7 @@ class MujocoClock(Clock):
 
 class MujocoOperator:
     """The simulated operator in a MuJoCo world: starts from a pose of the nominal robot aimed at the point
-    (the coach's suggestion, or one of :class:`~collector.hardware.fake.FakeOperator`'s diverse poses), then,
+    (the coach's suggestion, or one of :class:`~collector.worlds.fake.FakeOperator`'s diverse poses), then,
     watching the spot, nudges the arm until MuJoCo's beam lands on the point as printed on the sheet body,
     up to their aiming noise.
 
@@ -549,7 +549,7 @@ def mujoco_camera(robot):
 def make_mujoco_robot(cfg: dict, nominal, layout, per_point: int, placement=None) -> MujocoRobot:
     """The mujoco backend of the settings ``cfg`` (``world``, ``aim_noise``, ``seed``): its world, and with
     ``per_point`` a simulated operator aiming at ``layout``'s calibration points (base frame)."""
-    from lasercal.collector.hardware.fake import FakeOperator
+    from lasercal.collector.worlds.fake import FakeOperator
 
     if not cfg.get("world"):
         raise LasercalError("--backend mujoco needs --world scene.xml (lasercal mujoco-scene writes one)")
