@@ -10,6 +10,10 @@ import numpy as np
 
 from lasercal.collector.errors import DeviceError
 
+# CAP_PROP_AUTO_EXPOSURE values that mean manual: V4L2 through OpenCV >= 4.x (1), older builds and
+# DirectShow (0.25)
+AUTO_OFF = (1.0, 0.25)
+
 
 def _absent(device) -> bool:
     """A camera that surely is not there: a Linux device index without /dev/videoN, or a frame-file

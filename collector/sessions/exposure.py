@@ -16,11 +16,9 @@ import sys
 import cv2
 import numpy as np
 
+from lasercal.collector.hardware.cameras import AUTO_OFF
 from lasercal.vision.errors import VisionError
 
-# CAP_PROP_AUTO_EXPOSURE values that mean manual: V4L2 through OpenCV >= 4.x (1), older builds and
-# DirectShow (0.25)
-AUTO_OFF = (1.0, 0.25)
 MAX_HALVINGS = 8  # 256x darker at most: past that the paper is black
 
 

@@ -43,7 +43,6 @@ class SpotMeasure:
     note: str = ""
 
 
-@dataclass(frozen=True)
 def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
     """The spot of a capture's photo through the sheet's markers (vision), in the layout's frame.
 

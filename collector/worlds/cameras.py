@@ -114,6 +114,7 @@ def sheet_cross(centre: np.ndarray):
     return Print(img, square_corners(centre, 2 * ARM[1]))
 
 
+@dataclass(frozen=True)
 class StatedTruth:
     """A robot off the fake backend as the fake camera sees it: ``truth`` is stated to be the true robot
     (its laser included), at exactly the joint angles ``robot`` reports -- as a simulator's arm is its
