@@ -49,8 +49,14 @@ FLOORS = {"errors": 0, "kinematics": 1, "formats": 2, "identify": 3, "control": 
 # the known upward import: a full-pose file's reader computes each pose from its circle points (Section 2.3)
 UPWARD = {("lasercal.solver.formats.fullpose_io", "lasercal.solver.identify.circlepoint")}
 # what the top floor may reach of the application, inside its functions
-# the front door's functions may reach the reports, vision and what a camera session's coach plans with
-API_REACHES = ("lasercal.collector.report", "lasercal.vision", "lasercal.collector.sessions.anywhere")
+# the front door's functions may reach the reports, vision, what a camera session's coach plans with, and the
+# simulated world through the backend factory (``simulate`` draws the arm's joints there)
+API_REACHES = (
+    "lasercal.collector.report",
+    "lasercal.vision",
+    "lasercal.collector.sessions.anywhere",
+    "lasercal.collector.hardware",
+)
 
 
 # the only modules outside collector.worlds that import a world: the backend factory, and the demo (a bench it
@@ -303,9 +309,9 @@ def test_the_solver_imports_no_floor_above_its_own():
 
 
 def test_the_top_floor_reaches_the_application_lazily():
-    """``lasercal`` (collector/api) takes collector.report, vision and the camera coach's sheet cells
-    (collector.sessions.anywhere) inside its functions only, never the command line; neither solver nor
-    vision imports it."""
+    """``lasercal`` (collector/api) takes collector.report, vision, the camera coach's sheet cells
+    (collector.sessions.anywhere) and the backend factory (collector.hardware) inside its functions only,
+    never the command line; neither solver nor vision imports it."""
     api = modules("api")
     for name, f in api.items():
         app = {m for m in imports(f) if m.split(".")[1] in ("collector", "vision")}

@@ -2,6 +2,8 @@
 
 Laser sessions: the operator aims the true robot's beam at the layout's calibration points, ``per_point``
 times each, with ``aim_noise`` mm per axis (:func:`~lasercal.solver.analysis.simulate.simulate_captures`);
+the arm's hidden joint effects and its gravity torques are the simulated world's (eqs. W4-W6,
+:mod:`lasercal.collector.worlds.truejoints`), not the solver's forms;
 the session names the nominal robot, so that calibrating it recovers the truth. Position sessions: random
 in-limit poses, every target on the tool measured by a 3-D sensor ``noise`` mm per axis
 (:func:`~lasercal.solver.analysis.simulate.simulate_positions`). Either may hide a non-geometric effect.
@@ -283,6 +285,7 @@ def simulate(
     """
     import numpy as np
 
+    from lasercal.collector.hardware import world_joints
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.data import truth_references
@@ -318,7 +321,8 @@ def simulate(
     true_pose = (sheet_pose or layout.sheet) if layout.frame == "sheet" else None
     aims = camera_aims(layout, per_point, radius, seed) if radius > 0 else None
     offsets = turned(aims, true_pose)
-    c = simulate_captures(model, aimed, per_point, aim_noise, rng, effect=hidden, aims=offsets)
+    arm = world_joints(model.replace(extensions=hidden.model_entries() if hidden else {}))
+    c = simulate_captures(model, aimed, per_point, aim_noise, rng, effect=hidden, aims=offsets, arm=arm)
     if hidden is not None:
         sim["effect"] = {"name": hidden.effect, **hidden.to_dict()}
     if measured > 0:

@@ -238,6 +238,15 @@ def true_sheet_pose(world, nominal, z: float):
     return pose(world, nominal, z)
 
 
+def world_joints(truth):
+    """The simulated world's joints of a true robot (its gravity torques and joint effects, eqs. W4-W6:
+    :class:`collector.worlds.truejoints.TrueJoints`), the flange's load it records included."""
+    from lasercal.collector.worlds.truejoints import true_joints
+    from lasercal.solver.control.nominal import recorded_payload
+
+    return true_joints(truth, recorded_payload(truth))
+
+
 def simulated_arm(robot) -> bool:
     """The adapter is a fake world's arm (its true pose can be read: ``true_q``)."""
     from lasercal.collector.worlds.fake import FakeRobot

@@ -1,14 +1,14 @@
-"""A true robot's ``extensions`` on the fake arm (issue 45): its encoders report q while its links stand
+"""A true robot's ``extensions`` on the fake arm (issues 45, 52): its encoders report q while its links stand
 where the effects put them.
 
 The fake backend's true robot (``--truth ROBOT.yaml``) may carry the effects a model file holds
-(:mod:`solver.kinematics.effects`, :mod:`solver.kinematics.joint_map`). The fake arm applies them with the
-solver's own forward maps -- the ones ``lasercal simulate --effect`` hides an effect with
-(:func:`solver.analysis.simulate.simulate_captures`) -- so that one truth means the same in both:
+(:mod:`solver.kinematics.effects`, :mod:`solver.kinematics.joint_map`). The file is checked here with the
+solver's readers (a malformed entry is refused naming the file and field, as every model file is); the
+physics is the world's own (:mod:`collector.worlds.truejoints`, eqs. W4-W6), not the solver's
+``deflected`` or ``gravity_torques``, so that a diagnosis is tested on data its own forms did not draw:
 
 * joint effects (``joint_compliance``, ``encoder_eccentricity``, ``drift``, and a ``joint_map``): with the
-  encoders at q at the session's time t (captures.csv's ``t``), the links stand at the fixed point (eq. E1,
-  :func:`solver.kinematics.elastic.deflected`)
+  encoders at q at the session's time t (captures.csv's ``t``), the links stand at the fixed point
 
       q_link = q + dq(q, t, tau(q_link)),
 
@@ -16,7 +16,7 @@ solver's own forward maps -- the ones ``lasercal simulate --effect`` hides an ef
   (``identification.payload``, :func:`solver.control.nominal.recorded_payload`); the torque sensor reads
   those torques (plus its noise). A commanded move servoes the encoders, the links follow.
 * where the operator brings the links (aiming the true beam), the encoders read the inverse
-  q = q_link - dq(q, t, tau(q_link)) (:meth:`solver.kinematics.effects.Extension.logged_q`).
+  q = q_link - dq(q, t, tau(q_link)).
 * ``reference_point_offset`` on a layout measured in the base frame: the point truly lies (dx, dy) mm from
   where the layout says, and the simulated operator aims there.
 
@@ -32,10 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lasercal.collector.worlds.truejoints import TrueJoints, true_joints
 from lasercal.solver.errors import FormatError
-from lasercal.solver.kinematics.effects import Extension, extension_from_model
-from lasercal.solver.kinematics.elastic import deflected
-from lasercal.solver.kinematics.gravity import gravity_torques, with_payload
+from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.joint_map import joint_map_from_model
 from lasercal.solver.kinematics.model import RobotModel
 
@@ -46,63 +45,35 @@ REFUSED = {
 
 
 @dataclass(frozen=True)
-class JointSum:
-    """Several joint corrections at once: q_true = q + sum_k (part_k.true_q(q, t, tau) - q), each part
-    evaluated at the encoder angles (a :class:`~solver.kinematics.effects.Combination` that may also hold
-    a :class:`~solver.kinematics.joint_map.JointMap`).
-
-    Attributes
-    ----------
-    parts : tuple of objects with ``true_q(q, t, tau)`` (m, n) -> (m, n), rad
-    """
-
-    parts: tuple
-
-    def true_q(self, q: np.ndarray, t=None, tau=None) -> np.ndarray:
-        """The links' angles (m, n) rad where the encoders read q (m, n) rad at times t (m,) s under tau."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        return q + sum(p.true_q(q, t, tau) - q for p in self.parts)
-
-    logged_q = Extension.logged_q  # the inverse, by the same fixed point
-
-
-@dataclass(frozen=True)
 class ArmEffects:
     """The fake arm's effects beyond its geometry.
 
     Attributes
     ----------
-    gravity : RobotModel, the truth with the flange's load it records: the true gravity torques
-    joints : JointSum or None, the joint corrections (None: the encoders read the links' angles)
+    joints : TrueJoints, the world's joints (its gravity torques, eq. W4, zero for a truth without a gravity
+        model; its joint errors, eq. W5)
+    moves : bool, the truth holds joint effects (else the encoders read the links' angles)
     offsets : dict point -> (2,) array, mm, where a layout's point truly lies off its stated position
     """
 
-    gravity: RobotModel
-    joints: JointSum | None = None
+    joints: TrueJoints
+    moves: bool = False
     offsets: dict = field(default_factory=dict)
 
     def torques(self, q_link: np.ndarray) -> np.ndarray:
-        """The true gravity torques (m, n) Nm at the links' pose (m, n) rad."""
-        return gravity_torques(self.gravity, q_link)
+        """The true gravity torques (m, n) Nm at the links' pose (m, n) rad (eq. W4)."""
+        return self.joints.torques(q_link)
 
     def links(self, q: np.ndarray, t: float) -> np.ndarray:
-        """Where the links stand (m, n) rad when the encoders read q (m, n) at session time t (s), eq. E1."""
+        """Where the links stand (m, n) rad when the encoders read q (m, n) at session time t (s), eq. W6."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        if self.joints is None:
-            return q
-        ts = np.full(len(q), float(t))
-        if self.gravity.links:
-            return deflected(self.gravity, self.joints, q, ts)[0]
-        return self.joints.true_q(q, ts, None)
+        return self.joints.links(q, np.full(len(q), float(t))) if self.moves else q
 
     def encoders(self, q_link: np.ndarray, t: float) -> np.ndarray:
         """What the encoders read (m, n) rad with the links at q_link (m, n) at session time t (s): the
         inverse of :meth:`links` (the torques are the links' pose's, so the inverse is exact)."""
         q_link = np.atleast_2d(np.asarray(q_link, dtype=float))
-        if self.joints is None:
-            return q_link
-        tau = self.torques(q_link) if self.gravity.links else None
-        return self.joints.logged_q(q_link, np.full(len(q_link), float(t)), tau, iterations=12)
+        return self.joints.encoders(q_link, np.full(len(q_link), float(t))) if self.moves else q_link
 
     def aimed_points(self, points: dict) -> dict:
         """Where the layout's points (name -> (3,) mm) truly lie: moved by their offsets."""
@@ -149,10 +120,10 @@ def arm_effects(truth: RobotModel, source=None, points=None, printed: bool = Fal
             "bend under",
             field="extensions.joint_compliance",
         )
-    parts = tuple(p for p in (joint, jmap) if p is not None)
     offsets = point_offsets(ext.get("reference_point_offset"), source, points, printed)
-    gravity = with_payload(truth, recorded_payload(truth, source))
-    return ArmEffects(gravity, JointSum(parts) if parts else None, offsets)
+    moves = joint is not None or jmap is not None
+    joints = true_joints(truth, recorded_payload(truth, source))
+    return ArmEffects(joints, moves, offsets)
 
 
 def point_offsets(entry, source, points=None, printed: bool = False) -> dict:

@@ -34,6 +34,39 @@ def link_frames(truth, q: np.ndarray) -> np.ndarray:
     return np.array(frames)
 
 
+def screw_exponentials(screws: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """exp([S_j] q_j) (m, n, 4, 4) of each joint at each configuration q (m, n), in closed form (Modern
+    Robotics eq. 3.51: R = I + sin q [w] + (1 - cos q) [w]^2, p = (I q + (1 - cos q) [w] + (q - sin q)
+    [w]^2) v for a unit w; R = I, p = v q for a prismatic joint, w = 0) -- :func:`link_frames`' matrix
+    exponential, vectorised over configurations."""
+    S = np.asarray(screws, dtype=float)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    w, v = S[:, :3], S[:, 3:]
+    W = np.zeros((len(S), 3, 3))
+    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    W = W - W.transpose(0, 2, 1)
+    W2 = W @ W
+    revolute = np.linalg.norm(w, axis=1) > 0.5
+    s, c = np.sin(q)[..., None, None], np.cos(q)[..., None, None]
+    th = q[..., None, None]
+    eye = np.eye(3)
+    R = np.where(revolute[None, :, None, None], eye + s * W + (1 - c) * W2, eye)
+    V = np.where(revolute[None, :, None, None], eye * th + (1 - c) * W + (th - s) * W2, eye * th)
+    out = np.zeros(q.shape + (4, 4))
+    out[..., :3, :3], out[..., :3, 3], out[..., 3, 3] = R, np.einsum("mjab,jb->mja", V, v), 1.0
+    return out
+
+
+def link_frames_many(screws: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """:func:`link_frames` of many configurations q (m, n) rad: T_0 = I .. T_n, (m, n + 1, 4, 4), eq. 4.14."""
+    E = screw_exponentials(screws, q)
+    out = np.empty((E.shape[0], E.shape[1] + 1, 4, 4))
+    out[:, 0] = np.eye(4)
+    for j in range(E.shape[1]):
+        out[:, j + 1] = out[:, j] @ E[:, j]
+    return out
+
+
 def beam(truth, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The true laser beam at configuration q (n,) rad: aperture (3,) mm and unit direction (3,)."""
     T = link_frames(truth, q)[-1]

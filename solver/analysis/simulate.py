@@ -51,6 +51,7 @@ def simulate_captures(
     effect: Extension | Combination | None = None,
     tau_noise: float = 0.05,
     aims: dict | None = None,
+    arm=None,
 ) -> SimulatedCaptures:
     """Configurations of the true robot aimed at each reference point with aiming noise.
 
@@ -70,6 +71,10 @@ def simulate_captures(
     tau_noise : float, std of the logged joint torques about the gravity model, Nm
     aims : dict point name -> (per_point, 2) array, optional: where in the plane each capture aims, mm off
         its point (a camera session's coach aims anywhere on the sheet); default at the point
+    arm : object or None, the true arm's joints drawn by code other than the solver's (``lasercal
+        simulate``: the simulated world's, eqs. W4-W6): ``torques(q_link (m, n)) -> (m, n)`` Nm and
+        ``encoders(q_link, t (m,)) -> (m, n)`` rad; it replaces ``effect``'s joint part and the gravity model
+        (None: the solver's own, :func:`gravity_torques` and ``effect.logged_q``)
 
     Returns
     -------
@@ -93,9 +98,13 @@ def simulate_captures(
     if not truth.within_limits(q).all():  # polishing moved a pose by far less than aim()'s limit margin
         raise AimingError("a noisy aim left the joint limits; lower the aiming noise")
     t = np.cumsum(stream(seed, "times").uniform(10.0, 30.0, len(q)))
-    tau_true = gravity_torques(truth, q) if truth.links else None
-    if effect is not None and effect.acts_on_joints:
-        q = effect.logged_q(q, t, tau_true)
+    if arm is not None:
+        tau_true = arm.torques(q) if truth.links else None
+        q = arm.encoders(q, t)
+    else:
+        tau_true = gravity_torques(truth, q) if truth.links else None
+        if effect is not None and effect.acts_on_joints:
+            q = effect.logged_q(q, t, tau_true)
     tau = None
     if tau_true is not None:  # the logged torques: the true ones plus sensor noise
         tau = tau_true + stream(seed, "torques").normal(0, tau_noise, tau_true.shape)
