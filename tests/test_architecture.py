@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import re
 import subprocess
 import sys
 import tomllib
@@ -383,3 +384,36 @@ def test_ci_runs_the_readme_test_command():
     command = line.split("#")[0].strip()
     assert command.startswith("pip install") and " -n auto" in command  # the tests on every core
     assert (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1] == command
+
+
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
+
+
+def named_paths(text: str) -> set[str]:
+    """The repository paths a page names in backticks (``collector/worlds/``, ``solver/formats/``, a file)."""
+    return set(re.findall(r"`((?:collector|solver|vision|data|tests|benchmarks|docs)/[\w./]*)`", text))
+
+
+def test_the_architecture_page_matches_the_tree():
+    """docs/architecture.md names only paths that exist, every package of the three (a folder with an
+    __init__.py) and the import picture the source draws."""
+    text = ARCHITECTURE.read_text()
+    paths = named_paths(text)
+    assert len(paths) > 20
+    assert [p for p in sorted(paths) if not (ROOT / p).exists()] == []
+    packages = {
+        f"{p.parent.relative_to(ROOT)}/"
+        for pkg in PACKAGES.values()
+        for p in pkg.rglob("__init__.py")
+        if p.parent != pkg
+    }
+    assert sorted(packages - paths) == []
+    assert picture() in text
+
+
+def test_a_page_naming_a_gone_file_is_caught():
+    assert named_paths("see `collector/worlds/gone.py` and `solver/identify/`") == {
+        "collector/worlds/gone.py",
+        "solver/identify/",
+    }
+    assert not (ROOT / "collector/worlds/gone.py").exists()
