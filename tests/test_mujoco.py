@@ -106,6 +106,22 @@ def test_the_exact_scene_is_franka_published_kinematics(scenes):
         assert abs(world.on_sheet(hit)[2]) < 1e-9
 
 
+def test_the_beam_meets_what_the_camera_sees(scenes):
+    """Issue 53: the ray is cast against the geom groups MuJoCo's renderer draws (0-2, never lasercal's
+    spot, 5); a geom moved to a collision-only group (3) no longer stops the beam, as it no longer shows."""
+    layout = load_layout(scenes / "sheet" / "layout.yaml")
+    world = MujocoWorld(scenes / "exact" / "scene.xml")
+    drawn = np.asarray(world.mj.MjvOption().geomgroup)
+    assert world.ray_groups.tolist() == [int(g < 5 and drawn[g] > 0) for g in range(6)] == [1, 1, 1, 0, 0, 0]
+    p = layout.in_base().points["P6"]
+    world.d.qpos[world.c.qadr] = aim(load_model("fr3"), p, 1, np.random.default_rng(0))[0]
+    hit, paper, _ = world.ray()
+    assert abs(world.on_sheet(hit)[2]) < 1e-9  # on the paper
+    world.m.geom_group[paper] = 3
+    through, behind, _ = world.ray()
+    assert behind != paper and (through is None or world.on_sheet(through)[2] < -1e-6)  # past the paper
+
+
 def test_the_arm_holds_a_commanded_pose_and_reports_its_gravity_torques(scenes):
     """Position servos with gravity compensation: after a move and standstill the encoders read the command
     (to 1e-5 rad), the speeds are still, and the torques are MuJoCo's gravity torques of the arm there."""
@@ -262,6 +278,15 @@ def test_a_hands_free_session_names_the_spring_at_joint_2(session):
     c = jc["c"][0]
     se = float(out.split("c2 = ")[1].split("+-")[1].split()[0])
     assert c < 0 and abs(c + 1e-4) < 4 * se, (c, se)
+
+
+def test_a_mujoco_session_records_its_own_backends_settings(session):
+    """Issue 53: session.yaml names the MuJoCo world and the simulated operator's aim, not the fake arm's
+    true robot (a MuJoCo session has none: the world file is its truth)."""
+    d, _ = session
+    meta = yaml.safe_load((d / "s" / "session.yaml").read_text())
+    assert meta["collector"]["backend"] == "mujoco" and "truth" not in meta["collector"], meta["collector"]
+    assert meta["simulated"]["world"] == meta["collector"]["world"] and "truth" not in meta["simulated"]
 
 
 def test_a_hands_free_session_calibrates_in_mujoco(session, scenes, tmp_path):

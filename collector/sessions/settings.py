@@ -163,6 +163,12 @@ def capture_settings(
             raise SessionError("--effects switches the simulated world's effects: it needs --backend fake")
         if cfg["backend"] == "mujoco" and not cfg.get("world"):
             raise SessionError("--backend mujoco needs --world SCENE.xml (lasercal mujoco-scene writes one)")
+        if cfg["backend"] != "fake":  # the fake arm's true robot: another backend's session records none
+            if given.get("truth") or given.get("perturb_seed") is not None:
+                raise SessionError(
+                    "--truth and --perturb-seed make the fake arm's true robot: they need --backend fake"
+                )
+            cfg.pop("truth")
         folder = check_output(output, folder=True, instead=f"resume it with --resume {output}")
         return CaptureSettings(cfg, load_layout(layout), Path(layout), folder, False)
     if output or layout:

@@ -16,9 +16,9 @@ The controller is a position servo with gravity compensation, as Franka's joint 
 each step the actuated joints get the gravity (and Coriolis) torque MuJoCo computes (``qfrc_bias``) on top of
 their servo's; passive joints get none, so a spring after a joint bends under the links' weight and no
 encoder sees it. Time is MuJoCo's: waiting steps the physics (:class:`MujocoClock`), so a capture waits for
-standstill as on hardware. The laser's spot is where ``mj_ray`` from the site meets the world; a small
-emissive disc (group 5, which the ray skips) is placed there before each photo, and MuJoCo's renderer draws
-it with everything else.
+standstill as on hardware. The laser's spot is where ``mj_ray`` from the site meets what the camera sees
+(the geom groups MuJoCo's renderer draws, 0-2); a small emissive disc (group 5, which the ray skips) is
+placed there before each photo, and MuJoCo's renderer draws it with everything else.
 """
 
 from __future__ import annotations
@@ -204,7 +204,11 @@ class MujocoWorld:
             raise FormatError(self.path, f"MuJoCo cannot load it: {str(e).strip().splitlines()[0]}") from None
         self.d = mj.MjData(self.m)
         self.c = _contract(mj, self.m, self.path)
-        self.ray_groups = np.array([g != SPOT_GROUP for g in range(6)], dtype=np.uint8)
+        # the beam meets what the camera sees: the geom groups MuJoCo's renderer draws by default (0-2), never
+        # lasercal's spot (5); a collision-only geom (group 3 by MuJoCo's convention) neither shows nor stops it
+        drawn = np.asarray(mj.MjvOption().geomgroup, dtype=np.uint8).copy()
+        drawn[SPOT_GROUP] = 0
+        self.ray_groups = drawn
         if self.m.nkey:  # the world's first keyframe is where the arm starts
             self.d.qpos[:] = self.m.key_qpos[0]
         mj.mj_forward(self.m, self.d)
