@@ -220,9 +220,23 @@ def test_a_marker_listed_with_wrong_corners_is_an_outlier(tmp_path):
     wrong[1] = np.roll(markers[1], 1, axis=0)  # corner order shifted by one: 40 mm off
     lay = P.load_markers(write_layout(tmp_path, wrong, min_markers=3))
     res = measure_photo(img, "p", Options(expect=None), lay)
-    assert (~res.plane.inliers).sum() == 4 and any("disagree with the layout" in w for w in res.warnings)
+    assert (~res.plane.inliers).sum() == 4
+    assert any("marker 1 not where the layout says (a wrong id or corner order" in w for w in res.warnings)
     got = np.array([[s.x_mm, s.y_mm] for s in res.spots])
     assert max(np.min(np.hypot(*(got - p).T)) for p in xy) < 0.15
+
+
+def test_a_marker_with_one_corner_off_is_named_partly_hidden(tmp_path):
+    """Issue 53: a marker whose corners partly disagree (an edge found where the arm's shadow or body cut
+    it) is named as partly hidden or shadowed, not as a wrong id; a layout corner 5 mm off stands in for it."""
+    view, markers, xy, img = scene(5)
+    moved = dict(markers)
+    moved[2] = markers[2] + np.array([[5.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    lay = P.load_markers(write_layout(tmp_path, moved, min_markers=3))
+    res = measure_photo(img, "p", Options(expect=None), lay)
+    assert (~res.plane.inliers).sum() == 1
+    note = next(w for w in res.warnings if "disagree with the layout" in w)
+    assert "marker 2 partly hidden or shadowed" in note and "wrong id" not in note, note
 
 
 def test_charuco_board_maps_pixels_to_mm(tmp_path):

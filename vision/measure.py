@@ -166,10 +166,7 @@ def measure_photo(
         if fid.unknown_ids:
             warnings.append(f"markers not in the layout ignored: ids {', '.join(map(str, fid.unknown_ids))}")
         if (~plane.inliers).any():
-            warnings.append(
-                f"{int((~plane.inliers).sum())} fiducial corners disagree with the layout by more than "
-                "2 mm and were left out (wrong id or corner order?)"
-            )
+            warnings.append(left_out_note(fid, plane.inliers))
         uv = np.array([[s.u, s.v] for s in spots])
         xy = plane.to_plane(uv)
         sig_uv = np.array([[s.sigma_u or 0.0, s.sigma_v or 0.0] for s in spots])
@@ -187,6 +184,32 @@ def measure_photo(
                 f"{int(outside.sum())} spot(s) outside the area the markers span: mm extrapolated"
             )
     return PhotoResult(name, spots, warnings, plane, colour, exposure)
+
+
+def left_out_note(fid, inliers: np.ndarray) -> str:
+    """What the fiducial corners the plane left out (more than 2 mm off the layout) say, marker by marker: a
+    marker with only some corners off was partly hidden or shadowed (an edge found where the shadow's is);
+    one with every corner off lies elsewhere than the layout says (a wrong id or corner order, or a marker
+    moved); ChArUco corners are counted apart."""
+    k = len(fid.marker_ids)
+    off = ~np.asarray(inliers, bool)
+    per_marker = off[: 4 * k].reshape(k, 4)
+    part = [str(i) for i, row in zip(fid.marker_ids, per_marker) if row.any() and not row.all()]
+    whole = [str(i) for i, row in zip(fid.marker_ids, per_marker) if row.all()]
+    said = []
+    if part:
+        said.append(f"marker{'s' if len(part) > 1 else ''} {', '.join(part)} partly hidden or shadowed")
+    if whole:
+        said.append(
+            f"marker{'s' if len(whole) > 1 else ''} {', '.join(whole)} not where the layout says "
+            "(a wrong id or corner order, or moved)"
+        )
+    if off[4 * k :].any():
+        said.append(f"{int(off[4 * k :].sum())} ChArUco corners off")
+    return (
+        f"{int(off.sum())} fiducial corners disagree with the layout by more than 2 mm and were left out: "
+        + "; ".join(said)
+    )
 
 
 def _lens_from_markers(img, name, layout, gamma, plane, fid):
