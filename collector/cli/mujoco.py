@@ -93,6 +93,13 @@ def args_mujoco_scene(p: argparse.ArgumentParser) -> None:
         "scale); 3: a bright lamp",
     )
     p.add_argument("--shadows", action="store_true", help="the lamp casts the arm's shadow")
+    p.add_argument(
+        "--curl",
+        type=number(0, 20),
+        default=0.0,
+        metavar="MM",
+        help="the paper curls up toward the page's top and bottom edges, MM there (a parabola; 0: flat)",
+    )
 
 
 def passives(args):
@@ -152,7 +159,7 @@ def cmd_mujoco_scene(args) -> int:
         raise FormatError(layout.path, f"no sheet.pdf beside it (expected {pdf}: lasercal sheet writes both)")
     with atomic_output(args.output, folder=True) as tmp:
         seed = None if args.exact else args.seed
-        info = write_mujoco_scene(tmp, layout, pdf, seed, passive, args.light, args.shadows)
+        info = write_mujoco_scene(tmp, layout, pdf, seed, passive, args.light, args.shadows, args.curl)
         head = (
             "# What lasercal mujoco-scene drew: lengths mm, angles rad (yaw deg), compliance rad/Nm, "
             "friction Nm.\n"
@@ -172,6 +179,7 @@ def cmd_mujoco_scene(args) -> int:
         f"wrote {args.output}/scene.xml: {info['arm'].split(' from ')[0]} "
         f"({'exact' if args.exact else f'perturbed, seed {args.seed}'}), the sheet at x {s['x_mm']:.2f} mm, "
         f"y {s['y_mm']:.2f} mm, yaw {s['yaw_deg']:.3f} deg"
+        + (f", the paper curled {args.curl:g} mm at its top and bottom edges" if args.curl else "")
         + "".join(f"; passive_joint{p['joint']}: {_passive_text(p)}" for p in passive)
     )
     print(

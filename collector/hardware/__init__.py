@@ -254,11 +254,12 @@ def simulated_arm(robot) -> bool:
     return isinstance(robot, FakeRobot)
 
 
-def write_mujoco_scene(folder, layout, pdf, seed, passive=(), light=1.0, shadows=False) -> dict:
+def write_mujoco_scene(folder, layout, pdf, seed, passive=(), light=1.0, shadows=False, curl=0.0) -> dict:
     """``lasercal mujoco-scene``: a MuJoCo world for a printed sheet written into ``folder``
     (:func:`collector.worlds.mujoco_scene.write_scene`); ``passive``: dicts of
     :class:`collector.worlds.mujoco_scene.Passive`'s fields. Returns what it drew (scene.yaml's content)."""
     from lasercal.collector.worlds.mujoco_scene import Passive, SceneOptions, write_scene
 
     passive = tuple(Passive(**p) for p in passive)
-    return write_scene(folder, layout, pdf, SceneOptions(seed, passive=passive, light=light, shadows=shadows))
+    options = SceneOptions(seed, passive=passive, light=light, shadows=shadows, curl=curl)
+    return write_scene(folder, layout, pdf, options)

@@ -205,7 +205,8 @@ class MujocoWorld:
         self.d = mj.MjData(self.m)
         self.c = _contract(mj, self.m, self.path)
         # the beam meets what the camera sees: the geom groups MuJoCo's renderer draws by default (0-2), never
-        # lasercal's spot (5); a collision-only geom (group 3 by MuJoCo's convention) neither shows nor stops it
+        # lasercal's spot (5); a collision-only geom (group 3 by MuJoCo's convention) neither shows nor
+        # stops it
         drawn = np.asarray(mj.MjvOption().geomgroup, dtype=np.uint8).copy()
         drawn[SPOT_GROUP] = 0
         self.ray_groups = drawn

@@ -96,6 +96,8 @@ class SceneOptions:
     passive : tuple of Passive
     light : float, the gain of the lamp above the table (1: an office; 3: a bright lamp)
     shadows : bool, the lamp casts the arm's shadow on the table
+    curl : float, mm: the paper curls up toward the page's top and bottom edges (:func:`curled_sheet`);
+        0: flat
     """
 
     seed: int | None = 0
@@ -103,6 +105,7 @@ class SceneOptions:
     passive: tuple = ()
     light: float = 1.0
     shadows: bool = False
+    curl: float = 0.0
 
 
 def arm_description() -> Path:
@@ -225,7 +228,7 @@ def write_scene(out: Path, layout, pdf: Path, options: SceneOptions) -> dict:
         shutil.copyfile(source.parent / "meshes" / mesh.file, out / "meshes" / mesh.file)
     shutil.copyfile(source.parent / "NOTICE", out / "NOTICE")
     spec.meshdir = "meshes"
-    sheet = _world(spec, layout, drawn, width, height, options.light, options.shadows)
+    sheet = _world(spec, layout, drawn, width, height, options)
     spec.modelfiledir = str(out)
     m = spec.compile()  # refused here (a bad option) rather than when the world is loaded
     home = np.zeros(m.nq)  # the arm starts at Franka's home pose, its passive joints at rest
@@ -244,6 +247,7 @@ def write_scene(out: Path, layout, pdf: Path, options: SceneOptions) -> dict:
         "passive": [p.__dict__ | {"name": p.name} for p in options.passive],
         "light": options.light,
         "shadows": options.shadows,
+        "curl_mm": options.curl,
     }
 
 
@@ -304,7 +308,7 @@ def _arm(spec, drawn: dict, passive: tuple) -> None:
     spec.add_text(name="lasercal_joints", data=" ".join(JOINTS))
 
 
-def _world(spec, layout, drawn: dict, width: float, height: float, light: float, shadows: bool) -> dict:
+def _world(spec, layout, drawn: dict, width: float, height: float, options: SceneOptions) -> dict:
     """The table, the sheet (its texture at its printed size, laid where the draw put it), the lamp and the
     camera; returns the sheet's true pose (mm, deg, rad) and print scale."""
     import mujoco  # imported by write_scene (MUJOCO_GL set first)
@@ -342,13 +346,17 @@ def _world(spec, layout, drawn: dict, width: float, height: float, light: float,
     scale = drawn["print_scale"]
     sheet = world.add_body(name="lasercal_sheet", pos=[xy[0], xy[1], z], quat=_quat(R))
     # the sheet frame: x up the printed page, y to its left; the texture's u runs right, v up the page
-    sheet.add_geom(
-        name="lasercal_sheet",
-        type=mujoco.mjtGeom.mjGEOM_PLANE,
-        size=[width * scale[1] / 2e3, height * scale[0] / 2e3, 0.01],
-        quat=_quat(_rotation([0, 0, -np.pi / 2])),
-        material="lasercal_sheet",
-    )
+    half = np.array([width * scale[1], height * scale[0]]) / 2e3  # m, along the page's u (right) and v (up)
+    if options.curl:
+        curled_sheet(spec, sheet, half, options.curl * 1e-3)
+    else:
+        sheet.add_geom(
+            name="lasercal_sheet",
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[*half, 0.01],
+            quat=_quat(_rotation([0, 0, -np.pi / 2])),
+            material="lasercal_sheet",
+        )
     centre = np.r_[xy, z]
     off = np.asarray(CAMERA_OFFSET_MM) * 1e-3
     eye = centre + _rotation([0, 0, yaw]) @ np.r_[off[:2], 0] + np.r_[0, 0, off[2]]
@@ -369,9 +377,9 @@ def _world(spec, layout, drawn: dict, width: float, height: float, light: float,
         name="lamp",
         pos=np.r_[xy, 1.5],
         dir=[0, 0, -1],
-        diffuse=[LAMP * light] * 3,
+        diffuse=[LAMP * options.light] * 3,
         specular=[0, 0, 0],
-        castshadow=shadows,
+        castshadow=options.shadows,
     )
     spec.visual.headlight.ambient = [ROOM[0]] * 3
     spec.visual.headlight.diffuse = [ROOM[1]] * 3
@@ -384,3 +392,48 @@ def _world(spec, layout, drawn: dict, width: float, height: float, light: float,
         "tilt_rad": [round(float(t), 6) for t in tilt],
         "print_scale": [round(float(s), 6) for s in scale],
     }
+
+
+CURL_GRID = 41  # vertices along each of the page's axes: the curl's parabola within 1 um between them
+
+
+def curled_sheet(spec, body, half: np.ndarray, curl: float) -> None:
+    """The sheet as a curled surface: a mesh in the sheet body's frame whose height rises as a parabola
+    toward the page's top and bottom edges (along its printed x, up the page), ``curl`` m at those edges,
+
+        z(x) = curl (x / half_v)^2,                                          (eq. M1)
+
+    the page's texture laid by the point's x, y (a printed point (x, y) lies at height z(x) above it: the
+    paper stretched over the curl rather than rolled, (2/3) curl^2 / half_v apart at the edges, 0.025 mm
+    for a 2 mm curl over an A4 page's 210 mm).
+
+    Parameters
+    ----------
+    spec : mujoco.MjSpec; body : the sheet's body (its frame the sheet frame)
+    half : (2,) m, the page's half width (u, right) and half height (v, up)
+    curl : float, m
+    """
+    import mujoco
+
+    u, v = np.meshgrid(np.linspace(-1, 1, CURL_GRID), np.linspace(-1, 1, CURL_GRID))
+    # the sheet frame: x up the page (v), y to its left (-u)
+    xyz = np.stack([v * half[1], -u * half[0], curl * v**2], axis=-1).reshape(-1, 3)
+    tex = np.stack([(1 + u) / 2, (1 - v) / 2], axis=-1).reshape(-1, 2)  # a mesh texture's v runs down
+    k = np.arange(CURL_GRID * CURL_GRID).reshape(CURL_GRID, CURL_GRID)
+    a, b, c, d = k[:-1, :-1], k[:-1, 1:], k[1:, 1:], k[1:, :-1]
+    faces = np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).reshape(-1, 3)
+    faces = np.concatenate([faces, faces[:, ::-1]])  # both sides face out: the camera and the beam see it
+    mesh = spec.add_mesh(name="lasercal_sheet_surface")
+    mesh.uservert = xyz.ravel().tolist()
+    mesh.usertexcoord = tex.ravel().tolist()
+    mesh.userface = faces.ravel().tolist()
+    mesh.userfacetexcoord = faces.ravel().tolist()
+    mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+    body.add_geom(
+        name="lasercal_sheet",
+        type=mujoco.mjtGeom.mjGEOM_MESH,
+        meshname="lasercal_sheet_surface",
+        material="lasercal_sheet",
+        contype=0,
+        conaffinity=0,
+    )
