@@ -56,8 +56,8 @@ def photos(effects: str, per_point: int, seed: int, world_seed: int, save: str |
     """Measure the photos, each pose in each world of ``effects`` (``none``, ``all`` or ``both``) in turn;
     returns {world: dict of per-photo arrays}, saved to ``save``-WORLD.npz every 5 rounds of the points."""
     from lasercal.collector.cli.main import main as cli
-    from lasercal.collector.hardware import truearm
     from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera, measure_spot
+    from lasercal.collector.worlds import truearm
     from lasercal.collector.worlds.fakeworld import EFFECTS, World, paper_half_length
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout

@@ -36,8 +36,8 @@ class FixedArm:
 
 def main(per_point: int = 100, seed: int = 7) -> None:
     from lasercal.collector.cli.main import main as cli
-    from lasercal.collector.hardware import truearm
     from lasercal.collector.sessions.spotcam import BESIDE_MM, capture_camera
+    from lasercal.collector.worlds import truearm
     from lasercal.collector.worlds.fakeworld import World, paper_half_length
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout

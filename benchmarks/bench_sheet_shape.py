@@ -78,7 +78,7 @@ def _validate(model: str, where: Path) -> float:
 def session(task) -> dict:
     """One session: kind 'curled' or 'flat', its seed, whether to validate, the bulge range."""
     kind, seed, validate, bulge = task
-    from lasercal.collector.hardware import fakeworld
+    from lasercal.collector.worlds import fakeworld
 
     fakeworld.PAPER_BULGE_MM = bulge
     with tempfile.TemporaryDirectory() as d:

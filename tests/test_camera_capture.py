@@ -79,9 +79,9 @@ def test_a_hidden_spot_is_said_at_once_and_kept_as_an_aimed_capture(sheet, tmp_p
     """docs/sessions.md: a spot the camera cannot measure is said at once, with why; the capture keeps its
     photo and is kept as an aimed one (--auto's rule), fitted to where the operator aimed; --resume
     continues the camera session from its folder alone."""
-    import lasercal.collector.sessions.spotcam as spotcam
+    import lasercal.collector.worlds.cameras as cameras
 
-    monkeypatch.setattr(spotcam, "hidden", lambda *a, **k: True)  # the arm over every line of sight
+    monkeypatch.setattr(cameras, "hidden", lambda *a, **k: True)  # the arm over every line of sight
     given = {"backend": "fake", "per_point": 1, "camera": "fake", "aim_noise": 3.0, "seed": 1}
     folder = tmp_path / "s"
     out = io.StringIO()

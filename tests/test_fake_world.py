@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from lasercal.collector.cli.main import main
-from lasercal.collector.hardware import truearm
+from lasercal.collector.worlds import truearm
 from lasercal.collector.worlds.fakeworld import EFFECTS, World, camera_lens, lens_estimate
 from lasercal.collector.worlds.truelens import Lens, SheetView, SpaceCamera, look_at
 from lasercal.collector.worlds.truesheet import PaperSheet

@@ -8,7 +8,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from lasercal.collector.cli.main import main
-from lasercal.collector.hardware import fakeworld
+from lasercal.collector.worlds import fakeworld
 from lasercal.collector.worlds.truesheet import PaperSheet
 from lasercal.solver.formats.robots import load_model, model_from_dict
 from lasercal.solver.formats.session import load_session

@@ -228,7 +228,8 @@ def test_a_marker_listed_with_wrong_corners_is_an_outlier(tmp_path):
 
 def test_a_marker_with_one_corner_off_is_named_partly_hidden(tmp_path):
     """Issue 53: a marker whose corners partly disagree (an edge found where the arm's shadow or body cut
-    it) is named as partly hidden or shadowed, not as a wrong id; a layout corner 5 mm off stands in for it."""
+    it) is named as partly hidden or shadowed, not as a wrong id; a layout corner 5 mm off stands in for
+    it."""
     view, markers, xy, img = scene(5)
     moved = dict(markers)
     moved[2] = markers[2] + np.array([[5.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
