@@ -405,7 +405,7 @@ class SpotProblem:
     W : (m, 2, nw) array, eq. S7's rows (None without the warp)
     pose0 : SheetPose, the sheet's start (None: a base-frame session)
     base0 : (m, 3) array, the reference points in the base frame with the sheet at ``pose0``, mm
-    u0 : (len(names),) array, the start (mm, rad-like)
+    u0 : (len(counted.names),) array, the start (mm, rad-like)
     counted : CountedParameters, the names, the held and the free parameters
     kinds : list of str, the prior's kinds of the parameters after the laser robot's
     """
@@ -439,6 +439,11 @@ class SpotProblem:
     @property
     def free(self) -> np.ndarray:
         return self.counted.free
+
+    @property
+    def names(self) -> list:
+        """The free parameters' names."""
+        return [self.counted.names[i] for i in self.free]
 
     def embed(self, v: np.ndarray) -> np.ndarray:
         """All parameters u from the free ones v (the held at their start)."""
@@ -594,11 +599,20 @@ def beam_distance_stage(
     return u1, first
 
 
-def in_plane_stage(prob: SpotProblem, u1, tolerances, prior, robust, w, suspects):
+def in_plane_stage(
+    prob: SpotProblem, u1: np.ndarray, tolerances: Tolerances | None, prior: Prior | None, robust, w, suspects
+) -> tuple:
     """Stage 2 of ``lm``: the in-plane residuals, geometry, sheet and extension together, in the identifiable
-    subspace at stage 1's solution u1 (MAP with the session's ``prior``, eqs. P2-P4 of
-    :mod:`solver.identify.prior`); a camera session's each capture with its own noise (eq. K1,
-    :func:`fit_kinds`).
+    subspace at stage 1's solution (MAP with the session's prior, eqs. P2-P4 of :mod:`solver.identify.prior`);
+    a camera session's each capture with its own noise (eq. K1, :func:`fit_kinds`).
+
+    Parameters
+    ----------
+    prob : SpotProblem
+    u1 : (len(prob.u0),) array, all parameters at stage 1's solution (:func:`beam_distance_stage`)
+    tolerances : Tolerances or None, the session's (a camera session's prior at each kind's noise)
+    prior : Prior or None, the free parameters' prior (:meth:`SpotProblem.prior`)
+    robust, w, suspects : as :func:`solver.identify.lsq.fit_subspace`'s (w: (m,) start weights)
 
     Returns
     -------
@@ -606,8 +620,7 @@ def in_plane_stage(prob: SpotProblem, u1, tolerances, prior, robust, w, suspects
     scale : (m,) array, each capture's residual scale c_i (eq. K1; ones without a camera)
     noise : dict, :func:`fit_kinds`'s (None without a camera)
     """
-    s, v1 = prob.session, u1[prob.free]
-    names = [prob.counted.names[i] for i in prob.free]
+    s, v1, names = prob.session, u1[prob.free], prob.names
     if not s.measured.any():
         fit = fit_subspace(prob.residual, prob.jacobian, v1, names, robust, w, suspects=suspects, prior=prior)
         return fit, np.ones(len(w)), None
@@ -655,12 +668,11 @@ def lm_identification(
         keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS + (SHAPE_KEYS if prob.shape else ())
         model = model.replace(sheet=pose, sheet_std=dict(zip(keys, std)))
         nominal = nominal.replace(sheet=sheet_start(s, start))  # the nominal's best pose ("before")
-    names = [prob.counted.names[i] for i in free]
     return Identification.from_fit(
         nominal,
         model,
         fit,
-        names,
+        prob.names,
         se_all[free],
         t0,
         {
