@@ -846,6 +846,180 @@ def _fold_choice(train: Session, exts: list, alpha: float, robust: bool):
     return geo, chosen, ext_fit, (tests or [_NO_TEST])[0].p_adjusted
 
 
+def candidate_catalogue(
+    session: Session, tau, tau_src: str, effect: str | None, map_only: bool
+) -> tuple[list[Extension], dict]:
+    """The candidates the session can test (:func:`~lasercal.solver.kinematics.effects.candidates`) and why
+    the others cannot be tested (:func:`~lasercal.solver.kinematics.effects.untested`).
+
+    Parameters
+    ----------
+    session : Session, with the torques used
+    tau : (m, n) array or None, the joint torques, Nm; tau_src : str, where they come from
+    effect : str or None, the one effect asked for by name; map_only : bool, the joint map alone
+
+    Returns
+    -------
+    exts : list of Extension
+    cannot : dict effect -> why the data cannot test it
+
+    Raises
+    ------
+    ModelError : the effect asked for has no candidate on this session
+    """
+    # a misplaced reference point: a laser session's measured points (point and position sessions identify
+    # theirs; a printed sheet's are where the printer put them, its scale and tilt fitted with its pose) at
+    # the captures aimed at them (a camera's measured spot does not use its point)
+    offsets = session.measurement == "laser" and session.frame != "sheet"
+    pts = list(dict.fromkeys(session.point[~session.measured])) if offsets else []
+    clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
+    lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
+    # a drift is zero at the mean capture time: the geometry written is the arm's then (Extension.t0)
+    t0 = float(np.mean(session.t)) if clock_ok else 0.0
+    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral, session.robot.joint_names, t0)
+    cannot = untested(
+        session.measurement,
+        tau is not None,
+        session.clock,
+        session.t is not None and np.ptp(session.t) > 0,
+        session.frame,
+    )
+    if tau_src == "logged":  # a compliance only where the joint carries a load well above the sensor's noise
+        refused = noise_dominated(exts, session, tau)
+        exts = [e for e in exts if e.label not in refused]
+        cannot |= refused
+    exts = [] if map_only else exts
+    if effect is not None:
+        exts = [e for e in exts if e.effect == effect]
+        if not exts:
+            raise ModelError(
+                f"effect {effect!r} cannot be tested on this session: {cannot.get(effect, 'no candidate')}"
+            )
+    return exts, cannot
+
+
+def _rms(r: np.ndarray, counted: np.ndarray) -> float:
+    """The RMS (mm) of residuals r (m, 2) over the ``counted`` captures."""
+    return float(np.sqrt(np.mean(np.sum(r[counted] ** 2, axis=1))))
+
+
+def folds_disagree(agreement: dict, chosen: Extension) -> str:
+    """Why the extension is rejected when the outer folds chose different causes
+    (:func:`~lasercal.solver.analysis.nested.fold_agreement`'s record)."""
+    return (
+        f"the folds chose different causes ({agreement['folds_agree']} of "
+        f"{len(agreement['fold_choices'])} chose {chosen.label}, "
+        f"{agreement['folds_needed']} needed: "
+        + "; ".join(f"{lb} in {len(fs)}" for lb, fs in agreement["disagreement"].items())
+        + ")"
+    )
+
+
+def cross_validation(
+    session: Session,
+    geo: Identification,
+    selected: tuple,
+    exts: list,
+    alpha: float,
+    robust: bool,
+    effect,
+    k,
+    seed,
+) -> tuple:
+    """Step 4 of the procedure: the choice accepted by held-out data on ``k`` grouped folds
+    (:func:`acceptance`); a proposed combination kept only when it predicts held-out data better than its
+    first effect alone; with ``effect`` None every choice made again on each fold's training rows
+    (:func:`~lasercal.solver.analysis.nested.nested_holdout`), else the named choice refitted in each fold.
+
+    Parameters
+    ----------
+    session : Session; geo : Identification, the geometric fit
+    selected : (chosen Extension or None, its Identification, the proposed combination dict or None)
+    exts : list of Extension, the candidates; alpha : float; robust : bool
+    effect : str or None, the effect asked for by name; k : int, folds; seed : int
+
+    Returns
+    -------
+    chosen, ext_fit : the choice after the combination's test, and its fit
+    acc : dict, :func:`acceptance`'s record with 'selection', the folds' agreement, 'holdout_by_kind'
+        and 'rejected'
+    r_geo, r_ext : (m, 2) arrays, the held-out residuals, mm
+    held : dict 'geometric'/'extended' -> the held-out RMS, mm
+    """
+    chosen, ext_fit, combo = selected
+    inlier = geo.weights > 0
+    f = grouped_folds(session, k, seed)
+    grouping = _grouping(session, f)
+    if combo is not None:  # kept only when it predicts held-out data better than its first effect alone
+        vs = _combination_held_out(session, geo, chosen, combo, robust, f, grouping)
+        if vs["accepted"]:
+            chosen, ext_fit = combo["extension"], combo["fit"]
+    if effect is None:  # every choice made again on each fold's training rows, scored on its held-out rows
+        nested = nested_holdout(session, f, lambda train: _fold_choice(train, exts, alpha, robust))
+        h_geo, h_ext = nested.geometric, nested.extended
+        agreement = fold_agreement(chosen, nested.choices)
+    else:  # asked for by name: that choice refitted in each fold
+        h_geo, h_ext = held_out_all(session, nested_fitter([chosen], robust), f)
+        agreement = {}
+    acc = acceptance(h_geo, h_ext, inlier, grouping, geo.extra.get("scale"), inlier & carriers(session))
+    acc["selection"] = "inside each fold" if effect is None else "asked for by name, refitted in each fold"
+    acc |= agreement
+    kinds = {
+        kind: {
+            m: rms_by_kind(np.linalg.norm(h.residuals, axis=1), session, inlier)[kind]["rms_mm"]
+            for m, h in (("geometric", h_geo), ("extended", h_ext))
+        }
+        for kind in capture_kinds(session)
+    }
+    if kinds:
+        acc["holdout_by_kind"] = kinds
+    if chosen is not None and effect is None:
+        if not acc["accepted"]:
+            acc["rejected"] = "the extension does not predict held-out data better than the geometry"
+        elif not agreement["folds_agreed"]:
+            acc["rejected"] = folds_disagree(agreement, chosen)
+        acc["accepted"] = acc["accepted"] and agreement["folds_agreed"]
+    return chosen, ext_fit, acc, h_geo.residuals, h_ext.residuals, acc["holdout_rms_mm"]
+
+
+def f_test_only(geo: Identification, selected: tuple, counted: np.ndarray) -> tuple:
+    """The decision without cross-validation (``k`` < 2, benchmarks): the F test's choice (a proposed
+    combination taken), the fit residuals standing in for held-out ones.
+
+    Parameters
+    ----------
+    geo : Identification, the geometric fit
+    selected : (chosen Extension or None, its Identification, the proposed combination dict or None)
+    counted : (m,) bool array, the captures the RMS is over
+
+    Returns
+    -------
+    chosen, ext_fit, acc, r_geo, r_ext, held : as :func:`cross_validation`'s (acc: 'decided_by' and
+        'accepted'; r_geo, r_ext and held: the fit residuals and their RMS, mm)
+    """
+    chosen, ext_fit, combo = selected
+    if combo is not None:
+        combo["accepted"] = True
+        chosen, ext_fit = combo["extension"], combo["fit"]
+    r_geo = geo.residuals
+    r_ext = ext_fit.residuals if chosen else r_geo
+    held = {"geometric": _rms(r_geo, counted), "extended": _rms(r_ext, counted)}
+    return chosen, ext_fit, {"decided_by": "F test only", "accepted": chosen is not None}, r_geo, r_ext, held
+
+
+def rms_statistics(nominal_rms: float, geo, ext_fit, keep: bool, held: dict, k: int, counted) -> dict:
+    """The RMS (mm) of each model ('nominal', 'geometric', 'extended') on the training rows and held out
+    (None without cross-validation), over the ``counted`` captures (:attr:`Diagnosis.statistics`)."""
+    return {
+        "nominal": {"train": nominal_rms, "holdout": nominal_rms if k > 1 else None},
+        "geometric": {"train": _rms(geo.residuals, counted), "holdout": held["geometric"] if k > 1 else None},
+        "extended": {
+            "train": _rms((ext_fit.residuals if keep else geo.residuals), counted),
+            "holdout": (held["extended"] if keep else held["geometric"]) if k > 1 else None,
+        },
+    }
+
+
 def diagnose(
     session: Session,
     alpha: float = ALPHA,
@@ -884,34 +1058,7 @@ def diagnose(
     tau, tau_src = session_torques(session, payload)
     session = replace(session, tau=tau)  # model torques travel with the captures through subsets and folds
     geo = fit(session, robust=robust)
-    # a misplaced reference point: a laser session's measured points (point and position sessions identify
-    # theirs; a printed sheet's are where the printer put them, its scale and tilt fitted with its pose) at
-    # the captures aimed at them (a camera's measured spot does not use its point)
-    offsets = session.measurement == "laser" and session.frame != "sheet"
-    pts = list(dict.fromkeys(session.point[~session.measured])) if offsets else []
-    clock_ok = session.clock == "seconds" and session.t is not None and np.ptp(session.t) > 0
-    lateral = [j + 1 for j, b in enumerate(session.robot.lateral_of) if b >= 0]
-    # a drift is zero at the mean capture time: the geometry written is the arm's then (Extension.t0)
-    t0 = float(np.mean(session.t)) if clock_ok else 0.0
-    exts = candidates(session.robot.n, pts, tau is not None, clock_ok, lateral, session.robot.joint_names, t0)
-    cannot = untested(
-        session.measurement,
-        tau is not None,
-        session.clock,
-        session.t is not None and np.ptp(session.t) > 0,
-        session.frame,
-    )
-    if tau_src == "logged":  # a compliance only where the joint carries a load well above the sensor's noise
-        refused = noise_dominated(exts, session, tau)
-        exts = [e for e in exts if e.label not in refused]
-        cannot |= refused
-    exts = [] if map_only else exts
-    if effect is not None:
-        exts = [e for e in exts if e.effect == effect]
-        if not exts:
-            raise ModelError(
-                f"effect {effect!r} cannot be tested on this session: {cannot.get(effect, 'no candidate')}"
-            )
+    exts, cannot = candidate_catalogue(session, tau, tau_src, effect, map_only)
     tester = Tester(session, geo, exts, tau)
     tests = tester.tests()
     if effect is not None and not tests:  # asked for by name: its best candidate, seen or not
@@ -929,76 +1076,19 @@ def diagnose(
     # captures the robust fit flags (mis-aims) are reported, not averaged in; a camera session's figures are
     # its measured captures' (its aimed ones, at 100 times their noise, would otherwise be all they show),
     # its decision every capture's at its own noise (eq. K1)
-    inlier = geo.weights > 0
-    counted = inlier & carriers(session)
-    scale = geo.extra.get("scale")
-    rms = lambda r: float(np.sqrt(np.mean(np.sum(r[counted] ** 2, axis=1))))  # noqa: E731
-    nominal_rms = rms(residuals(session.robot, None, session))
+    counted = (geo.weights > 0) & carriers(session)
+    nominal_rms = _rms(residuals(session.robot, None, session), counted)
+    selected = (chosen, ext_fit, combo)
     if k > 1:
-        f = grouped_folds(session, k, seed)
-        grouping = _grouping(session, f)
-        if combo is not None:  # kept only when it predicts held-out data better than its first effect alone
-            vs = _combination_held_out(session, geo, chosen, combo, robust, f, grouping)
-            if vs["accepted"]:
-                chosen, ext_fit = combo["extension"], combo["fit"]
-        if (
-            effect is None
-        ):  # every choice made again on each fold's training rows, scored on its held-out rows
-            nested = nested_holdout(session, f, lambda train: _fold_choice(train, exts, alpha, robust))
-            h_geo, h_ext = nested.geometric, nested.extended
-            agreement = fold_agreement(chosen, nested.choices)
-        else:  # asked for by name: that choice refitted in each fold
-            h_geo, h_ext = held_out_all(session, nested_fitter([chosen], robust), f)
-            agreement = {}
-        acc = acceptance(h_geo, h_ext, inlier, grouping, scale, counted)
-        acc["selection"] = (
-            "inside each fold" if effect is None else "asked for by name, refitted in each fold"
-        )
-        acc |= agreement
-        kinds = {
-            kind: {
-                m: rms_by_kind(np.linalg.norm(h.residuals, axis=1), session, inlier)[kind]["rms_mm"]
-                for m, h in (("geometric", h_geo), ("extended", h_ext))
-            }
-            for kind in capture_kinds(session)
-        }
-        if kinds:
-            acc["holdout_by_kind"] = kinds
-        if chosen is not None and effect is None:
-            if not acc["accepted"]:
-                acc["rejected"] = "the extension does not predict held-out data better than the geometry"
-            elif not agreement["folds_agreed"]:
-                acc["rejected"] = (
-                    f"the folds chose different causes ({agreement['folds_agree']} of "
-                    f"{len(agreement['fold_choices'])} chose {chosen.label}, "
-                    f"{agreement['folds_needed']} needed: "
-                    + "; ".join(f"{lb} in {len(fs)}" for lb, fs in agreement["disagreement"].items())
-                    + ")"
-                )
-            acc["accepted"] = acc["accepted"] and agreement["folds_agreed"]
-        r_geo, r_ext = h_geo.residuals, h_ext.residuals
-        held = acc["holdout_rms_mm"]
+        decision = cross_validation(session, geo, selected, exts, alpha, robust, effect, k, seed)
     else:  # no cross-validation asked for (benchmarks): the fit residuals stand in
-        if combo is not None:
-            combo["accepted"] = True
-            chosen, ext_fit = combo["extension"], combo["fit"]
-        acc = {"decided_by": "F test only", "accepted": chosen is not None}
-        r_geo = geo.residuals
-        r_ext = ext_fit.residuals if chosen else r_geo
-        held = {"geometric": rms(r_geo), "extended": rms(r_ext)}
+        decision = f_test_only(geo, selected, counted)
+    chosen, ext_fit, acc, r_geo, r_ext, held = decision
     if combo is not None:
         acc["combination"] = {k: v for k, v in combo.items() if k not in ("extension", "fit")} | {
             "label": combo["extension"].label
         }
     keep = chosen is not None and (acc["accepted"] or effect is not None)
-    statistics = {
-        "nominal": {"train": nominal_rms, "holdout": nominal_rms if k > 1 else None},
-        "geometric": {"train": rms(geo.residuals), "holdout": held["geometric"] if k > 1 else None},
-        "extended": {
-            "train": rms(ext_fit.residuals if keep else geo.residuals),
-            "holdout": (held["extended"] if keep else held["geometric"]) if k > 1 else None,
-        },
-    }
     d = Diagnosis(
         chosen.effect if keep else "none",
         ext_fit.extension if keep else None,
@@ -1015,7 +1105,7 @@ def diagnose(
         session,
         ext_fit.extension if chosen else None,
         acc,
-        statistics,
+        rms_statistics(nominal_rms, geo, ext_fit, keep, held, k, counted),
         cannot,
         robust,
         tester.unseen,

@@ -140,6 +140,99 @@ def _num(path: Path, line: int, row: dict, col: str) -> float:
     return v
 
 
+def circle_groups(path: Path, rows: list, qcols: list) -> dict[str, dict[int, tuple]]:
+    """The rows grouped by configuration: label -> angle_index -> (line, q (n joint values, rad), [x, y, z]
+    mm), in the file's order."""
+    groups: dict[str, dict[int, tuple]] = {}
+    for line, row in rows:
+        if not row["config"]:
+            raise FormatError(path, "empty configuration label", line=line, field="config")
+        try:
+            k = int(row["angle_index"])
+        except ValueError:
+            raise FormatError(
+                path,
+                f"angle_index must be an integer 0, 1, ..., got {row['angle_index']!r}",
+                line=line,
+                field="angle_index",
+            ) from None
+        g = groups.setdefault(row["config"], {})
+        if k in g:
+            raise FormatError(
+                path,
+                f"configuration {row['config']!r} has angle_index {k} twice (first on line {g[k][0]})",
+                line=line,
+                field="angle_index",
+            )
+        q = [_num(path, line, row, c) for c in qcols]
+        p = [_num(path, line, row, c) for c in ("x", "y", "z")]
+        g[k] = (line, q, p)
+    return groups
+
+
+def circle_configuration(path: Path, label: str, g: dict, first: str, m: int) -> tuple[int, np.ndarray, list]:
+    """One configuration's circle, checked: at least 3 points, as many as the ``first`` configuration's m,
+    angle_index 0..m-1, the locked joints still (within ``LOCKED_TOL``), the last joint turning one way.
+
+    Parameters
+    ----------
+    path : Path; label : str, the configuration; g : dict angle_index -> (line, q, [x, y, z])
+    first : str, the first configuration's label; m : int, its point count
+
+    Returns
+    -------
+    l0 : int, the configuration's first line
+    q : (m, n) array, the joint values, rad, by angle_index
+    points : list of m [x, y, z], mm
+    """
+    l0 = min(v[0] for v in g.values())
+    if len(g) < 3:
+        raise FormatError(
+            path,
+            f"configuration {label!r} has {len(g)} point(s); a plane and a circle need at least 3",
+            line=l0,
+            field="config",
+        )
+    if len(g) != m:
+        raise FormatError(
+            path,
+            f"configuration {label!r} has {len(g)} points but {first!r} has {m}: every configuration "
+            "needs the same number",
+            line=l0,
+            field="config",
+        )
+    if sorted(g) != list(range(m)):
+        raise FormatError(
+            path,
+            f"configuration {label!r}: angle_index must be 0..{m - 1}, got {sorted(g)}",
+            line=l0,
+            field="angle_index",
+        )
+    ordered = [g[k] for k in range(m)]
+    q = np.array([v[1] for v in ordered])
+    n = q.shape[1]
+    off = np.abs(q[:, :-1] - q[0, :-1]).max(axis=0) if n > 1 else np.zeros(0)
+    if np.any(off > LOCKED_TOL):
+        j = int(np.argmax(off))
+        bad = int(np.argmax(np.abs(q[:, j] - q[0, j])))
+        raise FormatError(
+            path,
+            f"configuration {label!r}: locked joint q{j + 1} moved by {off[j]:.3g} rad (only q{n} may turn)",
+            line=ordered[bad][0],
+            field=f"q{j + 1}",
+        )
+    dq = np.diff(q[:, -1])
+    if not (np.all(dq > 0) or np.all(dq < 0)):
+        bad = int(np.argmax(np.sign(dq) != np.sign(dq[0]))) + 1 if dq[0] != 0 else 1
+        raise FormatError(
+            path,
+            f"configuration {label!r}: q{n} must change monotonically with angle_index",
+            line=ordered[bad][0],
+            field=f"q{n}",
+        )
+    return l0, q, [v[2] for v in ordered]
+
+
 def read_circlepoint_csv(path, n: int | None = None) -> CirclePointData:
     """Read and check a MEASUREMENTS.csv (format in the module docstring).
 
@@ -167,83 +260,16 @@ def read_circlepoint_csv(path, n: int | None = None) -> CirclePointData:
         raise FormatError(
             path, f"the file has {len(qcols)} joint columns but the robot has {n} joints", line=hline
         )
-    groups: dict[str, dict[int, tuple]] = {}
-    for line, row in rows:
-        if not row["config"]:
-            raise FormatError(path, "empty configuration label", line=line, field="config")
-        try:
-            k = int(row["angle_index"])
-        except ValueError:
-            raise FormatError(
-                path,
-                f"angle_index must be an integer 0, 1, ..., got {row['angle_index']!r}",
-                line=line,
-                field="angle_index",
-            ) from None
-        g = groups.setdefault(row["config"], {})
-        if k in g:
-            raise FormatError(
-                path,
-                f"configuration {row['config']!r} has angle_index {k} twice (first on line {g[k][0]})",
-                line=line,
-                field="angle_index",
-            )
-        q = [_num(path, line, row, c) for c in qcols]
-        p = [_num(path, line, row, c) for c in ("x", "y", "z")]
-        g[k] = (line, q, p)
+    groups = circle_groups(path, rows, qcols)
     first = next(iter(groups))
     m = len(groups[first])
     labels, lines, Q, P = [], [], [], []
     for label, g in groups.items():
-        l0 = min(v[0] for v in g.values())
-        if len(g) < 3:
-            raise FormatError(
-                path,
-                f"configuration {label!r} has {len(g)} point(s); a plane and a circle need at least 3",
-                line=l0,
-                field="config",
-            )
-        if len(g) != m:
-            raise FormatError(
-                path,
-                f"configuration {label!r} has {len(g)} points but {first!r} has {m}: every configuration "
-                "needs the same number",
-                line=l0,
-                field="config",
-            )
-        if sorted(g) != list(range(m)):
-            raise FormatError(
-                path,
-                f"configuration {label!r}: angle_index must be 0..{m - 1}, got {sorted(g)}",
-                line=l0,
-                field="angle_index",
-            )
-        ordered = [g[k] for k in range(m)]
-        q = np.array([v[1] for v in ordered])
-        off = np.abs(q[:, :-1] - q[0, :-1]).max(axis=0) if q.shape[1] > 1 else np.zeros(0)
-        if np.any(off > LOCKED_TOL):
-            j = int(np.argmax(off))
-            bad = int(np.argmax(np.abs(q[:, j] - q[0, j])))
-            raise FormatError(
-                path,
-                f"configuration {label!r}: locked joint q{j + 1} moved by {off[j]:.3g} rad (only "
-                f"q{len(qcols)} may turn)",
-                line=ordered[bad][0],
-                field=f"q{j + 1}",
-            )
-        dq = np.diff(q[:, -1])
-        if not (np.all(dq > 0) or np.all(dq < 0)):
-            bad = int(np.argmax(np.sign(dq) != np.sign(dq[0]))) + 1 if dq[0] != 0 else 1
-            raise FormatError(
-                path,
-                f"configuration {label!r}: q{len(qcols)} must change monotonically with angle_index",
-                line=ordered[bad][0],
-                field=f"q{len(qcols)}",
-            )
+        l0, q, points = circle_configuration(path, label, g, first, m)
         labels.append(label)
         lines.append(l0)
         Q.append(q)
-        P.append([v[2] for v in ordered])
+        P.append(points)
     P = np.array(P)
     hint = metres_hint(P.reshape(-1, 3))
     if hint:

@@ -127,8 +127,8 @@ def sheet_pose(d: dict, key: str, path, placement: bool = False) -> SheetPose | 
     return SheetPose(*vals)
 
 
-def model_from_dict(d: dict, path="<model>") -> RobotModel:
-    """Build and validate a :class:`RobotModel` from a parsed YAML mapping."""
+def _checked_header(d, path) -> list:
+    """The file's format and units checked; its ``joints`` list (non-empty)."""
     if not isinstance(d, dict):
         raise FormatError(
             path, "not a robot model: expected a lasercal-robot/1 YAML mapping (or a URDF file, *.urdf)"
@@ -142,7 +142,24 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     joints = d.get("joints")
     if not isinstance(joints, list) or not joints:
         raise FormatError(path, "'joints' must be a non-empty list", field="joints")
-    notes: list[str] = list(d.get("notes", []) or [])
+    return joints
+
+
+def joint_axes(joints: list, path, notes: list) -> tuple[list, list, list]:
+    """The joints' names, screws and limits from the file's ``joints`` list.
+
+    Parameters
+    ----------
+    joints : list of mappings {name, type, omega, v, limits}
+    path : where the file is (for errors)
+    notes : list of str, the load's notes (an axis normalised on load is noted here)
+
+    Returns
+    -------
+    names : list of str
+    screws : list of (6,) arrays, [omega, v] (v mm), each normalised (a unit axis, no pitch)
+    limits : list of (2,) arrays, [lower, upper] (rad; mm for a prismatic joint)
+    """
     names, screws, limits = [], [], []
     for i, j in enumerate(joints):
         where = f"joints[{i}]"
@@ -174,8 +191,12 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             )
         limits.append(lim)
         names.append(str(j.get("name", f"joint{i + 1}")))
-    n = len(screws)
-    tree = tree_structure(d, joints, names, path)
+    return names, screws, limits
+
+
+def laser_axis(d: dict, path, notes: list) -> tuple[np.ndarray, np.ndarray]:
+    """The laser's screw (6,) (a prismatic joint: [0, 0, 0, v], v normalised) and its aperture M (3,) mm
+    from the file's ``laser`` mapping (a position robot's stand-in without one)."""
     laser = d.get("laser")
     if laser is None and isinstance(d.get("targets"), dict) and d["targets"]:
         # a position robot (targets measured by a 3-D sensor) has no laser: a stand-in, never used
@@ -195,14 +216,23 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     hint = metres_hint(aperture)
     if hint:
         raise FormatError(path, f"aperture {aperture.tolist()}: {hint}", field="laser.M")
+    return laser_S, aperture
+
+
+def plane_height(d: dict, path) -> float | None:
+    """The plane's height z (mm) from the file's ``plane`` mapping, or None."""
     plane = d.get("plane")
-    plane_z = None
     if isinstance(plane, dict) and "z" in plane:
         msg = PLANE_Z.problem(plane["z"])
         if msg:
             raise FormatError(path, f"plane z {msg}", field="plane.z")
-        plane_z = float(plane["z"])
-    home = _vec(d, "home", n, path, "model") if d.get("home") is not None else None
+        return float(plane["z"])
+    return None
+
+
+def home_pose(d: dict, limits: list, path) -> np.ndarray | None:
+    """The home configuration (n,) rad (mm for a prismatic joint), within the joints' ``limits``, or None."""
+    home = _vec(d, "home", len(limits), path, "model") if d.get("home") is not None else None
     lim = np.array(limits)
     if home is not None and np.any((home < lim[:, 0]) | (home > lim[:, 1])):
         j = int(np.argmax((home < lim[:, 0]) | (home > lim[:, 1])))
@@ -211,6 +241,11 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             f"home joint {j + 1} = {home[j]:g} rad is outside its limits [{lim[j, 0]:g}, {lim[j, 1]:g}] rad",
             field="home",
         )
+    return home
+
+
+def tool_frames(d: dict, path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The tool's point (3,) mm and the end effector's pose (4, 4) (mm) in the flange frame, each or None."""
     tool = d.get("tool")
     tool_point = (
         _vec(tool, "point", 3, path, "tool")
@@ -234,6 +269,12 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             raise FormatError(
                 path, "ee.M must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field="ee.M"
             )
+    return tool_point, ee_pose
+
+
+def position_sensor(d: dict, path) -> tuple[dict, np.ndarray | None]:
+    """A position robot's targets {name: (3,) mm} on the tool and its sensor's pose (4, 4) in the base frame
+    (None without one)."""
     targets = {}
     if d.get("targets") is not None:
         if not isinstance(d["targets"], dict):
@@ -248,6 +289,11 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         R = sensor_pose[:3, :3]
         if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
             raise FormatError(path, "sensor.T must be a rigid transform", field="sensor.T")
+    return targets, sensor_pose
+
+
+def link_masses(d: dict, n: int, path) -> tuple:
+    """The links' masses (kg) and centres of mass (3,) mm, one :class:`Link` a joint (or none)."""
     links = []
     for i, lk in enumerate(d.get("links", []) or []):
         mass = lk.get("mass") if isinstance(lk, dict) else None
@@ -258,9 +304,12 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
     links = tuple(links)
     if links and len(links) != n:
         raise FormatError(path, f"'links' must have one entry per joint ({n})", field="links")
-    extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
-    prior = d.get("prior") or {}
-    DEFAULTS.updated(prior, path)  # validated here too
+    return links
+
+
+def sheet_fields(d: dict, path) -> tuple[SheetPose | None, dict | None]:
+    """The sheet's identified pose and its standard deviations {key: value} (the keys the file gives), or
+    None."""
     sheet, sheet_std = sheet_pose(d, "sheet", path), sheet_values(d, "sheet_std", path, scale=0.0)
     if sheet_std is not None and sheet is None:
         raise FormatError(
@@ -271,6 +320,29 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         raise FormatError(
             path, f"{min(sheet_std):g} (expected a standard deviation >= 0)", field=f"sheet_std.{k}"
         )
+    if sheet_std is None:
+        return sheet, None
+    keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS + SHAPE_KEYS
+    return sheet, {k: v for k, v in zip(keys, sheet_std) if k in d["sheet_std"]}
+
+
+def model_from_dict(d: dict, path="<model>") -> RobotModel:
+    """Build and validate a :class:`RobotModel` from a parsed YAML mapping, section by section."""
+    joints = _checked_header(d, path)
+    notes: list[str] = list(d.get("notes", []) or [])
+    names, screws, limits = joint_axes(joints, path, notes)
+    n = len(screws)
+    tree = tree_structure(d, joints, names, path)
+    laser_S, aperture = laser_axis(d, path, notes)
+    plane_z = plane_height(d, path)
+    home = home_pose(d, limits, path)
+    tool_point, ee_pose = tool_frames(d, path)
+    targets, sensor_pose = position_sensor(d, path)
+    links = link_masses(d, n, path)
+    extension_from_model(d.get("extensions", {}) or {}, path, n)  # validated here: a NaN never reaches a fit
+    prior = d.get("prior") or {}
+    DEFAULTS.updated(prior, path)  # validated here too
+    sheet, sheet_std = sheet_fields(d, path)
     nominal = d.get("nominal")
     if nominal is not None and (not isinstance(nominal, str) or not nominal.strip()):
         raise FormatError(
@@ -294,13 +366,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         extensions=dict(d.get("extensions", {}) or {}),
         prior=dict(prior),
         sheet=sheet,
-        sheet_std=None
-        if sheet_std is None
-        else {
-            k: v
-            for k, v in zip(SHEET_KEYS + SCALE_KEYS + TILT_KEYS + SHAPE_KEYS, sheet_std)
-            if k in d["sheet_std"]
-        },
+        sheet_std=sheet_std,
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
         nominal=nominal,

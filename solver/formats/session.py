@@ -421,41 +421,34 @@ def session_yaml(folder: Path) -> tuple[dict, Path, Path]:
     return meta, ypath, cpath
 
 
-def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
-    """:func:`load_session` without the prior (the session's robot's own)."""
-    meta, ypath, cpath = session_yaml(folder)
+def session_robot(folder: Path, meta: dict, ypath, robot, base_link, tip_link) -> RobotModel:
+    """The session's robot: ``robot`` when given (a name or a path), else the one session.yaml names."""
     if robot is not None:
-        robot = load_model(robot, base_link=base_link, tip_link=tip_link)
-    elif "robot" not in meta:
+        return load_model(robot, base_link=base_link, tip_link=tip_link)
+    if "robot" not in meta:
         raise FormatError(ypath, "missing 'robot' (a name under data/robots/ or a path)", field="robot")
-    else:
-        robot = load_model(
-            meta["robot"],
-            base=folder,
-            base_link=base_link or meta.get("base_link"),
-            tip_link=tip_link or meta.get("tip_link"),
-        )
-    measurement = meta.get("measurement", "laser")
-    if measurement not in ("laser", "point", "position"):
+    return load_model(
+        meta["robot"],
+        base=folder,
+        base_link=base_link or meta.get("base_link"),
+        tip_link=tip_link or meta.get("tip_link"),
+    )
+
+
+def point_tool(meta: dict, points: dict, ypath) -> tuple[np.ndarray, tuple]:
+    """A point session's tool point (3,) mm (at q = 0) and its known distances between points."""
+    tool = meta.get("tool")
+    if not isinstance(tool, dict):
         raise FormatError(
-            ypath,
-            f"measurement must be 'laser', 'point' or 'position', got {measurement!r}",
-            field="measurement",
+            ypath, "a point session needs 'tool: {point: [x, y, z]}' (mm, at q = 0)", field="tool"
         )
-    clock = session_clock(meta, ypath)
-    if measurement == "position":
-        return load_position_session(folder, meta, robot, clock)
-    points = _points(meta, ypath, allow_unknown=measurement == "point")
-    check_distinct(ypath, points)
-    tool_point, distances = None, ()
-    if measurement == "point":
-        tool = meta.get("tool")
-        if not isinstance(tool, dict):
-            raise FormatError(
-                ypath, "a point session needs 'tool: {point: [x, y, z]}' (mm, at q = 0)", field="tool"
-            )
-        tool_point = np.array(_points({"tool": {"point": tool.get("point")}}, ypath, "tool")["point"])
-        distances = _distances(meta, points, ypath)
+    tool_point = np.array(_points({"tool": {"point": tool.get("point")}}, ypath, "tool")["point"])
+    return tool_point, _distances(meta, points, ypath)
+
+
+def laser_heights(meta: dict, ypath, robot: RobotModel, measurement: str) -> tuple[float, float | None]:
+    """The plane's height z (mm; NaN for a point session without a plane) and the laser aperture's
+    measured height p_Mz (mm, or None)."""
     plane_z = (
         _plane_z(meta, ypath) if measurement == "laser" or meta.get("plane") is not None else float("nan")
     )
@@ -469,6 +462,36 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
                 ypath, "laser.aperture_z must be a number (mm)", field="laser.aperture_z"
             ) from None
         check_aperture(ypath, aperture_z, robot, "laser.aperture_z")
+    return plane_z, aperture_z
+
+
+@dataclass(frozen=True)
+class CaptureRows:
+    """The columns of captures.csv, checked.
+
+    Attributes
+    ----------
+    q : (m, n) array, rad; t : (m,) array (s or order); dq, tau : (m, n) arrays or None (rad/s, Nm)
+    names : (m,) object array, the points aimed at
+    lines : (m,) int array, each capture's line in the file
+    spots : ((m, 2), (m, 2)) arrays or None, measured spots and their sigma (mm, layout frame; NaN: aimed)
+    aims : (m, 2) array or None, where the spot was aimed off its point (mm, layout frame; NaN: at it)
+    extra : dict column -> (m,) object array, the columns lasercal does not read
+    """
+
+    q: np.ndarray
+    t: np.ndarray
+    dq: np.ndarray | None
+    tau: np.ndarray | None
+    names: np.ndarray
+    lines: np.ndarray
+    spots: tuple | None
+    aims: np.ndarray | None
+    extra: dict
+
+
+def capture_rows(folder: Path, meta: dict, cpath, robot: RobotModel, points: dict) -> CaptureRows:
+    """captures.csv's columns for ``robot``'s n joints, each capture at one of ``points``."""
     header, rows = read_csv(cpath, captures_repair(folder, meta))
     n = robot.n
     if header[:2] != ["point", "t"]:
@@ -504,57 +527,91 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
     }
-    names = np.array(names, dtype=object)
-    target = np.array([np.full(3, np.nan) if points[nm] is None else points[nm] for nm in names]).reshape(
+    return CaptureRows(q, t, dq, tau, np.array(names, dtype=object), lines, spots, aims, extra)
+
+
+def aim_offset(meta: dict, ypath) -> np.ndarray | None:
+    """A camera session's offset [dx, dy] (mm) of where the operator aims from each cross, or None."""
+    offset = meta.get("aim_offset")
+    if offset is None:
+        return None
+    try:
+        offset = np.array(offset, dtype=float).reshape(2)
+    except (TypeError, ValueError):
+        offset = np.full(2, np.nan)
+    if not np.all(np.abs(offset) <= SPOT_FAR_MM):
+        raise FormatError(ypath, f"aim_offset must be [dx, dy] within {SPOT_FAR_MM:g} mm", field="aim_offset")
+    return offset
+
+
+def beam_targets(target: np.ndarray, c: CaptureRows, offset, cpath) -> np.ndarray | None:
+    """Move each capture's target (m, 3) mm, in place, to where the beam was aimed or measured: beside the
+    cross by the session's aim ``offset``; at the coach's planned aim (``--aim anywhere``); at the camera's
+    measured spot. Returns the measured spots' sigma (m, 2) mm (None without a camera)."""
+    if offset is not None:  # a camera session: the operator aims beside each cross, on white paper
+        target[:, :2] += offset
+    if c.aims is not None:  # the coach planned the spot off the point: aimed there (--aim anywhere)
+        off = np.isfinite(c.aims[:, 0])
+        far = off & (np.linalg.norm(c.aims - target[:, :2], axis=1) > AIM_FAR_MM)
+        if far.any():
+            i = int(np.flatnonzero(far)[0])
+            raise FormatError(
+                cpath,
+                f"the aim lies {np.linalg.norm(c.aims[i] - target[i, :2]):.0f} mm from {c.names[i]} "
+                f"(expected within {AIM_FAR_MM:g} mm, its cell on the sheet; mm in the layout's frame)",
+                line=int(c.lines[i]),
+                field="aim_x",
+            )
+        target[off, :2] = c.aims[off]
+    if c.spots is None:
+        return None
+    # a measured spot is where the beam was: the fit's target, with its uncertainty
+    ok = np.isfinite(c.spots[1])
+    far = ok & (np.linalg.norm(c.spots[0] - target[:, :2], axis=1) > SPOT_FAR_MM)
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        raise FormatError(
+            cpath,
+            f"the measured spot lies {np.linalg.norm(c.spots[0][i] - target[i, :2]):.0f} mm from where "
+            f"{c.names[i]}'s capture was aimed (expected within {SPOT_FAR_MM:g} mm; mm, the layout's "
+            "frame)",
+            line=int(c.lines[i]),
+            field="camera_x",
+        )
+    target[ok, :2] = c.spots[0][ok]
+    return c.spots[1]
+
+
+def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
+    """:func:`load_session` without the prior (the session's robot's own), section by section."""
+    meta, ypath, cpath = session_yaml(folder)
+    robot = session_robot(folder, meta, ypath, robot, base_link, tip_link)
+    measurement = meta.get("measurement", "laser")
+    if measurement not in ("laser", "point", "position"):
+        raise FormatError(
+            ypath,
+            f"measurement must be 'laser', 'point' or 'position', got {measurement!r}",
+            field="measurement",
+        )
+    clock = session_clock(meta, ypath)
+    if measurement == "position":
+        return load_position_session(folder, meta, robot, clock)
+    points = _points(meta, ypath, allow_unknown=measurement == "point")
+    check_distinct(ypath, points)
+    tool_point, distances = point_tool(meta, points, ypath) if measurement == "point" else (None, ())
+    plane_z, aperture_z = laser_heights(meta, ypath, robot, measurement)
+    c = capture_rows(folder, meta, cpath, robot, points)
+    target = np.array([np.full(3, np.nan) if points[nm] is None else points[nm] for nm in c.names]).reshape(
         -1, 3
     )
     frame, sheet = _frame(meta, ypath) if measurement == "laser" else ("base", None)
     check_consistent(
-        ypath, meta, points, cpath, names, lines, frame, plane_z if measurement == "laser" else None
+        ypath, meta, points, cpath, c.names, c.lines, frame, plane_z if measurement == "laser" else None
     )
     if frame == "sheet":
         check_layout_geometry(ypath, points, 0.0, tuple(points), frame)
         target[:, 2] = plane_z  # x, y on the sheet; z the plane's height in the base frame
-    offset = meta.get("aim_offset")
-    if offset is not None:  # a camera session: the operator aims beside each cross, on white paper
-        try:
-            offset = np.array(offset, dtype=float).reshape(2)
-        except (TypeError, ValueError):
-            offset = np.full(2, np.nan)
-        if not np.all(np.abs(offset) <= SPOT_FAR_MM):
-            raise FormatError(
-                ypath, f"aim_offset must be [dx, dy] within {SPOT_FAR_MM:g} mm", field="aim_offset"
-            )
-        target[:, :2] += offset
-    if aims is not None:  # the coach planned the spot off the point: aimed there (--aim anywhere)
-        off = np.isfinite(aims[:, 0])
-        far = off & (np.linalg.norm(aims - target[:, :2], axis=1) > AIM_FAR_MM)
-        if far.any():
-            i = int(np.flatnonzero(far)[0])
-            raise FormatError(
-                cpath,
-                f"the aim lies {np.linalg.norm(aims[i] - target[i, :2]):.0f} mm from {names[i]} (expected "
-                f"within {AIM_FAR_MM:g} mm, its cell on the sheet; mm in the layout's frame)",
-                line=int(lines[i]),
-                field="aim_x",
-            )
-        target[off, :2] = aims[off]
-    spot_sigma = None
-    if spots is not None:  # a measured spot is where the beam was: the fit's target, with its uncertainty
-        ok = np.isfinite(spots[1])
-        far = ok & (np.linalg.norm(spots[0] - target[:, :2], axis=1) > SPOT_FAR_MM)
-        if far.any():
-            i = int(np.flatnonzero(far)[0])
-            raise FormatError(
-                cpath,
-                f"the measured spot lies {np.linalg.norm(spots[0][i] - target[i, :2]):.0f} mm from where "
-                f"{names[i]}'s capture was aimed (expected within {SPOT_FAR_MM:g} mm; mm, the layout's "
-                "frame)",
-                line=int(lines[i]),
-                field="camera_x",
-            )
-        target[ok, :2] = spots[0][ok]
-        spot_sigma = spots[1]
+    spot_sigma = beam_targets(target, c, aim_offset(meta, ypath), cpath)
     return Session(
         folder,
         meta,
@@ -562,14 +619,14 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         plane_z,
         aperture_z,
         points,
-        names,
+        c.names,
         target,
-        t,
-        q,
-        dq,
-        tau,
-        extra,
-        lines,
+        c.t,
+        c.q,
+        c.dq,
+        c.tau,
+        c.extra,
+        c.lines,
         measurement,
         tool_point,
         distances,

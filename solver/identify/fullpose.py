@@ -276,6 +276,75 @@ def _residual_sigma(y: np.ndarray, T_meas: np.ndarray) -> np.ndarray:
     )  # floors: round-off of exact data
 
 
+def whitened_errors(z: np.ndarray, W: np.ndarray, basis: np.ndarray, P: PoseParams, q, T_meas) -> np.ndarray:
+    """Eq. 2.3.29's residual at x = basis z: the pose errors (rotation rad, position mm) of the m poses,
+    each whitened by W (m, 6, 6) (:func:`_whitening`), as (6 m,)."""
+    return (W @ pose_errors(T_meas, P.poses(basis @ z, q))[:, :, None]).ravel()
+
+
+def whitened_jacobian(
+    z: np.ndarray, W: np.ndarray, basis: np.ndarray, P: PoseParams, q, T_meas
+) -> np.ndarray:
+    """d :func:`whitened_errors` / dz, (6 m, r)."""
+    T, J = P.jacobian(basis @ z, q)
+    return (W @ _error_jacobian(pose_errors(T_meas, T), J)).reshape(6 * len(q), -1) @ basis
+
+
+def reweighted_lm(P: PoseParams, q, T_meas, basis: np.ndarray, sig: np.ndarray, fixed: bool) -> tuple:
+    """Levenberg-Marquardt on eq. 2.3.29 in the identifiable subspace, the errors whitened by the noise sig
+    = (rot rad, pos mm); unless ``fixed``, passes repeated with the residuals' own noise until it settles
+    (within 2 %; iteratively re-weighted least squares).
+
+    Parameters
+    ----------
+    P : PoseParams; q : (m, n) array, rad; T_meas : (m, 4, 4) array, mm
+    basis : (p, r) array, the identifiable subspace; sig : (2,) array, the first pass's noise
+    fixed : bool, one pass at ``sig``
+
+    Returns
+    -------
+    z : (r,) array; W : (m, 6, 6) array, the last pass's whitening; y : (m, 6) array, the pose errors
+    used : (2,) array, the last pass's noise; history : list of dict; iterations : int; converged : bool
+    """
+    z = np.zeros(basis.shape[1])
+    history, iterations, converged = [], 0, True
+    for pas in range(1 if fixed else _MAX_PASSES):
+        used = sig
+        W = _whitening(T_meas, used)
+        sol = optimize.least_squares(
+            whitened_errors,
+            z,
+            whitened_jacobian,
+            args=(W, basis, P, q, T_meas),
+            method="lm",
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+            max_nfev=100 * (len(z) + 1),
+        )
+        z, iterations, converged = sol.x, iterations + sol.njev, converged and sol.status > 0
+        y = pose_errors(T_meas, P.poses(basis @ z, q))
+        rms = _residual_sigma(y, T_meas)
+        history.append(
+            {
+                "pass": pas + 1,
+                "sigma_rad": float(sig[0]),
+                "sigma_mm": float(sig[1]),
+                "iterations": int(sol.njev),
+                "status": int(sol.status),
+                "message": sol.message,
+                "rms_rot_rad": float(rms[0]),
+                "rms_pos_mm": float(rms[1]),
+            }
+        )
+        if fixed or np.abs(np.log(rms / used)).max() < 0.02:
+            break
+        sig = rms
+    else:
+        converged = False  # the noise estimates kept moving
+    return z, W, y, used, history, iterations, converged
+
+
 def fit_fullpose(
     reference: RobotModel, q: np.ndarray, T_meas: np.ndarray, sigma: tuple | None = None
 ) -> FullPoseFit:
@@ -309,61 +378,17 @@ def fit_fullpose(
             "configurations"
         )
     sig = np.array(SIGMA_START if sigma is None else sigma, dtype=float)
-
-    def fun(z, W, basis):
-        return (W @ pose_errors(T_meas, P.poses(basis @ z, q))[:, :, None]).ravel()
-
-    def jac(z, W, basis):
-        x = basis @ z
-        T, J = P.jacobian(x, q)
-        return (W @ _error_jacobian(pose_errors(T_meas, T), J)).reshape(6 * m, -1) @ basis
-
     x0 = np.zeros(P.size)
     W = _whitening(T_meas, sig)
     T, J = P.jacobian(x0, q)
     ident, basis = identifiability(
         (W @ _error_jacobian(pose_errors(T_meas, T), J)).reshape(6 * m, -1), P.names
     )
-    z = np.zeros(basis.shape[1])
-    history, iterations, converged = [], 0, True
-    for pas in range(1 if sigma is not None else _MAX_PASSES):
-        used = sig
-        W = _whitening(T_meas, used)
-        sol = optimize.least_squares(
-            fun,
-            z,
-            jac,
-            args=(W, basis),
-            method="lm",
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
-            max_nfev=100 * (len(z) + 1),
-        )
-        z, iterations, converged = sol.x, iterations + sol.njev, converged and sol.status > 0
-        y = pose_errors(T_meas, P.poses(basis @ z, q))
-        rms = _residual_sigma(y, T_meas)
-        history.append(
-            {
-                "pass": pas + 1,
-                "sigma_rad": float(sig[0]),
-                "sigma_mm": float(sig[1]),
-                "iterations": int(sol.njev),
-                "status": int(sol.status),
-                "message": sol.message,
-                "rms_rot_rad": float(rms[0]),
-                "rms_pos_mm": float(rms[1]),
-            }
-        )
-        if sigma is not None or np.abs(np.log(rms / used)).max() < 0.02:
-            break
-        sig = rms
-    else:
-        converged = False  # the noise estimates kept moving
+    z, W, y, used, history, iterations, converged = reweighted_lm(P, q, T_meas, basis, sig, sigma is not None)
     x = basis @ z
-    Jz = jac(z, W, basis)
+    Jz = whitened_jacobian(z, W, basis, P, q, T_meas)
     dof = 6 * m - basis.shape[1]
-    s2 = float(np.sum(fun(z, W, basis) ** 2) / dof) if dof > 0 else float("nan")
+    s2 = float(np.sum(whitened_errors(z, W, basis, P, q, T_meas) ** 2) / dof) if dof > 0 else float("nan")
     _, s, Vt = np.linalg.svd(Jz, full_matrices=False)
     cov = s2 * (basis @ ((Vt.T / s**2) @ Vt) @ basis.T)
     std = dict(zip(P.names, map(float, np.sqrt(np.maximum(np.diag(cov), 0.0)))))

@@ -23,7 +23,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize
@@ -261,6 +261,136 @@ _SIGMA_RTOL = 1e-2  # the noise fixed point (eq. P3) is reached when sigma chang
 _SIGMA_PASSES = 12  # at most this many refits for it (3-5 usually)
 
 
+@dataclass(eq=False)
+class SubspaceLM:
+    """:func:`fit_subspace`'s problem and its passes: the stacked rows [sqrt(w_i) r_i(v); constraints;
+    prior] (the prior's rows weighted by the current noise ``sigma``, eq. P2 of
+    :mod:`solver.identify.prior`) and their Jacobian, the Levenberg-Marquardt passes in a subspace v0 + B z,
+    the robust test-and-refit and the noise's fixed point (eq. P3).
+
+    Attributes
+    ----------
+    residual, jacobian, constraints, prior, robust, groups, suspects : as :func:`fit_subspace`'s
+    m, d, p : int, captures, residual rows per capture, parameters
+    sigma : float, the current per-axis noise (the prior's rows are weighted by it)
+    history : list of dict, per pass 'pass', 'rms_mm', 'iterations', 'status'
+    iterations : int, Jacobian evaluations so far
+    """
+
+    residual: Callable
+    jacobian: Callable
+    constraints: Callable | None
+    prior: Prior | None
+    robust: bool
+    groups: np.ndarray | None
+    suspects: np.ndarray | None
+    m: int
+    d: int
+    p: int
+    sigma: float
+    history: list = field(default_factory=list)
+    iterations: int = 0
+
+    def extra_rows(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The constraints' rows, then the prior's (weighted by the current noise sigma): ((c,), (c, p))."""
+        r, J = (np.zeros(0), np.zeros((0, self.p))) if self.constraints is None else self.constraints(v)
+        if self.prior is not None:
+            rp, Jp = self.prior.rows(v, self.sigma)
+            r, J = np.r_[r, rp], np.vstack([J, Jp])
+        return r, J
+
+    def rows(self, v: np.ndarray, sw: np.ndarray) -> np.ndarray:
+        """The stacked rows (m d + c,) at v, the captures' weighted by sw (m,)."""
+        return np.r_[(self.residual(v) * sw[:, None]).ravel(), self.extra_rows(v)[0]]
+
+    def jrows(self, v: np.ndarray, sw: np.ndarray) -> np.ndarray:
+        """d :meth:`rows` / dv, (m d + c, p)."""
+        J = (self.jacobian(v) * sw[:, None, None]).reshape(self.m * self.d, self.p)
+        return np.vstack([J, self.extra_rows(v)[1]])
+
+    def run(self, v0: np.ndarray, basis: np.ndarray, z: np.ndarray, w: np.ndarray):
+        """One Levenberg-Marquardt pass over z in v = v0 + basis z from z, captures weighted by w (m,); its
+        record joins :attr:`history`. Returns the solution (OptimizeResult) and the residuals (m, d)."""
+        sw = np.sqrt(w)
+        sol = optimize.least_squares(
+            lambda z: self.rows(v0 + basis @ z, sw),
+            z,
+            lambda z: self.jrows(v0 + basis @ z, sw) @ basis,
+            method="lm",
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+            max_nfev=200,
+        )
+        self.iterations += sol.njev
+        res = self.residual(v0 + basis @ sol.x)
+        self.history.append(
+            {
+                "pass": len(self.history) + 1,
+                "rms_mm": float(np.sqrt(np.mean(np.sum(res[w > 0] ** 2, 1)))),
+                "iterations": int(sol.njev),
+                "status": int(sol.status),
+            }
+        )
+        return sol, res
+
+    def robust_fit(self, v0: np.ndarray, basis: np.ndarray, z: np.ndarray, w: np.ndarray):
+        """LM, then test-and-refit until the flagged set is stable (:func:`studentised_outliers`). Returns
+        the solution, the residuals (m, d) and the weights (m,)."""
+        sol, res = self.run(v0, basis, z, w)
+        if not self.robust:
+            return sol, res, w
+        # flags can cycle (few captures: a capture is an outlier only while another one is fitted);
+        # a weight pattern fitted before is not refitted: its fit is the same up to the LM tolerance
+        fits = {w.tobytes(): (sol, res, self.history[-1])}
+        for _ in range(8):
+            v = v0 + basis @ sol.x
+            sw = np.sqrt(w)
+            flags = studentised_outliers(
+                res, self.jrows(v, sw) @ basis, w, self.jacobian(v) @ basis, self.groups
+            )
+            if self.suspects is not None:
+                flags &= self.suspects
+            if np.array_equal(flags, w == 0):
+                break
+            w = np.where(flags, 0.0, 1.0)
+            if w.tobytes() in fits:
+                sol, res, h = fits[w.tobytes()]
+                self.history.append({**h, "pass": len(self.history) + 1, "iterations": 0})
+            else:
+                sol, res = self.run(v0, basis, sol.x, w)
+                fits[w.tobytes()] = (sol, res, self.history[-1])
+        return sol, res, w
+
+    def noise_fixed_point(self, v0: np.ndarray, basis: np.ndarray, w: np.ndarray):
+        """The robust fit from z = 0; with a prior, refitted until the noise sigma and the fit agree (eq. P3:
+        sigma from the residual sum of squares over dof = d m_used - tr H).
+
+        Returns
+        -------
+        sol : OptimizeResult; res : (m, d) array; w : (m,) array
+        dof : float, the last pass's residual degrees of freedom (None without a prior)
+        """
+        z, dof = np.zeros(basis.shape[1]), None
+        for _ in range(_SIGMA_PASSES if self.prior is not None else 1):
+            sol, res, w = self.robust_fit(v0, basis, z, w)
+            z = sol.x
+            if self.prior is None:
+                break
+            v = v0 + basis @ z
+            used = w > 0
+            dof = self.d * used.sum() - hat_trace(
+                self.jrows(v, np.sqrt(w)) @ basis, self.m * self.d
+            )  # eq. P3
+            rss = float(np.sum(res[used] ** 2))
+            new = noise_sigma(self.prior.noise, self.prior.noise_dof, rss, dof)
+            done = abs(new / self.sigma - 1) < _SIGMA_RTOL
+            self.sigma = new
+            if done:
+                break
+        return sol, res, w, dof
+
+
 def fit_subspace(
     residual: Callable,
     jacobian: Callable,
@@ -306,122 +436,56 @@ def fit_subspace(
         w[suspects] = 0.0
     sigma = prior.noise if prior is not None else 1.0
     n_con = 0 if constraints is None else len(constraints(v0)[0])
-
-    def extra_rows(v):
-        """The constraints' rows, then the prior's (weighted by the current noise sigma)."""
-        r, J = (np.zeros(0), np.zeros((0, p))) if constraints is None else constraints(v)
-        if prior is not None:
-            rp, Jp = prior.rows(v, sigma)
-            r, J = np.r_[r, rp], np.vstack([J, Jp])
-        return r, J
-
-    def rows(v, sw):
-        return np.r_[(residual(v) * sw[:, None]).ravel(), extra_rows(v)[0]]
-
-    def jrows(v, sw):
-        return np.vstack([(jacobian(v) * sw[:, None, None]).reshape(m * d, p), extra_rows(v)[1]])
-
-    history, iterations = [], 0
-
-    def run(v0, basis, z, w):
-        nonlocal iterations
-        sw = np.sqrt(w)
-        sol = optimize.least_squares(
-            lambda z: rows(v0 + basis @ z, sw),
-            z,
-            lambda z: jrows(v0 + basis @ z, sw) @ basis,
-            method="lm",
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
-            max_nfev=200,
-        )
-        iterations += sol.njev
-        res = residual(v0 + basis @ sol.x)
-        history.append(
-            {
-                "pass": len(history) + 1,
-                "rms_mm": float(np.sqrt(np.mean(np.sum(res[w > 0] ** 2, 1)))),
-                "iterations": int(sol.njev),
-                "status": int(sol.status),
-            }
-        )
-        return sol, res
-
-    def robust_fit(z, w):
-        """LM, then test-and-refit until the flagged set is stable."""
-        sol, res = run(v0, basis, z, w)
-        if not robust:
-            return sol, res, w
-        # flags can cycle (few captures: a capture is an outlier only while another one is fitted);
-        # a weight pattern fitted before is not refitted: its fit is the same up to the LM tolerance
-        fits = {w.tobytes(): (sol, res, history[-1])}
-        for _ in range(8):
-            v = v0 + basis @ sol.x
-            sw = np.sqrt(w)
-            flags = studentised_outliers(res, jrows(v, sw) @ basis, w, jacobian(v) @ basis, groups)
-            if suspects is not None:
-                flags &= suspects
-            if np.array_equal(flags, w == 0):
-                break
-            w = np.where(flags, 0.0, 1.0)
-            if w.tobytes() in fits:
-                sol, res, h = fits[w.tobytes()]
-                history.append({**h, "pass": len(history) + 1, "iterations": 0})
-            else:
-                sol, res = run(v0, basis, sol.x, w)
-                fits[w.tobytes()] = (sol, res, history[-1])
-        return sol, res, w
-
+    lm = SubspaceLM(residual, jacobian, constraints, prior, robust, groups, suspects, m, d, p, sigma)
     con = [] if constraints is None else [constraints(v0)[1]]
     ident, _ = identifiability(np.vstack([jacobian(v0).reshape(m * d, p)] + con), names)  # data alone
-    _, basis = identifiability(jrows(v0, np.ones(m)), names)  # what data, constraints and prior fix
-    r = basis.shape[1]
-    z = np.zeros(r)
-    for _ in range(_SIGMA_PASSES if prior is not None else 1):
-        sol, res, w = robust_fit(z, w)
-        z = sol.x
-        if prior is None:
-            break
-        v = v0 + basis @ z
-        used = w > 0
-        dof = d * used.sum() - hat_trace(jrows(v, np.sqrt(w)) @ basis, m * d)  # d m - tr H (eq. P3)
-        rss = float(np.sum(res[used] ** 2))
-        new = noise_sigma(prior.noise, prior.noise_dof, rss, dof)
-        done = abs(new / sigma - 1) < _SIGMA_RTOL
-        sigma = new
-        if done:
-            break
-    v = v0 + basis @ sol.x
+    _, basis = identifiability(lm.jrows(v0, np.ones(m)), names)  # what data, constraints and prior fix
+    sol, res, w, dof = lm.noise_fixed_point(v0, basis, w)
+    return subspace_fit(lm, v0 + basis @ sol.x, basis, sol, res, w, ident, dof, n_con)
+
+
+def subspace_fit(
+    lm: SubspaceLM, v: np.ndarray, basis: np.ndarray, sol, res: np.ndarray, w: np.ndarray, ident, dof, n_con
+) -> SubspaceFit:
+    """The :class:`SubspaceFit` at the solution v (p,) in the subspace ``basis`` (p, r): without a prior
+    the noise sigma^2 = |rows|^2 / (d m_used - r + c); the covariance B (A^T A)^-1 B^T sigma^2 of the
+    weighted rows' Jacobian A in the subspace; each capture's leverage (the hat matrix's diagonal over
+    its d rows). ``dof``: the prior's (eq. P3; None without a prior); ``n_con``: the constraint rows c.
+
+    Raises
+    ------
+    IdentificationError : fewer usable residual rows than parameter combinations (without a prior)
+    """
+    m, d, p, r = lm.m, lm.d, lm.p, basis.shape[1]
     used = w > 0
     sw = np.sqrt(w)
-    if prior is None:
+    if lm.prior is None:
         dof = d * used.sum() - r + n_con
         if dof <= 0:
             raise IdentificationError(
                 f"{used.sum()} usable captures cannot identify {r} parameter combinations"
             )
-        sigma = float(np.sqrt(np.sum(rows(v, sw) ** 2) / dof))
-    A = jrows(v, sw) @ basis
-    cov = basis @ covariance(A, sigma) @ basis.T
+        lm.sigma = float(np.sqrt(np.sum(lm.rows(v, sw) ** 2) / dof))
+    A = lm.jrows(v, sw) @ basis
+    cov = basis @ covariance(A, lm.sigma) @ basis.T
     U, sv, _ = thin_svd(A)
     keep = sv > sv.max(initial=0.0) * 1e-12
     leverage = np.sum(U[: m * d, keep] ** 2, axis=1).reshape(m, d).sum(axis=1)
-    rc, Jc = constraints(v) if constraints is not None else (np.zeros(0), np.zeros((0, p)))
+    rc, Jc = lm.constraints(v) if lm.constraints is not None else (np.zeros(0), np.zeros((0, p)))
     return SubspaceFit(
         v,
         cov,
         res,
         w,
-        sigma,
+        lm.sigma,
         ident,
         bool(sol.status > 0),
-        iterations,
-        history,
-        jacobian(v) @ basis,
+        lm.iterations,
+        lm.history,
+        lm.jacobian(v) @ basis,
         Jc @ basis,
         rc,
-        prior,
+        lm.prior,
         float(dof),
         leverage,
     )

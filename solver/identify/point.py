@@ -17,6 +17,7 @@ observable either; the SVD identifiability report then lists it.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -158,6 +159,56 @@ class PointParams:
         return np.array(r), np.array(J).reshape(len(r), self.size)
 
 
+@dataclass(frozen=True, eq=False)
+class PointProblem:
+    """:func:`identify_point`'s model of parameters v = [x, theta] (the robot's and the points' x, then the
+    extension's theta): the tips at the true configurations against the reference points, and the known
+    distances between points as constraint rows.
+
+    Attributes
+    ----------
+    P : PointParams
+    session : Session, with measurement 'point'
+    extension : Extension or None, a joint effect
+    idx, G : the extension's joints and regressors (m, k) (:meth:`Extension.regressors`; None without one)
+    """
+
+    P: PointParams
+    session: Session
+    extension: Extension | None
+    idx: np.ndarray | None
+    G: np.ndarray | None
+
+    @property
+    def k(self) -> int:
+        return self.extension.size if self.extension else 0
+
+    def true_q(self, v: np.ndarray) -> np.ndarray:
+        """The true configurations (m, n) rad under the extension's parameters (the logged ones without)."""
+        s, ext = self.session, self.extension
+        return ext.with_params(v[self.P.size :]).true_q(s.q, s.t, s.tau) if ext else s.q
+
+    def residual(self, v: np.ndarray) -> np.ndarray:
+        """Tip minus reference point, (m, 3) mm."""
+        p = self.P.size
+        return tips(self.P.to_model(v[:p]), self.true_q(v)) - self.P.targets(v[:p], self.session)
+
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """d :meth:`residual` / dv, (m, 3, p + k)."""
+        p = self.P.size
+        qt = self.true_q(v)
+        _, J = self.P.jacobian(v[:p], qt, self.session)
+        if not self.extension:
+            return J
+        _, Jq = tip_joint_jacobian(self.P.to_model(v[:p]), qt)
+        return np.concatenate([J, Jq[:, :, self.idx] * self.G[:, None, :]], axis=2)
+
+    def constraints(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The known distances' rows (c,) and their Jacobian (c, p + k)."""
+        r, J = self.P.distance_rows(v[: self.P.size], self.session)
+        return r, np.hstack([J, np.zeros((len(r), self.k))])
+
+
 def identify_point(
     session: Session,
     nominal: RobotModel | None = None,
@@ -183,43 +234,24 @@ def identify_point(
     t0 = time.perf_counter()
     nominal = nominal or session.robot
     P = PointParams(nominal, session)
-    q, t, tau = session.q, session.t, session.tau
-    k = extension.size if extension else 0
+    idx = G = None
     if extension:
-        require(extension, t, tau)
+        require(extension, session.t, session.tau)
         if not extension.acts_on_joints:
             raise IdentificationError(f"{extension.effect} does not apply to point measurements")
-        idx, G = extension.regressors(q, t, tau)
-    p = P.size
+        idx, G = extension.regressors(session.q, session.t, session.tau)
+    prob = PointProblem(P, session, extension, idx, G)
+    k = prob.k
     names = P.names + (extension.names if extension else [])
-
-    def true_q(v):
-        return extension.with_params(v[p:]).true_q(q, t, tau) if extension else q
-
-    def residual(v):
-        return tips(P.to_model(v[:p]), true_q(v)) - P.targets(v[:p], session)
-
-    def jacobian(v):
-        qt = true_q(v)
-        _, J = P.jacobian(v[:p], qt, session)
-        if not extension:
-            return J
-        _, Jq = tip_joint_jacobian(P.to_model(v[:p]), qt)
-        return np.concatenate([J, Jq[:, :, idx] * G[:, None, :]], axis=2)
-
-    def constraints(v):
-        r, J = P.distance_rows(v[:p], session)
-        return r, np.hstack([J, np.zeros((len(r), k))])
-
     x0 = np.r_[P.x0(session), np.zeros(k)]
     kinds = P.kinds + (extension.kinds if extension else [])
     fit = fit_subspace(
-        residual,
-        jacobian,
+        prob.residual,
+        prob.jacobian,
         x0,
         names,
         robust,
-        constraints=constraints if session.distances else None,
+        constraints=prob.constraints if session.distances else None,
         groups=session.positions,
         suspects=suspects,
         prior=make_prior(
@@ -232,6 +264,16 @@ def identify_point(
             anchor_heights(nominal.screws, P.tool0),
         ),
     )
+    return point_identification(prob, nominal, fit, names, t0)
+
+
+def point_identification(
+    prob: PointProblem, nominal: RobotModel, fit, names: list, t0: float
+) -> Identification:
+    """The :class:`Identification` of a point session from its fit: the model with its extension, the
+    identified points (``extra['points']``, mm), the standard errors (``t0``: the start's
+    ``time.perf_counter()``)."""
+    P, extension, p, k = prob.P, prob.extension, prob.P.size, prob.k
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     meta = {
         "method": "lm",

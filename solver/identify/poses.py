@@ -303,6 +303,81 @@ def session_data(model: RobotModel, sessions: list, frames: dict | None = None, 
     return out
 
 
+def pose_params(
+    sessions: list, nominal: RobotModel, extension, joint_map, joints: bool, frames: dict | None
+) -> tuple[PoseParams, list, tuple]:
+    """The parameters of :func:`fit_poses` (eq. PS1) and each session's data, its frames' starts estimated.
+
+    Returns
+    -------
+    P : PoseParams
+    data : list of SessionData (``register``: their angles corrected by the model's effects)
+    fixed : (Extension or None, JointMap or None), the model's own effects (``register``; (None, None) else)
+    """
+    if nominal.ee_pose is None:
+        raise IdentificationError(
+            f"robot {nominal.name!r} has no flange frame (ee.M): pose sessions need one"
+        )
+    names = [s.name for s in sessions]
+    if len(set(names)) != len(names):
+        raise IdentificationError(f"two sessions share a folder name ({', '.join(names)}): rename one")
+    fixed = (None, None) if joints else model_effects(nominal, nominal.name)
+    data = session_data(nominal, sessions, frames, fixed)
+    if joints:
+        return PoseParams(nominal, data, True, extension, joint_map), data, fixed
+    # register: the model's effects are part of the robot; the logged angles are corrected once
+    for d in data:
+        d.q = corrected_q(nominal, d.q, fixed, d.tau)
+    return PoseParams(nominal, data, False), data, fixed
+
+
+def warm_start(P: PoseParams, warm: PoseFit) -> tuple[np.ndarray, float, int]:
+    """The start from a fit of a superset of the sessions: its values by name (the sensor and tool frames at
+    their own starts), its noise ratio sigma_pos / sigma_rot (mm/rad) and the weighting passes (one for a
+    fold of the same model, the whole fit's noise; another model re-weighs)."""
+    at = {nm: k for k, nm in enumerate(warm.names)}
+    v = np.array(
+        [
+            warm.v[at[nm]] if nm in at and ".sensor." not in nm and ".tool." not in nm else 0.0
+            for nm in P.names
+        ]
+    )
+    same = all(nm in at for nm in P.names if ".sensor." not in nm and ".tool." not in nm)
+    return v, warm.sigma_pos / warm.sigma_rot, 1 if same else _WEIGHT_PASSES
+
+
+def reweighted_fit(
+    P: PoseParams, prior, v: np.ndarray, ratio: float, used: np.ndarray, passes: int, robust: bool
+) -> tuple:
+    """The MAP fit (:func:`lm_map`) with the rotation rows weighted by sigma_pos / sigma_rot, refitted until
+    that ratio and the flagged poses settle (eq. PS3), then the covariance at the last fit's weights.
+
+    Parameters
+    ----------
+    P : PoseParams; prior : Prior or None
+    v : (p,) array, the start; ratio : float, its noise ratio (mm/rad)
+    used : (m,) bool array, the poses fitted at the start
+    passes : int, the most weighting passes; robust : bool, flag outlier poses between passes
+
+    Returns
+    -------
+    v : (p,) array; fit : SubspaceFit (the passes' LM steps and convergence)
+    used : (m,) bool array, the poses fitted; ratio : float, the noise ratio, mm/rad
+    """
+    for _ in range(passes):
+        w = np.repeat([ratio, 1.0], 3)
+        sigma = float(np.sqrt(np.mean(P.residual(v)[used, 3:] ** 2)))
+        v, fit = lm_map(P, w, v, prior, sigma, used, final=False)
+        flagged = ~flag_outliers(fit.residuals, used.astype(float), 1.0)[0] if robust else used
+        new = _noise_ratio(fit.residuals / w, flagged)
+        if abs(new / ratio - 1) < _WEIGHT_RTOL and np.array_equal(flagged, used):
+            break
+        ratio, used = new, flagged
+    steps, converged = fit.iterations, fit.converged
+    v, fit = lm_map(P, w, v, prior, sigma, used, iterations=0)  # the covariance at the last fit's weights
+    return v, replace(fit, iterations=steps, converged=converged), used, ratio
+
+
 def fit_poses(
     sessions: list,
     nominal: RobotModel,
@@ -336,57 +411,19 @@ def fit_poses(
     t0 = time.perf_counter()
     if warm is not None:
         frames = {k: warm.frames[k] for k in [s.name for s in sessions] if k in warm.frames}
-    if nominal.ee_pose is None:
-        raise IdentificationError(
-            f"robot {nominal.name!r} has no flange frame (ee.M): pose sessions need one"
-        )
-    names = [s.name for s in sessions]
-    if len(set(names)) != len(names):
-        raise IdentificationError(f"two sessions share a folder name ({', '.join(names)}): rename one")
-    fixed = (None, None) if joints else model_effects(nominal, nominal.name)
-    data = session_data(nominal, sessions, frames, fixed)
-    if joints:
-        P = PoseParams(nominal, data, True, extension, joint_map)
-    else:  # register: the model's effects are part of the robot; the logged angles are corrected once
-        for d in data:
-            d.q = corrected_q(nominal, d.q, fixed, d.tau)
-        P = PoseParams(nominal, data, False)
+    P, data, fixed = pose_params(sessions, nominal, extension, joint_map, joints, frames)
     tol = sessions[0].tolerances if tolerances is None else tolerances
     heights = anchor_heights(nominal.screws, np.asarray(nominal.ee_pose)[:3, 3])
     prior = make_prior(tol, P.kinds, np.zeros(P.size), "position", P.names, nominal.joint_names, heights)
     T_meas = np.concatenate([d.T for d in data])
     used = np.ones(len(T_meas), bool)
-    v = np.zeros(P.size)
-    passes = _WEIGHT_PASSES
     if warm is not None:
-        at = {nm: k for k, nm in enumerate(warm.names)}
-        v = np.array(
-            [
-                warm.v[at[nm]] if nm in at and ".sensor." not in nm and ".tool." not in nm else 0.0
-                for nm in P.names
-            ]
-        )
-        ratio = warm.sigma_pos / warm.sigma_rot
-        # a fold of the same model: its noise is the whole fit's (one pass); another model re-weighs
-        passes = (
-            1 if all(nm in at for nm in P.names if ".sensor." not in nm and ".tool." not in nm) else passes
-        )
+        v, ratio, passes = warm_start(P, warm)
     else:
+        v, passes = np.zeros(P.size), _WEIGHT_PASSES
         ratio = _noise_ratio(P.residual(v), used)
-    for _ in range(passes):
-        w = np.repeat([ratio, 1.0], 3)
-        sigma = float(np.sqrt(np.mean(P.residual(v)[used, 3:] ** 2)))
-        v, fit = lm_map(P, w, v, prior, sigma, used, final=False)
-        flagged = ~flag_outliers(fit.residuals, used.astype(float), 1.0)[0] if robust else used
-        new = _noise_ratio(fit.residuals / w, flagged)
-        if abs(new / ratio - 1) < _WEIGHT_RTOL and np.array_equal(flagged, used):
-            break
-        ratio, used = new, flagged
-    steps, converged = fit.iterations, fit.converged
-    v, fit = lm_map(P, w, v, prior, sigma, used, iterations=0)  # the covariance at the last fit's weights
-    fit = replace(fit, iterations=steps, converged=converged)
-    res = P.residual(v)
-    sig_pos = float(np.sqrt(np.mean(res[used, 3:] ** 2)))
+    v, fit, used, ratio = reweighted_fit(P, prior, v, ratio, used, passes, robust)
+    sig_pos = float(np.sqrt(np.mean(P.residual(v)[used, 3:] ** 2)))
     se = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
     screws, _, fr, (ext, jm) = P.unpack(v)
     if not joints:  # register keeps the robot bit for bit (the etas' zero rebuilds it only to round-off)

@@ -193,6 +193,96 @@ def _folds(m: int, k: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).permutation(m) % k
 
 
+def shape_sizes(shaped, uv: np.ndarray, meas: np.ndarray, anchors) -> tuple[dict, dict]:
+    """The shaped fit's terms and their sizes.
+
+    Parameters
+    ----------
+    shaped : Identification, the fit with eqs. S5, S6 (and S7's camera warp on a camera session)
+    uv : (m, 2) array, the captures' points on the sheet, mm
+    meas : (m,) bool array, the captures a camera measured
+    anchors : (k, 2) array or None, the markers' centres (eq. S7), mm
+
+    Returns
+    -------
+    values : dict key -> (value, standard error), the shape's terms (SHAPE_KEYS)
+    sizes : dict, 'curl_mm' (:func:`curl_range`), 'shear_mm_per_m', and on a camera session
+        'camera_warp_mm' (eq. S7's field's RMS over the measured spots, mm)
+    """
+    from lasercal.solver.identify.spot import camera_warp_rows
+
+    pose = shaped.model.sheet
+    sd = shaped.model.sheet_std or {}
+    values = {k: (getattr(pose, k), sd.get(k, float("nan"))) for k in SHAPE_KEYS}
+    sizes = {"curl_mm": curl_range(pose, uv), "shear_mm_per_m": 1000 * pose.shear}
+    warp = shaped.extra.get("camera_warp")
+    if warp is not None:  # eq. S7's field's RMS over the measured spots, mm
+        field_mm = camera_warp_rows(uv, meas, anchors) @ warp
+        sizes["camera_warp_mm"] = float(np.sqrt(np.mean(np.sum(field_mm[meas] ** 2, axis=1))))
+    return values, sizes
+
+
+def shape_holdout(session: Session, used: np.ndarray, c: np.ndarray, folds: int, seed: int, robust, anchors):
+    """The held-out check (eq. H2): the flat and the shaped model fitted on K - 1 folds, each predicting the
+    last (a fitted camera warp, eq. S7, added: the same camera measured the held-out spots).
+
+    Parameters
+    ----------
+    session : Session; used : (m,) bool array, the captures both full fits use
+    c : (m,) array, each capture's noise scale (eq. K1's c_i)
+    folds : int, K >= 2; seed : int; robust : bool; anchors : (k, 2) array or None (eq. S7)
+
+    Returns
+    -------
+    dict, 'folds', 'flat_mm' and 'shaped_mm' (held-out RMS per axis, a camera session's over its measured
+    captures), 'gain_percent' (100 (1 - RSS1_ho / RSS0_ho), each residual divided by its c_i)
+    """
+    from lasercal.solver.identify.spot import camera_warp_rows, identify_lm, plane_residuals
+
+    m, meas = session.m, session.measured
+    fold = _folds(m, folds, seed)
+    ho = {False: np.full((m, 2), np.nan), True: np.full((m, 2), np.nan)}
+    for i in range(folds):
+        test = fold == i
+        train = session.subset(~test)
+        sub = session.subset(test)
+        for shp in (False, True):
+            try:
+                f = identify_lm(train, robust=robust, shape=shp)
+            except IdentificationError:
+                continue
+            warp = f.extra.get("camera_warp")  # the same camera measured the held-out spots (eq. S7)
+            W = camera_warp_rows(sub.target[:, :2], sub.measured, anchors) @ warp if warp is not None else 0.0
+            ho[shp][test] = plane_residuals(f.model, sub.q, sub) + W
+    ok = used & np.all(np.isfinite(ho[False]), axis=1) & np.all(np.isfinite(ho[True]), axis=1)
+    w0, w1 = ho[False][ok] / c[ok, None], ho[True][ok] / c[ok, None]
+    kind = ok & (meas if meas.any() else True)
+    return {
+        "folds": folds,
+        "flat_mm": float(np.sqrt(np.mean(ho[False][kind] ** 2))),
+        "shaped_mm": float(np.sqrt(np.mean(ho[True][kind] ** 2))),
+        "gain_percent": float(100 * (1 - np.sum(w1**2) / np.sum(w0**2))),
+    }
+
+
+def shape_verdict(p: float, alpha: float, holdout: dict) -> tuple[bool, str]:
+    """Whether the terms are kept (p < alpha and, with folds, a positive held-out gain), and why."""
+    significant = p < alpha
+    better = holdout.get("gain_percent", 1.0) > 0
+    if not significant:
+        reason = f"not significant (p = {p:.3g} >= {alpha:g})"
+    elif not better:
+        worse = f"{holdout['gain_percent']:+.1f} %"
+        reason = f"significant (p = {p:.3g}) but predicts held-out captures worse ({worse})"
+    else:
+        reason = f"significant (p = {p:.3g})" + (
+            f" and predicts held-out captures better ({holdout['gain_percent']:+.1f} %)"
+            if holdout
+            else "; no folds: the F test decided alone"
+        )
+    return significant and better, reason
+
+
 def decide_sheet_shape(
     session: Session, flat, folds: int = 5, seed: int = 0, alpha: float = ALPHA, robust: bool = True
 ) -> SheetShape | None:
@@ -211,7 +301,7 @@ def decide_sheet_shape(
     -------
     SheetShape or None (not a sheet session)
     """
-    from lasercal.solver.identify.spot import camera_warp_rows, identify_lm, marker_centres, plane_residuals
+    from lasercal.solver.identify.spot import identify_lm, marker_centres
 
     if session.frame != "sheet" or session.measurement != "laser" or flat.method != "lm":
         return None
@@ -219,8 +309,7 @@ def decide_sheet_shape(
     c = np.asarray(flat.extra.get("scale", np.ones(m)), dtype=float)
     meas = session.measured
     used_flat = flat.weights > 0
-    pose0 = flat.model.sheet
-    reg = regions(session, flat.residuals, used_flat & (meas if meas.any() else True), pose0)
+    reg = regions(session, flat.residuals, used_flat & (meas if meas.any() else True), flat.model.sheet)
     uv = np.asarray(session.target[:, :2], dtype=float)
     anchors = marker_centres(session)
     extent = tuple(np.ptp(uv, axis=0).tolist())
@@ -233,14 +322,7 @@ def decide_sheet_shape(
     rss0, rss1 = float(np.sum(r0**2)), float(np.sum(r1**2))
     q = shaped.identifiability.rank - flat.identifiability.rank
     dof = 2 * int(used.sum()) - shaped.identifiability.rank
-    pose = shaped.model.sheet
-    sd = shaped.model.sheet_std or {}
-    values = {k: (getattr(pose, k), sd.get(k, float("nan"))) for k in SHAPE_KEYS}
-    sizes = {"curl_mm": curl_range(pose, uv), "shear_mm_per_m": 1000 * pose.shear}
-    warp = shaped.extra.get("camera_warp")
-    if warp is not None:  # eq. S7's field's RMS over the measured spots, mm
-        field_mm = camera_warp_rows(uv, meas, anchors) @ warp
-        sizes["camera_warp_mm"] = float(np.sqrt(np.mean(np.sum(field_mm[meas] ** 2, axis=1))))
+    values, sizes = shape_sizes(shaped, uv, meas, anchors)
     if q <= 0 or dof <= 0:
         return SheetShape(
             True,
@@ -251,51 +333,10 @@ def decide_sheet_shape(
             extent_mm=extent,
             **sizes,
         )
-    F = ((rss0 - rss1) / q) / (rss1 / dof)
+    F = ((rss0 - rss1) / q) / (rss1 / dof)  # eq. H1
     p = float(stats.f.sf(F, q, dof))
-    holdout = {}
-    if folds >= 2:
-        fold = _folds(m, folds, seed)
-        ho = {False: np.full((m, 2), np.nan), True: np.full((m, 2), np.nan)}
-        for i in range(folds):
-            test = fold == i
-            train = session.subset(~test)
-            sub = session.subset(test)
-            for shp in (False, True):
-                try:
-                    f = identify_lm(train, robust=robust, shape=shp)
-                except IdentificationError:
-                    continue
-                warp = f.extra.get("camera_warp")  # the same camera measured the held-out spots (eq. S7)
-                W = (
-                    camera_warp_rows(sub.target[:, :2], sub.measured, anchors) @ warp
-                    if warp is not None
-                    else 0.0
-                )
-                ho[shp][test] = plane_residuals(f.model, sub.q, sub) + W
-        ok = used & np.all(np.isfinite(ho[False]), axis=1) & np.all(np.isfinite(ho[True]), axis=1)
-        w0, w1 = ho[False][ok] / c[ok, None], ho[True][ok] / c[ok, None]
-        kind = ok & (meas if meas.any() else True)
-        holdout = {
-            "folds": folds,
-            "flat_mm": float(np.sqrt(np.mean(ho[False][kind] ** 2))),
-            "shaped_mm": float(np.sqrt(np.mean(ho[True][kind] ** 2))),
-            "gain_percent": float(100 * (1 - np.sum(w1**2) / np.sum(w0**2))),
-        }
-    significant = p < alpha
-    better = holdout.get("gain_percent", 1.0) > 0
-    kept = significant and better
-    if not significant:
-        reason = f"not significant (p = {p:.3g} >= {alpha:g})"
-    elif not better:
-        worse = f"{holdout['gain_percent']:+.1f} %"
-        reason = f"significant (p = {p:.3g}) but predicts held-out captures worse ({worse})"
-    else:
-        reason = f"significant (p = {p:.3g})" + (
-            f" and predicts held-out captures better ({holdout['gain_percent']:+.1f} %)"
-            if holdout
-            else "; no folds: the F test decided alone"
-        )
+    holdout = shape_holdout(session, used, c, folds, seed, robust, anchors) if folds >= 2 else {}
+    kept, reason = shape_verdict(p, alpha, holdout)
     return SheetShape(
         True,
         kept,

@@ -36,6 +36,7 @@ from lasercal.solver.identify.laser_parameters import (
     SHAPE_KINDS,
     SHEET_KINDS,
     WARP_KINDS,
+    CountedParameters,
     counted_parameters,
 )
 from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_outliers, identifiability
@@ -388,6 +389,309 @@ def fit_kinds(session: Session, residual, jacobian, v0, names, prior_at, robust,
     return fit, scale, noise
 
 
+@dataclass(frozen=True, eq=False)
+class SpotProblem:
+    """Method ``lm``'s problem: the parameters u = [x, pose, warp, theta] (the laser robot's p, the sheet's
+    pose nsh (eq. S1; with the shape, eqs. S5, S6), the camera warp's nw (eq. S7), the extension's), of which
+    ``counted.free`` are fitted and the rest held at ``u0``, and the in-plane residual of free values v.
+
+    Attributes
+    ----------
+    session : Session
+    P : LaserParams, at the start model
+    extension : Extension or None
+    shape : bool, the sheet's shear and height field fitted (a sheet session)
+    nsh, nw : int, the sheet's and the camera warp's parameter counts (0: none)
+    W : (m, 2, nw) array, eq. S7's rows (None without the warp)
+    pose0 : SheetPose, the sheet's start (None: a base-frame session)
+    base0 : (m, 3) array, the reference points in the base frame with the sheet at ``pose0``, mm
+    u0 : (len(counted.names),) array, the start (mm, rad-like)
+    counted : CountedParameters, the names, the held and the free parameters
+    kinds : list of str, the prior's kinds of the parameters after the laser robot's
+    """
+
+    session: Session
+    P: LaserParams
+    extension: Extension | None
+    shape: bool
+    nsh: int
+    nw: int
+    W: np.ndarray | None
+    pose0: SheetPose | None
+    base0: np.ndarray
+    u0: np.ndarray
+    counted: CountedParameters
+    kinds: list
+
+    @property
+    def p(self) -> int:
+        return self.P.size
+
+    @property
+    def pe(self) -> int:
+        """Where the extension's parameters start."""
+        return self.p + self.nsh + self.nw
+
+    @property
+    def sheet(self) -> bool:
+        return self.pose0 is not None
+
+    @property
+    def free(self) -> np.ndarray:
+        return self.counted.free
+
+    @property
+    def names(self) -> list:
+        """The free parameters' names."""
+        return [self.counted.names[i] for i in self.free]
+
+    def embed(self, v: np.ndarray) -> np.ndarray:
+        """All parameters u from the free ones v (the held at their start)."""
+        u = self.u0.copy()
+        u[self.free] = v
+        return u
+
+    def prior(self, tolerances: Tolerances | None) -> Prior | None:
+        """The prior of the free parameters (eq. P1 of :mod:`solver.identify.prior`; :func:`laser_prior`)."""
+        p, names = self.p, list(self.counted.names)
+        return laser_prior(self.P, tolerances, self.kinds, self.u0[p:], names[p:], self.free)
+
+    def model_inputs(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """True configurations, in-plane base-frame targets and the plane's height at each (eqs. S1, S3)
+        under parameters u = [x, pose, theta]."""
+        s, p, ext = self.session, self.p, self.extension
+        placed = (
+            sheet_to_base(u[p : p + self.nsh], s.target[:, :2], s.target[:, 2])[0] if self.sheet else s.target
+        )
+        qt = ext.with_params(u[self.pe :]).true_q(s.q, s.t, s.tau) if ext else s.q
+        return qt, placed[:, :2], placed[:, 2]
+
+    def offset(self, u: np.ndarray) -> np.ndarray | float:
+        """A reference point's offset (m, 2) mm, in the residual's frame (a sheet's: its own units)."""
+        ext = self.extension
+        return (
+            ext.with_params(u[self.pe :]).target_offset(self.session.point, ~self.session.measured)
+            if ext
+            else 0.0
+        )
+
+    def residual(self, v: np.ndarray) -> np.ndarray:
+        """The in-plane residual (m, 2) mm of free parameters v: spot minus point (eq. S4 for a sheet, its
+        own units), less the reference point's offset, plus the camera warp (eq. S7)."""
+        u, p, nsh = self.embed(v), self.p, self.nsh
+        qt, tg, z = self.model_inputs(u)
+        spot, _ = self.P.spots(u[:p], qt, z)
+        r = spot[:, :2] - tg
+        warp = self.W @ u[p + nsh : self.pe] if self.nw else 0.0  # eq. S7: the measured spot's offset
+        return (sheet_residual(u[p : p + nsh], r)[0] if self.sheet else r) - self.offset(u) + warp
+
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """d :meth:`residual` / dv, (m, 2, len(v))."""
+        s, P, ext, p, nsh = self.session, self.P, self.extension, self.p, self.nsh
+        u = self.embed(v)
+        qt, tg, z = self.model_inputs(u)
+        spot, _, J = P.spot_jacobian(u[:p], qt, z)
+        cols = [J]
+        if self.sheet:  # the target moves in the plane; the plane's height moves the spot along the beam
+            Js = sheet_to_base(u[p : p + nsh], s.target[:, :2], s.target[:, 2])[1]
+            d = P.beam(u[:p], qt).direction
+            cols.append(-Js[:, :2] + (d[:, :2] / d[:, 2:])[:, :, None] * Js[:, 2:3])
+        if ext and ext.acts_on_joints:
+            idx, G = ext.regressors(s.q, s.t, s.tau)
+            _, Jq = spot_joint_jacobian(P.to_model(u[:p]), qt, z)
+            cols.append(Jq[:, :, idx] * G[:, None, :])
+        J = np.concatenate(cols, axis=2)
+        if self.sheet:  # eq. S4: d(M r)/du = M dr/du + dM/du r
+            _, M, dM = sheet_residual(u[p : p + nsh], spot[:, :2] - tg)
+            J = np.einsum("ij,mjk->mik", M, J)
+            J[:, :, p : p + nsh] += dM
+        if self.nw:
+            J = np.concatenate([J[:, :, : p + nsh], self.W, J[:, :, p + nsh :]], axis=2)
+        if ext and ext.effect == "reference_point_offset":
+            Je = np.zeros((len(s.q), 2, 2))
+            Je[(s.point == ext.point) & ~s.measured] = -np.eye(2)
+            J = np.concatenate([J, Je], axis=2)
+        return J[:, :, self.free]
+
+
+def spot_problem(
+    session: Session, start: RobotModel, extension: Extension | None, shape: bool | None
+) -> SpotProblem:
+    """Method ``lm``'s parameters and model for ``session`` from the ``start`` model (:class:`SpotProblem`;
+    ``shape`` as :func:`identify_lm`'s).
+
+    Raises
+    ------
+    IdentificationError : too few captures for the parameters
+    """
+    P = LaserParams(start)
+    target, m, p = session.target, len(session.q), P.size
+    k = extension.size if extension else 0
+    if extension:
+        require(extension, session.t, session.tau)
+    sheet = session.frame == "sheet"
+    if shape is None:
+        shape = bool(isinstance(session.meta, dict) and session.meta.get("_sheet_shape_modelled", False))
+    shape = shape and sheet
+    nsh = (NFULL if shape else NSHEET) if sheet else 0
+    nw = NWARP if shape and session.measured.any() else 0  # the camera's view of a raised paper (eq. S7)
+    W = camera_warp_rows(target[:, :2], session.measured, marker_centres(session)) if nw else None
+    if 2 * m <= 8:
+        raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
+    pose0 = (session.sheet or sheet_start(session, start)) if sheet else None
+    u0 = np.r_[P.x0(), (pose0.full_vector if shape else pose0.vector) if sheet else [], np.zeros(nw + k)]
+    counted = counted_parameters(P, sheet, extension.names if extension else (), shape, nw > 0)
+    kinds = (SHEET_KINDS + (SHAPE_KINDS if shape else [])) if sheet else []
+    kinds += WARP_KINDS if nw else []
+    kinds += extension.kinds if extension else []
+    base0 = placed_targets(session, pose0) if sheet else target
+    return SpotProblem(session, P, extension, shape, nsh, nw, W, pose0, base0, u0, counted, kinds)
+
+
+def beam_distance_stage(
+    prob: SpotProblem, tolerances: Tolerances | None, w: np.ndarray
+) -> tuple[np.ndarray, optimize.OptimizeResult]:
+    """Stage 1 of ``lm`` (geometry only, the sheet at its start): Levenberg-Marquardt on the beam-to-point
+    distance, which brings a far-off start (steep beams) into the basin of stage 2, in the identifiable
+    subspace of the geometry at the start; with a prior, its rows (at the nominal noise) join in.
+
+    Parameters
+    ----------
+    prob : SpotProblem
+    tolerances : Tolerances or None, the session's (the prior's)
+    w : (m,) array, 1 for the captures used, 0 for the gross outliers
+
+    Returns
+    -------
+    u1 : (len(prob.u0),) array, all parameters with the geometry at stage 1's solution
+    first : OptimizeResult, the stage's fit (``fun``: the (3m,) weighted distances, mm, then the prior's rows)
+    """
+    P, s, free, m = prob.P, prob.session, prob.free, len(w)
+    geo = free[free < prob.p]
+    x0 = P.x0()
+    _, _, J0 = P.spot_jacobian(x0, s.q, s.target[:, 2])
+    geo_prior = laser_prior(P, tolerances, free=geo)
+    pr = [] if geo_prior is None else [geo_prior.rows(x0[geo], geo_prior.noise)[1]]
+    _, B1 = identifiability(np.vstack([J0[:, :, geo].reshape(2 * m, len(geo))] + pr), P.names)
+    sw = np.sqrt(w)[:, None, None]
+
+    def line(z):
+        x = x0.copy()
+        x[geo] += B1 @ z
+        r, J = P.line_jacobian(x, s.q, prob.base0)
+        r, J = (r[:, :, None] * sw)[..., 0].ravel(), (J[:, :, geo] * sw).reshape(3 * m, len(geo))
+        if geo_prior is not None:
+            rp, Jp = geo_prior.rows(x[geo], geo_prior.noise)
+            r, J = np.r_[r, rp], np.vstack([J, Jp])
+        return r, J @ B1
+
+    first = optimize.least_squares(
+        lambda z: line(z)[0],
+        np.zeros(B1.shape[1]),
+        lambda z: line(z)[1],
+        method="lm",
+        xtol=1e-10,
+        ftol=1e-10,
+        max_nfev=100,
+    )
+    u1 = prob.u0.copy()
+    u1[geo] += B1 @ first.x
+    return u1, first
+
+
+def in_plane_stage(
+    prob: SpotProblem, u1: np.ndarray, tolerances: Tolerances | None, prior: Prior | None, robust, w, suspects
+) -> tuple:
+    """Stage 2 of ``lm``: the in-plane residuals, geometry, sheet and extension together, in the identifiable
+    subspace at stage 1's solution (MAP with the session's prior, eqs. P2-P4 of :mod:`solver.identify.prior`);
+    a camera session's each capture with its own noise (eq. K1, :func:`fit_kinds`).
+
+    Parameters
+    ----------
+    prob : SpotProblem
+    u1 : (len(prob.u0),) array, all parameters at stage 1's solution (:func:`beam_distance_stage`)
+    tolerances : Tolerances or None, the session's (a camera session's prior at each kind's noise)
+    prior : Prior or None, the free parameters' prior (:meth:`SpotProblem.prior`)
+    robust, w, suspects : as :func:`solver.identify.lsq.fit_subspace`'s (w: (m,) start weights)
+
+    Returns
+    -------
+    fit : SubspaceFit (:func:`solver.identify.lsq.fit_subspace`)
+    scale : (m,) array, each capture's residual scale c_i (eq. K1; ones without a camera)
+    noise : dict, :func:`fit_kinds`'s (None without a camera)
+    """
+    s, v1, names = prob.session, u1[prob.free], prob.names
+    if not s.measured.any():
+        fit = fit_subspace(prob.residual, prob.jacobian, v1, names, robust, w, suspects=suspects, prior=prior)
+        return fit, np.ones(len(w)), None
+
+    def prior_at(ref):
+        return prob.prior(tolerances and tolerances.with_noise("laser", ref))
+
+    return fit_kinds(s, prob.residual, prob.jacobian, v1, names, prior_at, robust, w, suspects)
+
+
+def lm_identification(
+    prob: SpotProblem, nominal: RobotModel, start: RobotModel, fit, scale, noise, t0, **over
+):
+    """The :class:`Identification` of method ``lm`` from stage 2's fit: the aperture's gauge fixed
+    (:func:`_aperture_gauge`), the model with its sheet pose and extension, the standard errors.
+
+    Parameters
+    ----------
+    prob : SpotProblem
+    nominal, start : RobotModel, the nominal and the start model
+    fit, scale, noise : :func:`in_plane_stage`'s
+    t0 : float, ``time.perf_counter()`` when the identification started
+    over : fields that differ from the fit's (the iterations and history of both stages)
+    """
+    s, P, free, p, nsh, pe = prob.session, prob.P, prob.free, prob.p, prob.nsh, prob.pe
+    cov_all = np.zeros((len(prob.u0), len(prob.u0)))
+    cov_all[np.ix_(free, free)] = fit.cov
+    u, cov_all = _aperture_gauge(P, prob.embed(fit.v), cov_all, s.aperture_z)
+    v, cov = u[free], cov_all[np.ix_(free, free)]
+    se_all = np.sqrt(np.clip(np.diag(cov_all), 0, None))
+    meta = {
+        "method": "lm",
+        "converged": fit.converged,
+        "iterations": over["iterations"],
+        "rank": fit.identifiability.rank,
+        "n_params": len(free),
+    }
+    ext = prob.extension
+    fitted = ext.with_params(u[pe:], se_all[pe:]) if ext else None
+    extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
+    model = P.to_model(u[:p], identification=meta, extensions=extensions)
+    if prob.sheet:
+        std = se_all[p : p + nsh] * ([1, 1, 180 / np.pi] + [1] * (nsh - 3))
+        pose = SheetPose.from_vector(u[p : p + nsh])
+        keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS + (SHAPE_KEYS if prob.shape else ())
+        model = model.replace(sheet=pose, sheet_std=dict(zip(keys, std)))
+        nominal = nominal.replace(sheet=sheet_start(s, start))  # the nominal's best pose ("before")
+    return Identification.from_fit(
+        nominal,
+        model,
+        fit,
+        prob.names,
+        se_all[free],
+        t0,
+        {
+            "cov": cov,
+            "span": fit.span,
+            "constraint_span": fit.constraint_span,
+            "constraint_residuals": fit.constraint_residuals,
+            "held": prob.counted.held,
+            "counted": prob.counted.describe(),
+            **({} if noise is None else {"scale": scale, "noise": noise}),
+            **({"camera_warp": u[p + nsh : pe], "camera_warp_std": se_all[p + nsh : pe]} if prob.nw else {}),
+        },
+        fitted,
+        estimate=v,
+        residuals=fit.residuals * scale[:, None],
+        **over,
+    )
+
+
 def identify_lm(
     session: Session,
     nominal: RobotModel | None = None,
@@ -423,201 +727,29 @@ def identify_lm(
     t0 = time.perf_counter()
     nominal = nominal or session.robot
     start = _start(nominal, session)
-    P = LaserParams(start)
-    q, target, t, tau = session.q, session.target, session.t, session.tau
-    m, p = len(q), P.size
-    k = extension.size if extension else 0
-    if extension:
-        require(extension, t, tau)
-    sheet = session.frame == "sheet"
-    if shape is None:
-        shape = bool(isinstance(session.meta, dict) and session.meta.get("_sheet_shape_modelled", False))
-    shape = shape and sheet
-    nsh = (NFULL if shape else NSHEET) if sheet else 0
-    nw = NWARP if shape and session.measured.any() else 0  # the camera's view of a raised paper (eq. S7)
-    pe = p + nsh + nw  # where the extension's parameters start
-    W = camera_warp_rows(target[:, :2], session.measured, marker_centres(session)) if nw else None
-    if 2 * m <= 8:
-        raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
-    pose0 = (session.sheet or sheet_start(session, start)) if sheet else None
-    u0 = np.r_[P.x0(), (pose0.full_vector if shape else pose0.vector) if sheet else [], np.zeros(nw + k)]
-    counted = counted_parameters(P, sheet, extension.names if extension else (), shape, nw > 0)
-    held, free, names_all = counted.held, counted.free, list(counted.names)
-    sheet_kinds = (SHEET_KINDS + (SHAPE_KINDS if shape else [])) if sheet else []
-    sheet_kinds += WARP_KINDS if nw else []
-    kinds_all = P.kinds + sheet_kinds + (extension.kinds if extension else [])
-    names = [names_all[i] for i in free]
+    prob = spot_problem(session, start, extension, shape)
     tol = session.tolerances
-    if tol is not None and sheet and session.sheet is None:  # no stated placement: no prior on the pose
+    if tol is not None and prob.sheet and session.sheet is None:  # no stated placement: no prior on the pose
         tol = replace(tol, sheet_mm=np.inf, sheet_rad=np.inf)
-
-    def embed(v):
-        u = u0.copy()
-        u[free] = v
-        return u
-
-    def model_inputs(u):
-        """True configurations, in-plane base-frame targets and the plane's height at each (eqs. S1, S3)
-        under parameters u = [x, pose, theta]."""
-        placed = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[0] if sheet else target
-        qt = extension.with_params(u[pe:]).true_q(q, t, tau) if extension else q
-        return qt, placed[:, :2], placed[:, 2]
-
-    aimed = ~session.measured
-
-    def offset(u):
-        """A reference point's offset (m, 2) mm, in the residual's frame (a sheet's: its own units)."""
-        return extension.with_params(u[pe:]).target_offset(session.point, aimed) if extension else 0.0
-
-    def residual(v):
-        u = embed(v)
-        qt, tg, z = model_inputs(u)
-        spot, _ = P.spots(u[:p], qt, z)
-        r = spot[:, :2] - tg
-        warp = W @ u[p + nsh : pe] if nw else 0.0  # eq. S7: the measured spot's offset, the residual's sign
-        return (sheet_residual(u[p : p + nsh], r)[0] if sheet else r) - offset(u) + warp
-
-    def jacobian(v):
-        u = embed(v)
-        qt, tg, z = model_inputs(u)
-        spot, _, J = P.spot_jacobian(u[:p], qt, z)
-        cols = [J]
-        if sheet:  # the target moves in the plane; the plane's height moves the spot along the beam
-            Js = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[1]
-            d = P.beam(u[:p], qt).direction
-            cols.append(-Js[:, :2] + (d[:, :2] / d[:, 2:])[:, :, None] * Js[:, 2:3])
-        if extension and extension.acts_on_joints:
-            idx, G = extension.regressors(q, t, tau)
-            _, Jq = spot_joint_jacobian(P.to_model(u[:p]), qt, z)
-            cols.append(Jq[:, :, idx] * G[:, None, :])
-        J = np.concatenate(cols, axis=2)
-        if sheet:  # eq. S4: d(M r)/du = M dr/du + dM/du r
-            _, M, dM = sheet_residual(u[p : p + nsh], spot[:, :2] - tg)
-            J = np.einsum("ij,mjk->mik", M, J)
-            J[:, :, p : p + nsh] += dM
-        if nw:
-            J = np.concatenate([J[:, :, : p + nsh], W, J[:, :, p + nsh :]], axis=2)
-        if extension and extension.effect == "reference_point_offset":
-            Je = np.zeros((m, 2, 2))
-            Je[(session.point == extension.point) & aimed] = -np.eye(2)
-            J = np.concatenate([J, Je], axis=2)
-        return J[:, :, free]
-
-    history, iterations = [], 0
+    m = len(session.q)
     w = np.ones(m)
-    base0 = placed_targets(session, pose0) if sheet else target
     # gross outliers (a wrong point) already stand out against the nominal model: keep them out of the start
     if robust:
-        flags, _ = flag_outliers(spot_residuals(start, q, base0), w)
+        flags, _ = flag_outliers(spot_residuals(start, session.q, prob.base0), w)
         w = np.where(flags, 0.0, 1.0)
-    prior = laser_prior(P, tol, kinds_all[p:], u0[p:], names_all[p:], free)
-
-    # Stage 1 (geometry only, the sheet at its start): the beam-to-point distance brings a far-off start
-    # (steep beams) into the basin of stage 2; with a prior, its rows (at the nominal noise) join in.
-    geo = free[free < p]
-    x0 = P.x0()
-    _, _, J0 = P.spot_jacobian(x0, q, target[:, 2])
-    geo_prior = laser_prior(P, tol, free=geo)
-    pr = [] if geo_prior is None else [geo_prior.rows(x0[geo], geo_prior.noise)[1]]
-    _, B1 = identifiability(np.vstack([J0[:, :, geo].reshape(2 * m, len(geo))] + pr), P.names)
-    sw = np.sqrt(w)[:, None, None]
-
-    def line(z):
-        x = x0.copy()
-        x[geo] += B1 @ z
-        r, J = P.line_jacobian(x, q, base0)
-        r, J = (r[:, :, None] * sw)[..., 0].ravel(), (J[:, :, geo] * sw).reshape(3 * m, len(geo))
-        if geo_prior is not None:
-            rp, Jp = geo_prior.rows(x[geo], geo_prior.noise)
-            r, J = np.r_[r, rp], np.vstack([J, Jp])
-        return r, J @ B1
-
-    first = optimize.least_squares(
-        lambda z: line(z)[0],
-        np.zeros(B1.shape[1]),
-        lambda z: line(z)[1],
-        method="lm",
-        xtol=1e-10,
-        ftol=1e-10,
-        max_nfev=100,
-    )
-    iterations += first.njev
-    history.append(
-        {
-            "pass": 0,
-            "method": "lm (beam distance)",
-            "rms_mm": float(np.sqrt(np.mean(first.fun[: 3 * m] ** 2) * 3)),
-            "iterations": int(first.njev),
-            "status": int(first.status),
-        }
-    )
-
-    # Stage 2: in-plane residuals, geometry, sheet and extension together, in the identifiable subspace at
-    # the stage-1 solution (MAP with the session's prior, eqs. P2-P4 of solver.identify.prior).
-    v1 = u0.copy()
-    v1[geo] += B1 @ first.x
-    scale, noise = np.ones(m), None
-    if session.measured.any():  # a camera session: each capture with its own noise (eq. K1)
-        fit, scale, noise = fit_kinds(
-            session,
-            residual,
-            jacobian,
-            v1[free],
-            names,
-            lambda ref: laser_prior(
-                P, tol and tol.with_noise("laser", ref), kinds_all[p:], u0[p:], names_all[p:], free
-            ),
-            robust,
-            w,
-            suspects,
-        )
-    else:
-        fit = fit_subspace(residual, jacobian, v1[free], names, robust, w, suspects=suspects, prior=prior)
-    iterations += fit.iterations
-    history += fit.history
-    cov_all = np.zeros((len(u0), len(u0)))
-    cov_all[np.ix_(free, free)] = fit.cov
-    u, cov_all = _aperture_gauge(P, embed(fit.v), cov_all, session.aperture_z)
-    v, cov = u[free], cov_all[np.ix_(free, free)]
-    se_all = np.sqrt(np.clip(np.diag(cov_all), 0, None))
-    meta = {
-        "method": "lm",
-        "converged": fit.converged,
-        "iterations": iterations,
-        "rank": fit.identifiability.rank,
-        "n_params": len(free),
+    prior = prob.prior(tol)
+    u1, first = beam_distance_stage(prob, tol, w)
+    stage1 = {
+        "pass": 0,
+        "method": "lm (beam distance)",
+        "rms_mm": float(np.sqrt(np.mean(first.fun[: 3 * m] ** 2) * 3)),
+        "iterations": int(first.njev),
+        "status": int(first.status),
     }
-    fitted = extension.with_params(u[pe:], se_all[pe:]) if extension else None
-    extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
-    model = P.to_model(u[:p], identification=meta, extensions=extensions)
-    if sheet:
-        std = se_all[p : p + nsh] * ([1, 1, 180 / np.pi] + [1] * (nsh - 3))
-        pose = SheetPose.from_vector(u[p : p + nsh])
-        keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS + (SHAPE_KEYS if shape else ())
-        model = model.replace(sheet=pose, sheet_std=dict(zip(keys, std)))
-        nominal = nominal.replace(sheet=sheet_start(session, start))  # the nominal's best pose ("before")
-    return Identification.from_fit(
-        nominal,
-        model,
-        fit,
-        names,
-        se_all[free],
-        t0,
-        {
-            "cov": cov,
-            "span": fit.span,
-            "constraint_span": fit.constraint_span,
-            "constraint_residuals": fit.constraint_residuals,
-            "held": held,
-            "counted": counted.describe(),
-            **({} if noise is None else {"scale": scale, "noise": noise}),
-            **({"camera_warp": u[p + nsh : pe], "camera_warp_std": se_all[p + nsh : pe]} if nw else {}),
-        },
-        fitted,
-        iterations=iterations,
-        history=tuple(history),
-        estimate=v,
-        residuals=fit.residuals * scale[:, None],
+    fit, scale, noise = in_plane_stage(prob, u1, tol, prior, robust, w, suspects)
+    history = (stage1, *fit.history)
+    return lm_identification(
+        prob, nominal, start, fit, scale, noise, t0, iterations=first.njev + fit.iterations, history=history
     )
 
 
