@@ -283,42 +283,69 @@ def simulate(
     FormatError
         A laser session without a layout, an effect that does not fit the robot or layout, unreadable files.
     """
+    from lasercal.solver.formats.robots import resolve_robot_path
+
+    path = Path(truth) if str(truth).lower().endswith(".urdf") else resolve_robot_path(truth)
+    hiding = (effect, effect_size, effect_joints, effect_point)
+    if measurement == "position":
+        return _simulate_positions(
+            path, folder, robot, configs, targets, noise, seed, hiding, base_link, tip_link
+        )
+    camera = (measured, spot_sigma, aim_radius)
+    return _simulate_laser(
+        path,
+        folder,
+        layout,
+        robot,
+        per_point,
+        aim_noise,
+        seed,
+        sheet_pose,
+        hiding,
+        camera,
+        base_link,
+        tip_link,
+    )
+
+
+def _simulate_laser(
+    path: Path,
+    folder,
+    layout,
+    robot,
+    per_point,
+    aim_noise,
+    seed,
+    sheet_pose,
+    hiding,
+    camera,
+    base_link,
+    tip_link,
+) -> Simulation:
+    """A laser session (:func:`simulate`); ``hiding``: :func:`hidden_effect`'s (effect, size, joints, point),
+    ``camera``: (measured share, spot sigma mm, aim radius mm or None)."""
     import numpy as np
 
     from lasercal.collector.hardware import world_joints
     from lasercal.solver.analysis.simulate import simulate_captures
     from lasercal.solver.errors import FormatError
     from lasercal.solver.formats.data import truth_references
-    from lasercal.solver.formats.robots import load_model, resolve_robot_path
+    from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout, session_meta, write_session
 
-    path = Path(truth) if str(truth).lower().endswith(".urdf") else resolve_robot_path(truth)
-    if measurement == "position":
-        n = load_model(path, base_link=base_link, tip_link=tip_link).n
-        hidden = hidden_effect(
-            effect, effect_size, effect_joints, effect_point, None, n, np.random.default_rng(seed + 1)
-        )
-        chain = (base_link, tip_link)
-        return _simulate_positions(path, folder, robot, configs, targets, noise, seed, hidden, *chain)
     if layout is None:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
+    measured, spot_sigma, aim_radius = camera
     model = load_model(path, base_link=base_link, tip_link=tip_link)
     # the session names its truth and nominal relative to itself (a temporary sibling resolves alike)
     truth_ref, nominal_ref = truth_references(path, folder, robot)
     name = layout.path if hasattr(layout, "points") else layout
     layout = layout if hasattr(layout, "points") else load_layout(layout)
     rng = np.random.default_rng(seed)
-    hidden = hidden_effect(effect, effect_size, effect_joints, effect_point, layout, model.n, rng, name)
+    hidden = hidden_effect(*hiding, layout, model.n, rng, name)
     sim = {"truth": truth_ref, "aim_noise_mm": aim_noise, "seed": seed}
-    aimed = layout
-    if sheet_pose is not None:  # the own frame of the nominal the session records
-        model, layout, aimed, sim["sheet"] = sheet_world(
-            model, load_model(nominal_ref, base=Path(folder)), layout, sheet_pose
-        )
-    elif layout.frame == "sheet":
-        aimed = layout.in_base()  # the sheet lies where its placement says
+    model, layout, aimed, true_pose = laid(model, layout, nominal_ref, folder, sheet_pose, sim)
     radius = (40.0 if measured > 0 else 0.0) if aim_radius is None else aim_radius
-    true_pose = (sheet_pose or layout.sheet) if layout.frame == "sheet" else None
     aims = camera_aims(layout, per_point, radius, seed) if radius > 0 else None
     offsets = turned(aims, true_pose)
     arm = world_joints(model.replace(extensions=hidden.model_entries() if hidden else {}))
@@ -327,27 +354,65 @@ def simulate(
         sim["effect"] = {"name": hidden.effect, **hidden.to_dict()}
     if measured > 0:
         sim |= {"measured": measured, "spot_sigma_mm": spot_sigma}
+    extra = laser_columns(c, layout, aims, true_pose, measured, spot_sigma, seed)
     meta = session_meta(nominal_ref, layout, model.aperture[2], simulated=sim)
-    extra = {} if aims is None else aim_columns(layout, aims)
-    if measured > 0:
-        extra = measured_columns(c, true_pose, measured, spot_sigma, seed) | extra
     write_session(folder, meta, c.point, c.t, c.q, tau=c.tau, extra=extra)
     if sheet_pose is not None:
         model.save(Path(folder) / sim["sheet"]["truth_in_own_frame"])
+    return Simulation(
+        Path(folder), model, len(c.q), hidden, laser_summary(c, layout, model, aim_noise, hidden)
+    )
+
+
+def laser_columns(c, layout: Layout, aims, pose: SheetPose | None, measured: float, sigma: float, seed: int):
+    """captures.csv's extra columns of a laser simulation: where each capture aimed (:func:`aim_columns`)
+    and, with ``measured`` > 0, the camera's (:func:`measured_columns`)."""
+    extra = {} if aims is None else aim_columns(layout, aims)
+    if measured > 0:
+        extra = measured_columns(c, pose, measured, sigma, seed) | extra
+    return extra
+
+
+def laid(model: RobotModel, layout: Layout, nominal_ref, folder, sheet_pose: SheetPose | None, sim: dict):
+    """Where a laser simulation's points truly lie: a sheet at ``sheet_pose`` under the truth in its own
+    frame (:func:`sheet_world`; ``sim`` gets its record), a sheet layout at its placement, or the layout's
+    base-frame points.
+
+    Returns
+    -------
+    (truth, the layout the session names, the layout aimed at (base frame), the sheet's true pose or None)
+    """
+    from lasercal.solver.formats.robots import load_model
+
+    aimed = layout
+    if sheet_pose is not None:  # the own frame of the nominal the session records
+        model, layout, aimed, sim["sheet"] = sheet_world(
+            model, load_model(nominal_ref, base=Path(folder)), layout, sheet_pose
+        )
+    elif layout.frame == "sheet":
+        aimed = layout.in_base()  # the sheet lies where its placement says
+    true_pose = (sheet_pose or layout.sheet) if layout.frame == "sheet" else None
+    return model, layout, aimed, true_pose
+
+
+def laser_summary(c, layout: Layout, model: RobotModel, aim_noise: float, hidden) -> str:
+    """What ``lasercal simulate`` prints of a laser session after ``wrote FOLDER:``."""
+    import numpy as np
+
     shown = ""
     if hidden is not None:
         shown = f", hidden {hidden.effect} {hidden.names} = {np.round(hidden.params, 9).tolist()}"
-    summary = (
+    return (
         f"{len(c.q)} captures at {', '.join(layout.calibration)} (truth {model.name}, aiming noise "
         f"{aim_noise} mm{shown})"
     )
-    return Simulation(Path(folder), model, len(c.q), hidden, summary)
 
 
 def _simulate_positions(
-    path: Path, folder, robot, configs: int, k: int, noise: float, seed: int, hidden, base_link, tip_link
+    path: Path, folder, robot, configs: int, k: int, noise: float, seed: int, hiding, base_link, tip_link
 ) -> Simulation:
-    """A position session: random in-limit poses, every target each pose (:func:`simulate`)."""
+    """A position session: random in-limit poses, every target each pose (:func:`simulate`); ``hiding``:
+    the effect to hide, :func:`hidden_effect`'s (effect, size, joints, point)."""
     import numpy as np
 
     from lasercal.solver.analysis.simulate import random_configs, simulate_positions
@@ -358,6 +423,8 @@ def _simulate_positions(
 
     chain = {k: v for k, v in (("base_link", base_link), ("tip_link", tip_link)) if v}
     truth = load_model(path, **chain)
+    effect, size, joints, point = hiding
+    hidden = hidden_effect(effect, size, joints, point, None, truth.n, np.random.default_rng(seed + 1))
     truth_ref, nominal = truth_references(path, folder, robot)  # relative to the session
     if not truth.targets:
         truth = truth.replace(targets=default_targets(truth, k))
