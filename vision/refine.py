@@ -207,31 +207,48 @@ def _centre_sigma(
     J, r = res.jac[used], res.fun[used]
     d, m = 1 / sd[used], np.maximum(light[used], 0)
     gain = (np.linalg.pinv(J.T @ J) @ J.T)[:2]  # d(u, v) / d(weighted data)
-    Q = np.linalg.qr(J)[0]
     px, py = xx[used], yy[used]
     grid = np.full(shape, -1)  # index of the fitted pixel at (y, x), -1 where none
     grid[py, px] = np.arange(n)
-    h, w = shape
-    D = sparse.diags(d)
+    D, DM = sparse.diags(d), sparse.diags(d) @ sparse.diags(m)
     shapes = [D @ D, D @ sparse.diags(m) @ D, sparse.diags((d * m) ** 2)]
-
-    def pairs(group):
-        ij = []
-        for dx, dy in group:
-            a = grid[max(0, -dy) : h - max(0, dy), max(0, -dx) : w - max(0, dx)]
-            b = grid[max(0, dy) : h - max(0, -dy), max(0, dx) : w - max(0, -dx)]
-            ok = (a >= 0) & (b >= 0)
-            ij.append((a[ok], b[ok]))
-        i, j = np.concatenate([q[0] for q in ij]), np.concatenate([q[1] for q in ij])
-        E = sparse.coo_matrix((np.ones(len(i)), (i, j)), (n, n)).tocsr()
-        return E + E.T
-
-    DM = D @ sparse.diags(m)
     for group in NOISE_LAGS:
-        E = pairs(group)
+        E = neighbour_pairs(grid, n, group)
         shapes += [DM @ E @ DM, D @ E @ D]
-    # The odd part under point reflection through the centre: a pixel's residual minus the bilinear
-    # sample of the residuals at its mirror image, where all four of that sample's pixels were fitted.
+    odd = odd_part(grid, px, py, u, v)
+    theta = noise_sizes(shapes, odd, np.linalg.qr(J)[0], odd @ r)
+    # Farther lags of the multiplicative noise (FAR_LAGS), from its correlation at 1 px as a Gaussian's:
+    # rho(d) = rho(1)**(d**2) (speckle grains and bloom are smooth blobs).
+    rho = float(np.clip(theta[3] / theta[2], 0.0, 0.9)) if theta[2] > 0 else 0.0
+    far = [(theta[2] * rho**d2, DM @ neighbour_pairs(grid, n, group) @ DM) for d2, group in FAR_LAGS.items()]
+    # eq. C1, per axis
+    var = np.array([sum(t * float(g @ (S @ g)) for t, S in [*zip(theta, shapes), *far]) for g in gain])
+    floor = np.array([sum(t * float(g @ (S @ g)) for t, S in zip(theta[:3], shapes[:3])) for g in gain])
+    # A noisy estimate can come out below what the pixels' own variance says: half that is the floor.
+    su, sv = np.sqrt(np.maximum(var, 0.5 * np.maximum(floor, 0)) + 1e-18)
+    return float(su), float(sv)
+
+
+def neighbour_pairs(grid: np.ndarray, n: int, group) -> sparse.csr_matrix:
+    """E_k (n, n): 1 for each pair of fitted pixels (both ways) a lag of ``group`` ((dx, dy) px) apart;
+    ``grid`` (h, w) the index of the fitted pixel at (y, x), -1 where none."""
+    h, w = grid.shape
+    ij = []
+    for dx, dy in group:
+        a = grid[max(0, -dy) : h - max(0, dy), max(0, -dx) : w - max(0, dx)]
+        b = grid[max(0, dy) : h - max(0, -dy), max(0, dx) : w - max(0, -dx)]
+        ok = (a >= 0) & (b >= 0)
+        ij.append((a[ok], b[ok]))
+    i, j = np.concatenate([q[0] for q in ij]), np.concatenate([q[1] for q in ij])
+    E = sparse.coo_matrix((np.ones(len(i)), (i, j)), (n, n)).tocsr()
+    return E + E.T
+
+
+def odd_part(grid: np.ndarray, px: np.ndarray, py: np.ndarray, u: float, v: float) -> sparse.csr_matrix:
+    """O (n, n) of eq. C2: a fitted pixel's residual minus the bilinear sample of the residuals at its mirror
+    image through (u, v) px, where all four of that sample's pixels were fitted (else the row is 0)."""
+    h, w = grid.shape
+    n = len(px)
     mx, my = 2 * u - px, 2 * v - py
     x0, y0 = np.floor(mx).astype(int), np.floor(my).astype(int)
     fx, fy = mx - x0, my - y0
@@ -248,8 +265,13 @@ def _centre_sigma(
         whole &= (k >= 0) | (wgt == 0)
         rows.append(np.arange(n)), cols.append(np.maximum(k, 0)), vals.append(np.where(k >= 0, wgt, 0))
     mirror = sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), (n, n))
-    odd = sparse.diags(whole.astype(float)) @ (sparse.identity(n) - mirror.tocsr())
-    # E[o^T S_k o] = sum_l theta_l tr(T_k K S_l K), T_k = O^T S_k O, o = O r (eq. C2 with the odd part)
+    return sparse.diags(whole.astype(float)) @ (sparse.identity(n) - mirror.tocsr())
+
+
+def noise_sizes(shapes: list, odd, Q: np.ndarray, o: np.ndarray) -> np.ndarray:
+    """The sizes theta (k,) of the noise shapes S_l (each (n, n)) by restricted maximum likelihood's moments
+    of the residuals' odd part o = O r (n,) (eq. C2): E[o^T S_k o] = sum_l theta_l tr(T_k K S_l K),
+    T_k = O^T S_k O, K = I - Q Q^T with Q (n, p) an orthonormal basis of the fit's Jacobian."""
     T = [(odd.T @ S @ odd).tocsr() for S in shapes]
     SQ = [S @ Q for S in shapes]
     TQ = [t @ Q for t in T]
@@ -263,19 +285,8 @@ def _centre_sigma(
                 - 2 * float((TQ[p] * SQ[q]).sum())
                 + float((QTQ[p] * QSQ[q].T).sum())
             )
-    o = odd @ r
     moments = np.array([o @ (S @ o) for S in shapes])
-    theta = np.linalg.lstsq(A, moments, rcond=None)[0]
-    # eq. C1, per axis
-    # Farther lags of the multiplicative noise (FAR_LAGS), from its correlation at 1 px as a Gaussian's:
-    # rho(d) = rho(1)**(d**2) (speckle grains and bloom are smooth blobs).
-    rho = float(np.clip(theta[3] / theta[2], 0.0, 0.9)) if theta[2] > 0 else 0.0
-    far = [(theta[2] * rho**d2, DM @ pairs(group) @ DM) for d2, group in FAR_LAGS.items()]
-    var = np.array([sum(t * float(g @ (S @ g)) for t, S in [*zip(theta, shapes), *far]) for g in gain])
-    floor = np.array([sum(t * float(g @ (S @ g)) for t, S in zip(theta[:3], shapes[:3])) for g in gain])
-    # A noisy estimate can come out below what the pixels' own variance says: half that is the floor.
-    su, sv = np.sqrt(np.maximum(var, 0.5 * np.maximum(floor, 0)) + 1e-18)
-    return float(su), float(sv)
+    return np.linalg.lstsq(A, moments, rcond=None)[0]
 
 
 def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tuple[float, float]:
