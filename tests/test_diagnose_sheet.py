@@ -234,13 +234,19 @@ def test_a_camera_session_of_the_fake_robot_proposes_the_compliance_its_truth_ho
         + ["--guide", "move", "--auto", "--per-point", "6", "--truth", str(truth), "-o", s]
     )
     d = diagnosis(tmp_path, s)
-    # the fake arm holds T's compliance: the whole session's F test proposes it (corrected p = 9.7e-6; every
-    # F = 0 before issue 45). Named before issue 52 (c2 within 4 sigma of the truth); with the selection
-    # inside the folds, 2 of 5 folds choose it on their ~21 measured captures (corrected p 1e-6, 1e-5; the
-    # other three 0.03-0.16), short of the 4 the agreement rule needs: 'none', its gain still measured (the
-    # measured captures held out 1.843 -> 1.745 mm).
-    assert d["effect"] == "none" and d["proposed"]["joints"] == [2] and d["p_value"] < 1e-4, d["label"]
+    # the fake arm holds T's compliance: the whole session's F test proposes it (corrected p = 9.7e-6 and
+    # 1e-7 on two draws of this session; every F = 0 before issue 45). Whether it is named is the agreement
+    # rule's call on ~21 measured captures per fold, at its margin here: 2 of 5 folds chose it on the draw
+    # before issue 52's world joints (named 'none'), 4 of 5 on the draw since (the fake arm's joints now the
+    # world's code: equal to 1e-12 rad, but the settling arm's captures fall at other instants). So the test
+    # holds the rule to its own terms either way, and a named compliance to the truth.
+    assert d["proposed"]["joints"] == [2] and d["p_value"] < 1e-4, d["label"]
     acc = d["acceptance"]
-    assert acc["folds_agree"] == 2 and "folds chose different causes" in acc["rejected"]
+    if d["effect"] == "none":
+        assert acc["folds_agree"] < acc["folds_needed"] and "folds chose different causes" in acc["rejected"]
+    else:
+        assert d["effect"] == "joint_compliance" and acc["folds_agree"] >= acc["folds_needed"], d["label"]
+        c2 = d["parameters"]["c2"]
+        assert abs(c2["value"] - 1.5e-4) < 4 * c2["std_error"], c2
     held = acc["holdout_by_kind"]["measured"]
     assert held["extended"] < held["geometric"]
