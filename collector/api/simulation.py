@@ -292,38 +292,16 @@ def simulate(
             path, folder, robot, configs, targets, noise, seed, hiding, base_link, tip_link
         )
     camera = (measured, spot_sigma, aim_radius)
-    return _simulate_laser(
-        path,
-        folder,
-        layout,
-        robot,
-        per_point,
-        aim_noise,
-        seed,
-        sheet_pose,
-        hiding,
-        camera,
-        base_link,
-        tip_link,
-    )
+    aiming, chain = (per_point, aim_noise, seed), (base_link, tip_link)
+    return _simulate_laser(path, folder, layout, robot, aiming, sheet_pose, hiding, camera, chain)
 
 
 def _simulate_laser(
-    path: Path,
-    folder,
-    layout,
-    robot,
-    per_point,
-    aim_noise,
-    seed,
-    sheet_pose,
-    hiding,
-    camera,
-    base_link,
-    tip_link,
+    path: Path, folder, layout, robot, aiming, sheet_pose, hiding, camera, chain
 ) -> Simulation:
-    """A laser session (:func:`simulate`); ``hiding``: :func:`hidden_effect`'s (effect, size, joints, point),
-    ``camera``: (measured share, spot sigma mm, aim radius mm or None)."""
+    """A laser session (:func:`simulate`); ``aiming``: (per_point, aim_noise mm, seed); ``hiding``:
+    :func:`hidden_effect`'s (effect, size, joints, point); ``camera``: (measured share, spot sigma mm, aim
+    radius mm or None); ``chain``: a URDF truth's (base_link, tip_link)."""
     import numpy as np
 
     from lasercal.collector.hardware import world_joints
@@ -335,8 +313,8 @@ def _simulate_laser(
 
     if layout is None:
         raise FormatError("--layout", "a laser session needs a layout (--layout)")
-    measured, spot_sigma, aim_radius = camera
-    model = load_model(path, base_link=base_link, tip_link=tip_link)
+    (per_point, aim_noise, seed), (measured, spot_sigma, aim_radius) = aiming, camera
+    model = load_model(path, base_link=chain[0], tip_link=chain[1])
     # the session names its truth and nominal relative to itself (a temporary sibling resolves alike)
     truth_ref, nominal_ref = truth_references(path, folder, robot)
     name = layout.path if hasattr(layout, "points") else layout
