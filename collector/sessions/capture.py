@@ -9,6 +9,10 @@ pose resembles an earlier one (and which joints to vary instead).
 
 Everything the session needs comes in as objects (robot adapter, trigger, output
 stream), so tests and ``--backend fake --auto`` run it without a terminal.
+
+The loop is here (:class:`CaptureRun`); its phases beside it: the capture check and its lines
+(:mod:`sessions.capturecheck`), standstill (:mod:`sessions.standstill`), the coach and the moves
+(:mod:`sessions.coaching`), the photo and its spot (:mod:`sessions.spotphoto`).
 """
 
 from __future__ import annotations
