@@ -295,6 +295,168 @@ def correction_payoff(
     }
 
 
+def _timed(seconds: dict, name: str, fn, *args, **kw):
+    """Call ``fn(*args, **kw)`` and note its wall time, in seconds to two places, as ``seconds[name]``.
+
+    Parameters
+    ----------
+    seconds : dict
+        The stages' times so far (written to).
+    name : str
+        The stage's name.
+    fn : callable
+        What the stage runs.
+
+    Returns
+    -------
+    object
+        What ``fn`` returns.
+    """
+    t0 = time.perf_counter()
+    result = fn(*args, **kw)
+    seconds[name] = round(time.perf_counter() - t0, 2)
+    return result
+
+
+def _calibrations(session, out: Path, opts: DemoOptions, step, seconds: dict) -> tuple[dict, object]:
+    """``lasercal solve --method lm / thesis`` and ``lasercal solve --extend auto``: the API's calibrations.
+
+    Parameters
+    ----------
+    session : Session
+        The captured session.
+    out : Path
+        The demo's folder (the models are saved in it).
+    opts : DemoOptions
+        The demo's options.
+    step : callable(stage: str)
+        Called once per progress unit.
+    seconds : dict
+        The stages' times (written to).
+
+    Returns
+    -------
+    cals : dict
+        'lm' and 'thesis' -> their Calibration (saved as model_<method>.yaml).
+    extended : Calibration
+        The ``extend="auto"`` calibration, with its diagnosis.
+    """
+    cals = {}
+    for method in ("lm", "thesis"):
+        cals[method] = _timed(seconds, method, calibrate, session, method=method, folds=0)
+        cals[method].save(out / f"model_{method}.yaml")
+        step(f"calibrate ({method})")
+    extended = _timed(seconds, "diagnose", calibrate, session, extend="auto", folds=5, seed=opts.seed)
+    step("diagnose")
+    return cals, extended
+
+
+def _validations(session, cals: dict, extended, out: Path, truth, layout, opts: DemoOptions, step, seconds):
+    """Each model validated at P4 by fresh photos: the nominal, lm, thesis and (when found) extended one.
+
+    Parameters
+    ----------
+    session : Session
+        The captured session (its robot is the nominal).
+    cals : dict
+        'lm' and 'thesis' -> their Calibration.
+    extended : Calibration
+        The ``extend="auto"`` calibration (saved as model_extended.yaml when it extends the geometry).
+    out : Path
+        The demo's folder.
+    truth, layout
+        The hidden robot and the reference points.
+    opts, step, seconds
+        As :func:`_calibrations`'s: the demo's options, its progress, the stages' times (written to).
+
+    Returns
+    -------
+    list of Validation
+        The validations, in the order above.
+    """
+    candidates = {
+        "nominal": (session.robot, NOMINAL),
+        "lm": (cals["lm"].model, "model_lm.yaml"),
+        "thesis": (cals["thesis"].model, "model_thesis.yaml"),
+    }
+    if extended.diagnosis.extended is not None:
+        extended.save(out / "model_extended.yaml")
+        candidates["extended"] = (extended.model, "model_extended.yaml")
+    validations = []
+    for name, (model, ref) in candidates.items():
+        folder = out / "validation" / name
+        _timed(
+            seconds,
+            f"validate {name}",
+            validate_model,
+            folder,
+            model,
+            ref,
+            truth,
+            layout,
+            opts,
+            partial(step, f"validate {name}"),
+        )
+        validations.append(load_validation(folder))
+    return validations
+
+
+def _summary(session, cals: dict, extended, validations, truth, opts: DemoOptions, payoff, report) -> dict:
+    """The demo's summary (summary.json) but for its times, its report's path and the files written.
+
+    Parameters
+    ----------
+    session : Session
+        The captured session.
+    cals : dict
+        'lm' and 'thesis' -> their Calibration.
+    extended : Calibration
+        The ``extend="auto"`` calibration, with its diagnosis.
+    validations : list of Validation
+        The models' validations.
+    truth : Robot
+        The hidden robot.
+    opts : DemoOptions
+        The demo's options.
+    payoff : dict
+        What ``lasercal correct`` gains (:func:`correction_payoff`).
+    report : Path
+        The report's index.html.
+
+    Returns
+    -------
+    dict
+        :func:`run_demo`'s summary, its keys in their order ('seconds' and 'report' placeholders).
+    """
+    d = extended.diagnosis
+    found = (
+        d.extension is not None
+        and d.effect == opts.effect.effect
+        and set(d.extension.joints) == set(opts.effect.joints)
+    )
+    return {
+        "p4": {v.label: spot_stats(v.spots, v.xyz).as_dict() for v in validations},
+        "thesis": THESIS_P4,
+        "methods": {
+            m: {
+                "iterations": c.identification.iterations,
+                "converged": c.identification.converged,
+                "seconds": round(c.identification.seconds, 3),
+                "fit_rms_mm": round(c.identification.rms_mm, 4),
+            }
+            for m, c in cals.items()
+        },
+        "truth": {"robot": truth.name, "effect": {"name": opts.effect.effect, **opts.effect.to_dict()}},
+        "options": {k: v for k, v in asdict(opts).items() if k != "effect"},
+        "captures": session.m,
+        "diagnosis": d.as_dict(),
+        "found": bool(found),
+        "correct": payoff,
+        "seconds": None,
+        "report": None,
+    }
+
+
 def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     """Run the whole story, write its files under ``out`` and return the summary (also in summary.json).
 
@@ -328,48 +490,23 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     seconds = {}
     truth, layout = load_model(TRUTH), thesis_layout()
 
-    def timed(name, fn, *args, **kw):
-        t0 = time.perf_counter()
-        result = fn(*args, **kw)
-        seconds[name] = round(time.perf_counter() - t0, 2)
-        return result
-
     session = load_session(
-        timed("capture", capture_session, out / "session", truth, layout, opts, partial(step, "capture"))
-    )
-    # lasercal solve --method lm / thesis, and lasercal solve --extend auto: the API's calibrations
-    cals = {}
-    for method in ("lm", "thesis"):
-        cals[method] = timed(method, calibrate, session, method=method, folds=0)
-        cals[method].save(out / f"model_{method}.yaml")
-        step(f"calibrate ({method})")
-    extended = timed("diagnose", calibrate, session, extend="auto", folds=5, seed=opts.seed)
-    step("diagnose")
-    d = extended.diagnosis
-    candidates = {
-        "nominal": (session.robot, NOMINAL),
-        "lm": (cals["lm"].model, "model_lm.yaml"),
-        "thesis": (cals["thesis"].model, "model_thesis.yaml"),
-    }
-    if d.extended is not None:
-        extended.save(out / "model_extended.yaml")
-        candidates["extended"] = (extended.model, "model_extended.yaml")
-    validations = []
-    for name, (model, ref) in candidates.items():
-        folder = out / "validation" / name
-        timed(
-            f"validate {name}",
-            validate_model,
-            folder,
-            model,
-            ref,
+        _timed(
+            seconds,
+            "capture",
+            capture_session,
+            out / "session",
             truth,
             layout,
             opts,
-            partial(step, f"validate {name}"),
+            partial(step, "capture"),
         )
-        validations.append(load_validation(folder))
-    report = timed(
+    )
+    cals, extended = _calibrations(session, out, opts, step, seconds)
+    d = extended.diagnosis
+    validations = _validations(session, cals, extended, out, truth, layout, opts, step, seconds)
+    report = _timed(
+        seconds,
         "report",
         cals["lm"].report,  # lasercal report: the geometric fit and the full diagnosis, with its simulations
         out / "report",
@@ -382,34 +519,11 @@ def run_demo(out, opts: DemoOptions = DemoOptions(), progress=None) -> dict:
     )
     step("report")
     best = out / ("model_extended.yaml" if d.extended is not None else "model_lm.yaml")
-    payoff = timed("correct", correction_payoff, best, truth, layout, opts)
+    payoff = _timed(seconds, "correct", correction_payoff, best, truth, layout, opts)
     step("correct")
-    found = (
-        d.extension is not None
-        and d.effect == opts.effect.effect
-        and set(d.extension.joints) == set(opts.effect.joints)
-    )
-    summary = {
-        "p4": {v.label: spot_stats(v.spots, v.xyz).as_dict() for v in validations},
-        "thesis": THESIS_P4,
-        "methods": {
-            m: {
-                "iterations": c.identification.iterations,
-                "converged": c.identification.converged,
-                "seconds": round(c.identification.seconds, 3),
-                "fit_rms_mm": round(c.identification.rms_mm, 4),
-            }
-            for m, c in cals.items()
-        },
-        "truth": {"robot": truth.name, "effect": {"name": opts.effect.effect, **opts.effect.to_dict()}},
-        "options": {k: v for k, v in asdict(opts).items() if k != "effect"},
-        "captures": session.m,
-        "diagnosis": d.as_dict(),
-        "found": bool(found),
-        "correct": payoff,
-        "seconds": {**seconds, "total": round(time.perf_counter() - t_start, 2)},
-        "report": str(report),
-    }
+    summary = _summary(session, cals, extended, validations, truth, opts, payoff, report)
+    summary["seconds"] = {**seconds, "total": round(time.perf_counter() - t_start, 2)}
+    summary["report"] = str(report)
     summary["wrote"] = written(out)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary

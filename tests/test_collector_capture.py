@@ -180,11 +180,11 @@ def test_rangefinder_lengths_are_logged(tmp_path):
 
 
 def test_a_photo_taken_while_the_arm_creeps_is_measured_in_mm_of_spot_and_a_simulated_clock_is_not_read():
-    """The read after a capture's photo (sessions.capture.moved_during_photo): how far the spot moved under
+    """The read after a capture's photo (sessions.standstill.moved_during_photo): how far the spot moved under
     the nominal model since the standstill read the row logs -- in mm on the plane, so joint 7's spin about
     the beam (franky-sim's chatter) counts for what it moves the spot, not for its angle."""
     from lasercal.collector.hardware.base import Clock, FakeClock, JointState
-    from lasercal.collector.sessions.capture import PHOTO_MOVED_MM, moved_during_photo
+    from lasercal.collector.sessions.standstill import PHOTO_MOVED_MM, moved_during_photo
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.identify.spot import predict_spots
 

@@ -27,8 +27,8 @@ pytest.importorskip(
 )
 pytest.importorskip("pypdfium2", reason="the sheet's texture needs pypdfium2: pip install 'lasercal[mujoco]'")
 
-from lasercal.collector.sessions.capture import wait_still  # noqa: E402
 from lasercal.collector.sessions.spotcam import measure_spot  # noqa: E402
+from lasercal.collector.sessions.standstill import wait_still  # noqa: E402
 from lasercal.collector.worlds.mujoco import MujocoCamera, MujocoRobot, MujocoWorld  # noqa: E402
 from lasercal.solver.formats.robots import load_model  # noqa: E402
 from lasercal.solver.formats.session import load_layout  # noqa: E402

@@ -462,3 +462,238 @@ def blank_spots(
     col = np.clip(np.round(uv[:, 0] * px_mm - 0.5).astype(int), 0, reach.shape[1] - 1)
     row = np.clip(np.round((H - uv[:, 1]) * px_mm - 0.5).astype(int), 0, reach.shape[0] - 1)
     return xy[reach[row, col] >= clear]
+
+
+# The advance widths of the characters of matplotlib's default font (DejaVu Sans), 1/2048 em: digits,
+# lower case, capitals, then the punctuation of PUNCTUATION and the space; any other character counts 1 em.
+PUNCTUATION = "!\"#$%&'()*+,-./:;<=>?@[\\]^_`{|}~ "
+ADVANCE = dict(
+    zip(
+        "0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ" + PUNCTUATION,
+        (1303,) * 10
+        + (
+            1255,
+            1300,
+            1126,
+            1300,
+            1260,
+            721,
+            1300,
+            1298,
+            569,
+            569,
+            1186,
+            569,
+            1995,
+            1298,
+            1253,
+            1300,
+            1300,
+            842,
+            1067,
+            803,
+            1298,
+            1212,
+            1675,
+            1212,
+            1212,
+            1075,
+        )
+        + (
+            1401,
+            1405,
+            1430,
+            1577,
+            1294,
+            1178,
+            1587,
+            1540,
+            604,
+            604,
+            1343,
+            1141,
+            1767,
+            1532,
+            1612,
+            1235,
+            1612,
+            1423,
+            1300,
+            1251,
+            1499,
+            1401,
+            2025,
+            1403,
+            1251,
+            1403,
+        )
+        + (
+            821,
+            942,
+            1716,
+            1303,
+            1946,
+            1597,
+            563,
+            799,
+            799,
+            1024,
+            1716,
+            651,
+            739,
+            651,
+            690,
+            690,
+            690,
+            1716,
+            1716,
+            1716,
+            1087,
+            2048,
+            799,
+            690,
+            799,
+            1716,
+            1024,
+            1024,
+            1303,
+            690,
+            1303,
+            1716,
+            651,
+        ),
+    )
+)
+EM_LINE = 1.3  # a text line's height with its spacing, em (draw_sheet's instructions: linespacing 1.3)
+HINTING = 1.08  # a rasteriser's hinting widens small text, by up to 8 % (matplotlib's Agg: 7 % at 6.5 pt)
+
+
+def _text_width(text: str) -> float:
+    """A line of text's width, em: its characters' advances (``ADVANCE``), kerning left out, widened by the
+    rasteriser's ``HINTING``."""
+    return HINTING * sum(ADVANCE.get(c, 2048) for c in text) / 2048
+
+
+def _text_box(u: float, v: float, lines: list, pt: float, ha: str, va: str, upright: bool = True) -> tuple:
+    """The page box (u0, v0, u1, v1) a text's ink stays inside, drawn at (u, v) as :func:`draw_sheet` does.
+
+    Parameters
+    ----------
+    u, v : float
+        The text's anchor, page mm.
+    lines : list of str
+        The text's lines.
+    pt : float
+        Its font size, points.
+    ha, va : str
+        Its alignment at the anchor along and across its lines: 'left', 'center', 'right'; 'bottom',
+        'center', 'top'.
+    upright : bool
+        Lines along the page's u; else turned a quarter anticlockwise (along v, anchored as matplotlib's
+        ``rotation_mode="anchor"``).
+
+    Returns
+    -------
+    tuple of float
+        The box, page mm: the characters' advances (:func:`_text_width`), every line ``EM_LINE`` high.
+    """
+    em = pt * PT_MM
+    along, across = em * max(_text_width(t) for t in lines), EM_LINE * em * len(lines)
+    a0 = {"left": 0.0, "center": -along / 2, "right": -along}[ha]
+    b0 = {"bottom": 0.0, "center": -across / 2, "top": -across}[va]
+    if upright:
+        return (u + a0, v + b0, u + a0 + along, v + b0 + across)
+    return (u - b0 - across, v + a0, u - b0, v + a0 + along)
+
+
+def ink_boxes(design: SheetDesign, plane_z: float = 0.0) -> dict:
+    """Boxes that hold everything :func:`draw_sheet` prints, from the design's geometry (nothing drawn).
+
+    Parameters
+    ----------
+    design : SheetDesign
+    plane_z : float
+        The plane height the instructions name, mm.
+
+    Returns
+    -------
+    dict
+        Kind -> (k, 4) array of boxes (u0, v0, u1, v1), page mm. The marks as printed: 'markers' (each
+        whole square), 'bars' (the scale bars' lines and ticks), 'crosses' (their arms); and generous boxes
+        about 'arrows' (the sheet frame's, shaft and head) and 'text' (the bars' and crosses' labels, the
+        arrows' words and the instructions' lines, :func:`_text_box`).
+    """
+    W, H = design.width, design.height
+    marks = {"markers": [], "bars": [], "crosses": []}
+    text = []
+    for c in design.markers.values():
+        u, v = sheet_to_page(c, W, H).min(0)
+        marks["markers"].append((u, v, u + design.marker, v + design.marker))
+    above = TICK / 2 + 1  # draw_sheet's bar label, beside the bar clear of its ticks
+    for bar in design.bars:
+        marks["bars"] += _bar_rects(bar)
+        label = [f"{bar.length:g} mm: check with a ruler"]
+        u, v = bar.start
+        if bar.axis == 0:
+            text.append(_text_box(u + bar.length / 2, v + above, label, TEXT_PT, "center", "bottom"))
+        else:
+            text.append(_text_box(u + above, v + bar.length / 2, label, TEXT_PT, "left", "center", False))
+    for name, xy in design.points.items():
+        u, v = sheet_to_page(xy, W, H)[0]
+        marks["crosses"] += _cross_rects(u, v)
+        label = [f"{name} (validation)" if name in design.validation else name]
+        text.append(_text_box(u + ARM[1] * 0.4, v + ARM[1] * 0.4, label, LABEL_PT, "left", "bottom"))
+    u, v = sheet_to_page([0.0, 0.0], W, H)[0]  # the origin cross: the frame's arrows and their words
+    span, length, head = ARM[1] + 2, min(25.0, 0.6 * min(W, H) / 4), 2.5 / 2
+    arrows = [
+        (u - head, v + span, u + head, v + span + length),
+        (u - span - length, v - head, u - span, v + head),
+    ]
+    words = ["x: lay it pointing away from the robot"]
+    text.append(_text_box(u + 1.5, v + span + length, words, TEXT_PT, "left", "top"))
+    text.append(_text_box(u - span - length, v - 1.5, ["y"], TEXT_PT, "left", "top"))
+    text.append(_text_box(u - 1.5, v - 1.5, ["origin"], TEXT_PT, "right", "top"))
+    u0, v0, u1, v1 = design.text_box
+    wrapped = textwrap.wrap(instructions(design, plane_z), width=int((u1 - u0) / CHAR_MM))
+    step = EM_LINE * TEXT_PT * PT_MM
+    text += [_text_box(u0, v1 - k * step, [t], TEXT_PT, "left", "top") for k, t in enumerate(wrapped)]
+    kinds = {**marks, "arrows": arrows, "text": text}
+    return {k: np.array(b, dtype=float).reshape(-1, 4) for k, b in kinds.items()}
+
+
+def box_distances(xy: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Distances from points to axis-aligned boxes.
+
+    Parameters
+    ----------
+    xy : (k, 2) array
+        The points.
+    boxes : (b, 4) array
+        The boxes (x0, y0, x1, y1), in the points' frame.
+
+    Returns
+    -------
+    (k, b) array
+        Each point's distance to each box (0 inside it).
+    """
+    xy, boxes = np.asarray(xy, float), np.asarray(boxes, float)
+    dx = np.maximum(np.maximum(boxes[None, :, 0] - xy[:, None, 0], xy[:, None, 0] - boxes[None, :, 2]), 0.0)
+    dy = np.maximum(np.maximum(boxes[None, :, 1] - xy[:, None, 1], xy[:, None, 1] - boxes[None, :, 3]), 0.0)
+    return np.hypot(dx, dy)
+
+
+def geometric_blank_spots(design: SheetDesign, step: float = 10.0, clear: float = 8.0) -> np.ndarray:
+    """:func:`blank_spots` from the sheet's geometry as :func:`draw_sheet` lays it (:func:`ink_boxes`;
+    nothing is drawn): the grid points inside the markers' span at least ``clear`` mm from every ink, the
+    drawing's or a few fewer (the texts' boxes are generous).
+
+    Parameters and Returns as :func:`blank_spots`'s (nothing rasterised: no ``px_mm``).
+    """
+    corners = np.concatenate(list(design.markers.values()))
+    lo, hi = corners.min(axis=0), corners.max(axis=0)  # the markers' span, sheet frame
+    gx = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
+    gy = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
+    xy = np.array([(x, y) for x in gx for y in gy])
+    uv = sheet_to_page(xy, design.width, design.height)
+    ink = np.concatenate(list(ink_boxes(design).values()))
+    return xy[box_distances(uv, ink).min(axis=1) >= clear]

@@ -159,6 +159,166 @@ class Calibration:
         return write_report(folder, self.source, geometric, d, vals, reference, title)
 
 
+def _checked_session(session, prior, method: str, folds: int, extend: str, sheet_shape: str):
+    """The session to calibrate, loaded and under its prior, once the options are checked against it.
+
+    Parameters
+    ----------
+    session : Session or str or Path
+        A loaded session, or its folder.
+    prior, method, folds, extend, sheet_shape
+        :func:`calibrate`'s options.
+
+    Returns
+    -------
+    Session
+        The session, its tolerances replaced when ``prior`` names some.
+
+    Raises
+    ------
+    IdentificationError
+        An unknown method or sheet shape, data that cannot identify the geometry, more folds than
+        captures, or ``extend`` with a method other than 'lm'.
+    """
+    from dataclasses import replace
+
+    from lasercal.solver.errors import IdentificationError
+    from lasercal.solver.formats.session import load_session
+    from lasercal.solver.formats.tolerances import load_tolerances
+    from lasercal.solver.identify.measurement import check_data
+
+    if not hasattr(session, "measurement"):
+        session = load_session(session)
+    if prior is not None:
+        session = replace(session, tolerances=load_tolerances(prior, session.robot))
+    if method not in METHODS:
+        raise IdentificationError(f"method {method!r}: expected one of {', '.join(METHODS)}")
+    check_data(session)
+    if folds > session.m:
+        raise IdentificationError(
+            f"--folds {folds}: more folds than the session's {session.m} captures (expected 2 .. "
+            f"{session.m}, or 0 for none)"
+        )
+    if extend != "none" and method != "lm":
+        raise IdentificationError("--extend needs --method lm")
+    if sheet_shape not in ("auto", "flat"):
+        raise IdentificationError(f"sheet shape {sheet_shape!r}: expected auto or flat")
+    return session
+
+
+def _sheet_shape(session, sheet_shape: str, method: str, folds: int, seed: int, alpha: float, robust: bool):
+    """Whether a sheet session's print shear and paper height are modelled (eqs. S5, S6).
+
+    Parameters
+    ----------
+    session : Session
+        The checked session.
+    sheet_shape, method, folds, seed, alpha, robust
+        :func:`calibrate`'s options.
+
+    Returns
+    -------
+    session : Session
+        The session, modelling the sheet's shape when the decision keeps it.
+    shape : SheetShape or None
+        The decision (None: not a sheet session fitted by 'lm', or ``sheet_shape`` 'flat').
+    """
+    from lasercal.solver.identify.measurement import fit
+
+    sheet_lm = session.frame == "sheet" and session.measurement == "laser" and method == "lm"
+    if sheet_shape != "auto" or not sheet_lm:
+        return session, None
+    from lasercal.solver.identify.sheetshape import decide_sheet_shape, modelled
+
+    shape = decide_sheet_shape(session, fit(session, robust=robust), folds, seed, alpha, robust)
+    if shape is not None and shape.kept:
+        session = modelled(session)  # once named, modelled: every fit below holds the sheet's shape
+    return session, shape
+
+
+def _fitted(session, method: str, extend: str, folds: int, seed: int, alpha: float, robust: bool, payload):
+    """The calibration: the geometry alone, or extended by the effect the diagnosis finds or names.
+
+    Parameters
+    ----------
+    session : Session
+        The session, its sheet's shape decided.
+    method, extend, folds, seed, alpha, robust, payload
+        :func:`calibrate`'s options.
+
+    Returns
+    -------
+    session : Session
+        The session the calibration is fitted to (the diagnosis's, when extending).
+    ident : Identification
+        The calibration.
+    diagnosis : Diagnosis or None
+        The diagnosis (None: ``extend`` 'none').
+
+    Raises
+    ------
+    IdentificationError
+        A point session with a method other than 'lm'.
+    """
+    from lasercal.solver.analysis.diagnose import diagnose
+    from lasercal.solver.errors import IdentificationError
+    from lasercal.solver.identify.measurement import fit
+
+    if extend == "none":
+        if session.measurement == "point" and method != "lm":
+            raise IdentificationError("point sessions are identified by --method lm")
+        return session, fit(session, method=method, robust=robust), None
+    diagnosis = diagnose(
+        session,
+        n_boot=0,  # the decision needs no bootstrap
+        k=folds,
+        effect=None if extend == "auto" else extend,
+        robust=robust,
+        seed=seed,
+        payload=payload,
+        alpha=alpha,
+    )
+    return diagnosis.session, diagnosis.extended or diagnosis.geometric, diagnosis
+
+
+def _calibration_report(session, ident, cv, shape, diagnosis, missing) -> dict:
+    """The calibration's report: the solve's, with the sheet's shape, the diagnosis and what is partial.
+
+    Parameters
+    ----------
+    session : Session
+        The session fitted.
+    ident : Identification
+        The calibration.
+    cv : CrossValidation or None
+        The cross-validation.
+    shape : SheetShape or None
+        The sheet shape decision.
+    diagnosis : Diagnosis or None
+        The diagnosis.
+    missing : list
+        The parameter combinations neither the data nor the prior identifies.
+
+    Returns
+    -------
+    dict
+        What ``report.json`` holds.
+    """
+    from lasercal.solver.analysis.stats import solve_report
+
+    rep = solve_report(session, ident, cv)
+    if shape is not None:
+        rep["sheet_shape"] = shape.as_dict()
+    if diagnosis is not None:
+        rep["diagnosis"] = diagnosis.as_dict()
+    rep["partial"] = bool(missing)
+    if missing:
+        rep["unidentifiable_combinations"] = [
+            {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
+        ]
+    return rep
+
+
 def calibrate(
     session,
     *,
@@ -212,58 +372,13 @@ def calibrate(
     FormatError
         A session with no captures, or a prior file that cannot be read.
     """
-    from dataclasses import replace
+    from lasercal.solver.analysis.diagnose import carried_payload
+    from lasercal.solver.analysis.stats import cross_validate
+    from lasercal.solver.identify.measurement import refuse_partial, unidentifiable
 
-    from lasercal.solver.analysis.diagnose import carried_payload, diagnose
-    from lasercal.solver.analysis.stats import cross_validate, solve_report
-    from lasercal.solver.errors import IdentificationError
-    from lasercal.solver.formats.session import load_session
-    from lasercal.solver.formats.tolerances import load_tolerances
-    from lasercal.solver.identify.measurement import check_data, fit, refuse_partial, unidentifiable
-
-    if not hasattr(session, "measurement"):
-        session = load_session(session)
-    if prior is not None:
-        session = replace(session, tolerances=load_tolerances(prior, session.robot))
-    if method not in METHODS:
-        raise IdentificationError(f"method {method!r}: expected one of {', '.join(METHODS)}")
-    source = session
-    check_data(session)
-    if folds > session.m:
-        raise IdentificationError(
-            f"--folds {folds}: more folds than the session's {session.m} captures (expected 2 .. "
-            f"{session.m}, or 0 for none)"
-        )
-    if extend != "none" and method != "lm":
-        raise IdentificationError("--extend needs --method lm")
-    shape = None
-    if sheet_shape not in ("auto", "flat"):
-        raise IdentificationError(f"sheet shape {sheet_shape!r}: expected auto or flat")
-    sheet_lm = session.frame == "sheet" and session.measurement == "laser" and method == "lm"
-    if sheet_shape == "auto" and sheet_lm:
-        from lasercal.solver.identify.sheetshape import decide_sheet_shape, modelled
-
-        shape = decide_sheet_shape(session, fit(session, robust=robust), folds, seed, alpha, robust)
-        if shape is not None and shape.kept:
-            session = modelled(session)  # once named, modelled: every fit below holds the sheet's shape
-    diagnosis = None
-    if extend != "none":
-        diagnosis = diagnose(
-            session,
-            n_boot=0,  # the decision needs no bootstrap
-            k=folds,
-            effect=None if extend == "auto" else extend,
-            robust=robust,
-            seed=seed,
-            payload=payload,
-            alpha=alpha,
-        )
-        ident = diagnosis.extended or diagnosis.geometric
-        session = diagnosis.session
-    else:
-        if session.measurement == "point" and method != "lm":
-            raise IdentificationError("point sessions are identified by --method lm")
-        ident = fit(session, method=method, robust=robust)
+    source = session = _checked_session(session, prior, method, folds, extend, sheet_shape)
+    session, shape = _sheet_shape(session, sheet_shape, method, folds, seed, alpha, robust)
+    session, ident, diagnosis = _fitted(session, method, extend, folds, seed, alpha, robust, payload)
     missing = unidentifiable(session, ident)
     if not allow_partial:
         refuse_partial(missing)
@@ -273,16 +388,7 @@ def calibrate(
         cv = cross_validate(
             session, method, folds, seed, inlier=ident.weights > 0, robust=robust, extension=ext
         )
-    rep = solve_report(session, ident, cv)
-    if shape is not None:
-        rep["sheet_shape"] = shape.as_dict()
-    if diagnosis is not None:
-        rep["diagnosis"] = diagnosis.as_dict()
-    rep["partial"] = bool(missing)
-    if missing:
-        rep["unidentifiable_combinations"] = [
-            {"combination": d.combination, "fix": d.fix, "directions": d.directions} for d in missing
-        ]
+    rep = _calibration_report(session, ident, cv, shape, diagnosis, missing)
     return Calibration(
         model_file(source, session, ident, rep, carried_payload(source, payload) if diagnosis else None),
         ident,

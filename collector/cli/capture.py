@@ -24,8 +24,14 @@ from lasercal.collector.errors import InputEnded
 from lasercal.solver.formats.checks import METRES_BELOW_MM
 
 
-def args_capture(p: argparse.ArgumentParser) -> None:
-    """The arguments of ``lasercal capture``."""
+def _session_arguments(p: argparse.ArgumentParser) -> None:
+    """The session's layout, folder and laser: --layout, --per-point, -o, --resume, --aperture-z.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        ``lasercal capture``'s parser (added to).
+    """
     p.add_argument("--layout", type=LAYOUT, help="layout YAML with the reference points")
     p.add_argument(
         "--per-point", type=count(1, 10000), metavar="N", help="captures at each calibration point"
@@ -53,6 +59,13 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         metavar="MM",
         help="measured height of the laser aperture at q = 0, mm (p_Mz)",
     )
+
+
+def _rangefinder_arguments(p: argparse.ArgumentParser) -> None:
+    """The laser rangefinder: --rangefinder, --rangefinder-query.
+
+    Parameters as :func:`_session_arguments`'s: the parser, added to.
+    """
     p.add_argument(
         "--rangefinder",
         metavar="URL",
@@ -63,6 +76,13 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         metavar="TEXT",
         help="sent before each reading (e.g. 'D\\n'); default: the device streams",
     )
+
+
+def _simulated_operator_arguments(p: argparse.ArgumentParser) -> None:
+    """The simulated operator: --auto, --auto-pace, --aim-noise.
+
+    Parameters as :func:`_session_arguments`'s: the parser, added to.
+    """
     p.add_argument(
         "--auto",
         action="store_true",
@@ -81,6 +101,13 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         metavar="MM",
         help="fake backend: aiming noise per in-plane axis, mm (default 1.0)",
     )
+
+
+def _camera_arguments(p: argparse.ArgumentParser) -> None:
+    """The camera and what it photographs: --camera, --aim, --effects.
+
+    Parameters as :func:`_session_arguments`'s: the parser, added to.
+    """
     p.add_argument(
         "--camera",
         help="photograph each capture and measure its spot on the sheet through the sheet's markers: fake "
@@ -102,6 +129,13 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "repeatability, distortion, occlusion, ellipse, print-scale, sheet-height (default: all with "
         "--camera fake, none without; docs/sessions.md)",
     )
+
+
+def _coach_arguments(p: argparse.ArgumentParser) -> None:
+    """The coach: --until, --no-coach, --guide.
+
+    Parameters as :func:`_session_arguments`'s: the parser, added to.
+    """
     p.add_argument(
         "--until",
         type=number(0, 1e4, "mm", lo_open=True),
@@ -121,6 +155,15 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         "can move takes the arm there first (preview and confirmation before the first move), the "
         "operator only refines the aim",
     )
+
+
+def args_capture(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``lasercal capture``."""
+    _session_arguments(p)
+    _rangefinder_arguments(p)
+    _simulated_operator_arguments(p)
+    _camera_arguments(p)
+    _coach_arguments(p)
     motion_arguments(p, "with --guide move: ")
     photo_arguments(p)
     view_arguments(p)

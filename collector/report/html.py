@@ -522,47 +522,36 @@ def validation_section(runs, reference: dict, out: Path, suffix: str = "") -> li
     ]
 
 
-def write_report(
-    out,
-    session: Session,
-    ident: Identification,
-    diagnosis: Diagnosis | None = None,
-    validations=(),
-    reference: dict | None = None,
-    title: str | None = None,
-) -> Path:
-    """Write ``index.html`` and its PNG plots into the folder ``out``.
+def _head(
+    session: Session, ident: Identification, validations, rep: dict, missing: list, title: str | None
+) -> list[str]:
+    """The page's head: its title, the kind of data, the verdict and what the session is.
 
     Parameters
     ----------
-    out : folder (created)
-    session : Session, the calibration session (laser spots)
-    ident : Identification, its calibration (parameter table, residuals, identifiability)
-    diagnosis : Diagnosis or None
-    validations : sequence of Validation, in the order to show (e.g. nominal first); a section per point
-    reference : dict label -> {scatter_mean, scatter_std, error_mean, error_max}, published figures
-        shown beside the first point's runs
-    title : str, the page's heading
+    session : Session
+        The calibration session.
+    ident : Identification
+        Its calibration.
+    validations : sequence of Validation
+        The validation runs shown.
+    rep : dict
+        The solve's report (:func:`solve_report`).
+    missing : list
+        What the data leave unidentified (:func:`unidentifiable`).
+    title : str or None
+        The page's heading (None: named after the session's folder).
 
     Returns
     -------
-    Path of index.html
+    list of str
+        The section's HTML pieces, in order.
     """
-    if session.measurement != "laser":
-        raise FormatError(
-            session.path, "the report covers laser sessions (spots on a plane)", field="measurement"
-        )
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    reference = reference or {}
     esc = html.escape
-    rep = solve_report(session, ident)
-    idf = rep["identifiability"]
-    missing = unidentifiable(session, ident)
     held = [d["combination"] for d in rep.get("determined_by", {}).get("from_prior", [])]
     warning = rep.get("warning")
     title = title or f"lasercal report: {session.path.resolve().name}"
-    parts = [
+    return [
         '<!DOCTYPE html>\n<html lang="en"><head><meta '
         f'charset="utf-8"><title>{esc(title)}</title><style>{_CSS}</style></head><body>',
         f"<h1>{esc(title)}</h1>",
@@ -577,15 +566,20 @@ def write_report(
         ),
     ]
 
-    check_not_calibration_points(session, ident, validations)
-    for k, runs in enumerate(
-        by_point(validations).values()
-    ):  # the published figures beside the first point's
-        first = k == 0
-        parts += validation_section(
-            runs, reference if first else {}, out, "" if first else f"_{runs[0].point}"
-        )
 
+def _parameters_section(ident: Identification) -> list[str]:
+    """The parameters, nominal against identified, with their standard errors.
+
+    Parameters
+    ----------
+    ident : Identification
+        Its calibration.
+
+    Returns
+    -------
+    list of str
+        The section's HTML pieces, in order.
+    """
     prow = [
         [
             r.name + (f" ({r.unit})" if r.unit else ""),
@@ -595,7 +589,7 @@ def write_report(
         ]
         for r in parameter_table(ident)
     ]
-    parts += [
+    return [
         "<h2>Parameters: nominal vs identified</h2>",
         (
             '<p class="note">Joint screws (omega, v) in the base frame at q = 0, the laser direction and the '
@@ -605,8 +599,14 @@ def write_report(
         _table("parameters", ["parameter", "nominal", "identified", "standard error"], prow),
     ]
 
+
+def _corrections_section(ident: Identification) -> list[str]:
+    """How far calibration moved each joint axis and the laser.
+
+    Parameters and Returns as :func:`_parameters_section`'s: the calibration in, the section's HTML out.
+    """
     crows = [[nm, f"{deg:.3f}", f"{mm:.3f}"] for nm, deg, mm in corrections(ident)]
-    parts += [
+    return [
         "<h2>Corrections per joint</h2>",
         (
             '<p class="note">How far calibration moved each joint axis from the nominal: the angle between '
@@ -617,6 +617,22 @@ def write_report(
         _table("corrections", ["joint", "axis direction change (deg)", "axis position change (mm)"], crows),
     ]
 
+
+def _points_section(session: Session, ident: Identification, rep: dict, out: Path) -> list[str]:
+    """The calibration points before and after, their residual plot, and a camera session's every capture.
+
+    Parameters
+    ----------
+    session, ident, rep
+        As :func:`_head`'s: the session, its calibration and the solve's report.
+    out : Path
+        The report's folder, where the plots go.
+
+    Returns
+    -------
+    list of str
+        The section's HTML pieces, in order.
+    """
     prows = []
     for nm, d in rep["points"].items():
         for when in ("before", "after", "aimed"):
@@ -624,7 +640,7 @@ def write_report(
             if s is not None:
                 prows.append([nm, when, s["n"]] + [f"{s[k]:.3f}" for k in _STAT_KEYS])
     residual_plots(session, ident, out / "residuals.png")
-    parts += [
+    parts = [
         "<h2>Calibration points</h2>",
         (
             '<p class="note">Where each model says the captured beams land, per reference point (before: '
@@ -659,7 +675,25 @@ def write_report(
                 crows,
             ),
         ]
+    return parts
 
+
+def _identifiability_section(rep: dict, missing: list) -> list[str]:
+    """The identifiability: rank, condition, noise, outliers, prior and sheet pose.
+
+    Parameters
+    ----------
+    rep : dict
+        The solve's report (:func:`solve_report`).
+    missing : list
+        What the data leave unidentified (:func:`unidentifiable`).
+
+    Returns
+    -------
+    list of str
+        The section's HTML pieces, in order.
+    """
+    idf = rep["identifiability"]
     irows = [
         ["parameters", idf["parameters"]],
         ["rank", idf["rank"]],
@@ -698,7 +732,7 @@ def write_report(
             ["sheet pose (base frame)", f"x {p['x_mm']:.2f} ± {sd['x_mm']:.2f} mm, y {p['y_mm']:.2f} ± "
              f"{sd['y_mm']:.2f} mm, yaw {p['yaw_deg']:.3f} ± {sd['yaw_deg']:.3f} deg"],
         ]  # fmt: skip
-    parts += [
+    return [
         "<h2>Identifiability</h2>",
         '<p class="note">SVD of the column-scaled Jacobian (the data alone), and which combinations the '
         "data and which the prior (the robot's manufacturing tolerances) determined: posterior / prior sigma "
@@ -706,13 +740,83 @@ def write_report(
         _table("identifiability", ["", ""], irows),
     ]
 
+
+def _diagnosis_section(diagnosis: Diagnosis, out: Path) -> list[str]:
+    """The diagnosis: what the geometric model misses, and its plots.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        The session's diagnosis.
+    out : Path
+        The report's folder, where the plots go.
+
+    Returns
+    -------
+    list of str
+        The diagnosis's heading, summary and plots.
+    """
+    esc = html.escape
+    names = [p.name for p in diagnosis_plots(diagnosis, out)]
+    parts = [
+        "<h2>Diagnosis: what the geometric model misses</h2>",
+        f'<pre id="diagnosis">{esc(format_diagnosis(diagnosis))}</pre>',
+    ]
+    parts += [_img(nm, nm.replace("_", " ").removesuffix(".png")) for nm in names]
+    return parts
+
+
+def write_report(
+    out,
+    session: Session,
+    ident: Identification,
+    diagnosis: Diagnosis | None = None,
+    validations=(),
+    reference: dict | None = None,
+    title: str | None = None,
+) -> Path:
+    """Write ``index.html`` and its PNG plots into the folder ``out``.
+
+    Parameters
+    ----------
+    out : folder (created)
+    session : Session, the calibration session (laser spots)
+    ident : Identification, its calibration (parameter table, residuals, identifiability)
+    diagnosis : Diagnosis or None
+    validations : sequence of Validation, in the order to show (e.g. nominal first); a section per point
+    reference : dict label -> {scatter_mean, scatter_std, error_mean, error_max}, published figures
+        shown beside the first point's runs
+    title : str, the page's heading
+
+    Returns
+    -------
+    Path of index.html
+    """
+    if session.measurement != "laser":
+        raise FormatError(
+            session.path, "the report covers laser sessions (spots on a plane)", field="measurement"
+        )
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    reference = reference or {}
+    rep = solve_report(session, ident)
+    missing = unidentifiable(session, ident)
+    parts = _head(session, ident, validations, rep, missing, title)
+
+    check_not_calibration_points(session, ident, validations)
+    for k, runs in enumerate(
+        by_point(validations).values()
+    ):  # the published figures beside the first point's
+        first = k == 0
+        parts += validation_section(
+            runs, reference if first else {}, out, "" if first else f"_{runs[0].point}"
+        )
+    parts += _parameters_section(ident)
+    parts += _corrections_section(ident)
+    parts += _points_section(session, ident, rep, out)
+    parts += _identifiability_section(rep, missing)
     if diagnosis is not None:
-        names = [p.name for p in diagnosis_plots(diagnosis, out)]
-        parts += [
-            "<h2>Diagnosis: what the geometric model misses</h2>",
-            f'<pre id="diagnosis">{esc(format_diagnosis(diagnosis))}</pre>',
-        ]
-        parts += [_img(nm, nm.replace("_", " ").removesuffix(".png")) for nm in names]
+        parts += _diagnosis_section(diagnosis, out)
     parts.append("</body></html>\n")
     index = out / "index.html"
     index.write_text("\n".join(parts), encoding="utf-8")

@@ -40,8 +40,19 @@ def _reading(c: float, se: float) -> str:
     return "not resolved"
 
 
-def markdown(rep: dict) -> str:
-    """The study as a Markdown report (tables; the plots are separate PNG files)."""
+def _summary(rep: dict) -> list[str]:
+    """The title, the conclusion per robot, the data and the metrics.
+
+    Parameters
+    ----------
+    rep : dict
+        The study's report dict (``report.json``).
+
+    Returns
+    -------
+    list of str
+        The section's Markdown lines, in order.
+    """
     R = rep["robots"]
     o = rep["options"]
     md = ["# MUKCa real-data study: four Franka Pandas", ""]
@@ -77,6 +88,16 @@ def markdown(rep: dict) -> str:
         "position, predicted by "
         "a model that never saw it (its sockets are unknown: the predicted centres' own means).",
     ]
+    return md
+
+
+def _calibration(rep: dict) -> list[str]:
+    """Section 1: nominal against geometric calibration, leave one tool position out.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     md += ["", "## 1. Nominal vs geometric calibration (leave one tool position out)", ""]
     rows = []
     for r, x in R.items():
@@ -124,6 +145,16 @@ def markdown(rep: dict) -> str:
         "### MUKCa's metric beside their published figures",
         "",
     ]
+    return md
+
+
+def _mukca_metric(rep: dict) -> list[str]:
+    """MUKCa's metric beside their published figures.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     pub = rep["published"]
     arrow = lambda v: f"{v[0]:.2e} -> {v[1]:.2e}"  # noqa: E731
     rows = [[f"{pub['robot']} (MUKCa, published)", arrow(pub["train_m"]), arrow(pub["test_m"]), "", ""]]
@@ -162,6 +193,16 @@ def markdown(rep: dict) -> str:
         "### Per held-out position (test)",
         "",
     ]
+    return md
+
+
+def _held_out_positions(rep: dict) -> list[str]:
+    """The calibration per held-out position (test).
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     rows = []
     for r, x in R.items():
         for f in x["calibration"]["folds"]:
@@ -191,6 +232,17 @@ def markdown(rep: dict) -> str:
             rows,
         )
     )
+    return md
+
+
+def _simulation(rep: dict) -> list[str]:
+    """Section 2: what the simulation gets wrong.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    o = rep["options"]
+    md: list[str] = []
     md += [
         "",
         "## 2. What the simulation gets wrong",
@@ -255,6 +307,16 @@ def markdown(rep: dict) -> str:
         "### Candidate regressors (top 6 per robot)",
         "",
     ]
+    return md
+
+
+def _candidate_regressors(rep: dict) -> list[str]:
+    """The candidate regressors, the top six per robot.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     rows = [
         [
             r,
@@ -291,6 +353,16 @@ def markdown(rep: dict) -> str:
         "the geometry; near 1 the data cannot tell them apart (a joint's gravity torque and sin q of the "
         "same joint, say).",
     ]
+    return md
+
+
+def _causes(rep: dict) -> list[str]:
+    """Section 3: the causes, the diagnosis of the whole session.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     md += ["", "## 3. Causes (diagnosis of the whole session)", ""]
     rows = []
     for r, x in R.items():
@@ -331,6 +403,16 @@ def markdown(rep: dict) -> str:
             rows,
         )
     )
+    return md
+
+
+def _extended_model(rep: dict) -> list[str]:
+    """Section 4: the extended model's held-out gain.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     md += ["", "## 4. Extended model: held-out gain, stiffness", ""]
     rows = []
     for r, x in R.items():
@@ -368,6 +450,16 @@ def markdown(rep: dict) -> str:
         "(from the fit) and jackknife over tool positions.",
         "",
     ]
+    return md
+
+
+def _compliance(rep: dict) -> list[str]:
+    """The joint compliance at the gravity-loaded joints, and the robots' agreement.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     rows = []
     for r, x in R.items():
         cm = x["extension"]["compliance"]
@@ -404,6 +496,16 @@ def markdown(rep: dict) -> str:
                 + _hom(ag["formal_clean_subsets"]["all_joints"])
             )
         md.append(_table(["covariance", "joint", "weighted mean c (urad/Nm)", "chi2", "dof", "p"], rows))
+    return md
+
+
+def _outliers(rep: dict) -> list[str]:
+    """Section 5: the outliers and the positions the authors removed.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     md += ["", "## 5. Outliers and the sets the authors removed", ""]
     rows = []
     for r, x in R.items():
@@ -446,6 +548,16 @@ def markdown(rep: dict) -> str:
         "(one-sided Fisher exact test), and the kept rows' residual mean square against the simulated "
         "experiment's.",
     ]
+    return md
+
+
+def _authors_cleaning(rep: dict) -> list[str]:
+    """Per robot the authors cleaned: their cleaning against our robust loss.
+
+    Parameters and Returns as :func:`_summary`'s: the report dict in, the section's Markdown lines out.
+    """
+    R = rep["robots"]
+    md: list[str] = []
     for r, x in R.items():
         a = x["outliers"]
         if not a["removed_by_authors"]:
@@ -473,6 +585,25 @@ def markdown(rep: dict) -> str:
                 f"flagged in the full set); the diagnosis finds {dc['effect']} at "
                 f"{','.join(map(str, dc['joints'])) or '-'} (p = {_p(dc['p_value'])}).",
             ]
+    return md
+
+
+def markdown(rep: dict) -> str:
+    """The study as a Markdown report (tables; the plots are separate PNG files)."""
+    sections = (
+        _summary,
+        _calibration,
+        _mukca_metric,
+        _held_out_positions,
+        _simulation,
+        _candidate_regressors,
+        _causes,
+        _extended_model,
+        _compliance,
+        _outliers,
+        _authors_cleaning,
+    )
+    md = [line for section in sections for line in section(rep)]
     md += ["", "Plots: " + ", ".join(f"`{f}`" for f in rep["files"] if f.endswith(".png")), ""]
     return "\n".join(md)
 
@@ -481,22 +612,26 @@ def _hom(h: dict) -> list:
     return [", ".join(f"{1e6 * v:.1f}" for v in h["mean"]), f"{h['chi2']:.1f}", h["dof"], _p(h["p"])]
 
 
-def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
-    """residuals_vs_regressor.png (component plus residual of the finding's first joint),
-    measured_vs_simulated.png
-    (per-socket residual RMS against the simulated band), stiffness.png, loto_positions.png (held-out
-    spread per position)."""
-    from lasercal.collector.report.plots import pyplot
-    from lasercal.collector.report.plots import save as save_png
+def _plot_residuals_vs_regressor(plt, rep: dict, plots: dict, robots: list):
+    """The residuals against the finding's regressor, a panel per robot.
 
-    plt = pyplot()
-    robots = list(plots)
+    Parameters
+    ----------
+    plt : module
+        matplotlib's pyplot, set up (:func:`collector.report.plots.pyplot`).
+    rep : dict
+        The study's report dict (``report.json``).
+    plots : dict
+        The plotted data per robot (``plots[robot]``).
+    robots : list of str
+        The robots, in the order drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure, not yet saved.
+    """
     n = len(robots)
-    written = []
-
-    def save(fig, name):
-        written.append(save_png(fig, out / name))
-
     fig, axs = plt.subplots(1, n, figsize=(4.2 * n, 3.6), squeeze=False)
     for ax, r in zip(axs[0], robots):
         g = plots[r]["regressor"]
@@ -526,8 +661,15 @@ def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
         ax.set_ylabel(f"joint {g['joint']} motion (mrad)")
         ax.set_title(f"{r}: {g['name']}, joint {g['joint']}", fontsize=10)
     axs[0][0].legend(fontsize=7)
-    save(fig, "residuals_vs_regressor.png")
+    return fig
 
+
+def _plot_measured_vs_simulated(plt, rep: dict, plots: dict, robots: list):
+    """The measured per-socket residual RMS against the simulated band, a row per robot.
+
+    Parameters and Returns as :func:`_plot_residuals_vs_regressor`'s.
+    """
+    n = len(robots)
     fig, axs = plt.subplots(n, 1, figsize=(10, 2.6 * n), squeeze=False)
     for ax, r in zip(axs[:, 0], robots):
         sp = plots[r]["simulation"]["sockets"]
@@ -541,8 +683,15 @@ def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
         s = rep["robots"][r]["simulation"]
         ax.set_title(f"{r}: per-socket RMS, heterogeneity p = {_p(s['sockets']['p'])}", fontsize=10)
     axs[0][0].legend(fontsize=7, ncol=3)
-    save(fig, "measured_vs_simulated.png")
+    return fig
 
+
+def _plot_stiffness(plt, rep: dict, plots: dict, robots: list):
+    """The robots' sag compliances and the stiffnesses resolved as a sag.
+
+    Parameters and Returns as :func:`_plot_residuals_vs_regressor`'s.
+    """
+    n = len(robots)
     joints = rep["compliance_joints"]
     fig, axs = plt.subplots(1, 2, figsize=(10, 3.8))
     w = 0.8 / n
@@ -562,8 +711,15 @@ def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
     axs[0].set_title("formal SE (colour), jackknife SE (grey)", fontsize=9)
     axs[1].set_title("estimates resolved as a sag (c < -2 SE)", fontsize=9)
     axs[0].legend(fontsize=7)
-    save(fig, "stiffness.png")
+    return fig
 
+
+def _plot_loto_positions(plt, rep: dict, plots: dict, robots: list):
+    """The held-out spread per tool position, a panel per robot.
+
+    Parameters and Returns as :func:`_plot_residuals_vs_regressor`'s.
+    """
+    n = len(robots)
     fig, axs = plt.subplots(1, n, figsize=(4.2 * n, 3.6), squeeze=False)
     for ax, r in zip(axs[0], robots):
         folds = rep["robots"][r]["calibration"]["folds"]
@@ -583,5 +739,22 @@ def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
         ax.set_ylabel("held-out spread RMS (mm)")
         ax.set_title(r, fontsize=10)
     axs[0][0].legend(fontsize=7)
-    save(fig, "loto_positions.png")
-    return written
+    return fig
+
+
+def write_plots(rep: dict, plots: dict, out: Path) -> list[Path]:
+    """residuals_vs_regressor.png (component plus residual of the finding's first joint),
+    measured_vs_simulated.png
+    (per-socket residual RMS against the simulated band), stiffness.png, loto_positions.png (held-out
+    spread per position)."""
+    from lasercal.collector.report.plots import pyplot
+    from lasercal.collector.report.plots import save as save_png
+
+    plt = pyplot()
+    figures = (
+        ("residuals_vs_regressor.png", _plot_residuals_vs_regressor),
+        ("measured_vs_simulated.png", _plot_measured_vs_simulated),
+        ("stiffness.png", _plot_stiffness),
+        ("loto_positions.png", _plot_loto_positions),
+    )
+    return [save_png(draw(plt, rep, plots, list(plots)), out / name) for name, draw in figures]

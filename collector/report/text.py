@@ -8,8 +8,19 @@ from lasercal.solver.kinematics.effects import drift_t0
 from lasercal.solver.kinematics.sheet import SHAPE_KEYS, SheetPose
 
 
-def format_diagnosis(d) -> str:
-    """A person's summary of a Diagnosis."""
+def _finding_lines(d) -> list[str]:
+    """The finding: the effect named and its parameters, or none and the best candidate.
+
+    Parameters
+    ----------
+    d : Diagnosis
+        The diagnosis.
+
+    Returns
+    -------
+    list of str
+        The summary's lines, in order.
+    """
     o = d.as_dict()
     lines = []
     if o["effect"] == "none":
@@ -38,6 +49,15 @@ def format_diagnosis(d) -> str:
                 + " -- only data that move them differently tell them apart: more varied configurations, "
                 "more reference points; none, when they share their axis and load)"
             )
+    return lines
+
+
+def _remains_lines(d) -> list[str]:
+    """What remains beyond the camera, and the simulated re-runs of the experiment.
+
+    Parameters and Returns as :func:`_finding_lines`'s: the diagnosis in, the summary's lines out.
+    """
+    lines = []
     noise = (d.extended or d.geometric).extra.get("noise")
     if noise and noise["measured"]:  # a camera session: what remains beyond the camera, said plainly
         lines.append(
@@ -58,7 +78,16 @@ def format_diagnosis(d) -> str:
                 f"  residual RMS: measured {b['observed_rms_mm']:.3f} mm, simulated "
                 f"{np.mean(b['rms_mm']):.3f} +- {np.std(b['rms_mm']):.3f} mm ({b['refits']} full refits)"
             )
-    acc, st = d.acceptance, d.statistics
+    return lines
+
+
+def _decision_lines(d) -> list[str]:
+    """How the finding was decided: the F test's proposal, the held-out folds, the joint map.
+
+    Parameters and Returns as :func:`_finding_lines`'s: the diagnosis in, the summary's lines out.
+    """
+    lines = []
+    acc = d.acceptance
     if d.proposed is not None and d.extension is None:
         lines.append(
             f"proposed by the F test: {d.proposed.effect} {d.proposed.names} -- not kept: "
@@ -106,6 +135,16 @@ def format_diagnosis(d) -> str:
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
             + f" (the keep decision's own folds): {verdict}"
         )
+    return lines
+
+
+def _statistics_lines(d) -> list[str]:
+    """The RMS table, what was not tested or not seen, and the candidates' F tests.
+
+    Parameters and Returns as :func:`_finding_lines`'s: the diagnosis in, the summary's lines out.
+    """
+    st = d.statistics
+    lines = []
     if st:
         lines.append(f"{'RMS (mm)':10} {'nominal':>9} {'geometric':>10} {'extended':>9}")
         for part in ("train", "holdout"):
@@ -133,7 +172,12 @@ def format_diagnosis(d) -> str:
     lines.append("candidates (F test against the geometric model, Bonferroni over all):")
     for t in d.tests[:6]:
         lines.append(f"  {t.label:38} F = {t.F:9.3f}  df {t.df}  p = {t.p:.3g}  corrected {t.p_adjusted:.3g}")
-    return "\n".join(lines)
+    return lines
+
+
+def format_diagnosis(d) -> str:
+    """A person's summary of a Diagnosis."""
+    return "\n".join(_finding_lines(d) + _remains_lines(d) + _decision_lines(d) + _statistics_lines(d))
 
 
 def identifiable_text(rank: int, parameters: int, possible: int | None = None) -> str:
@@ -252,11 +296,16 @@ def _not_counted(rep: dict, det: dict) -> str:
     return f" of {counted} ({left} not counted: {'; '.join(what) or 'held by convention'})"
 
 
-def format_solve(rep: dict) -> str:
-    """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
-    lines = []
-    w = lines.append
-    idf = rep["identifiability"]
+def _print_fit(rep: dict, w) -> None:
+    """The method's convergence and the fit's residual and noise.
+
+    Parameters
+    ----------
+    rep : dict
+        The solve's statistics (:func:`~lasercal.solver.analysis.stats.solve_report`).
+    w : callable
+        Writes one piece of text.
+    """
     w(
         f"method {rep['method']}: {'converged' if rep['converged'] else 'NOT converged'} after "
         f"{rep['iterations']} iterations, {rep['seconds']:.3f} s\n"
@@ -271,6 +320,14 @@ def format_solve(rep: dict) -> str:
             f"captures {rep['captures']}, fit residual RMS {rep['fit_rms_mm']:.3f} mm, {noise} noise "
             f"estimate {rep['sigma_mm']:.3f} mm per axis\n"
         )
+
+
+def _print_identifiability(rep: dict, w) -> None:
+    """What the data identify, and what the prior determines.
+
+    Parameters as :func:`_print_fit`'s: the solve's statistics, and what writes the text.
+    """
+    idf = rep["identifiability"]
     w(
         f"{identifiable_text(idf['rank'], idf['parameters'], idf.get('possible'))}, condition number "
         f"{idf['condition']:.3g}\n"
@@ -297,6 +354,13 @@ def format_solve(rep: dict) -> str:
                 f"  from the prior: {d['combination']} ({n} direction{'s' * (n > 1)}): {d['affects']}; "
                 f"{d['fix']}\n"
             )
+
+
+def _print_sheet_and_outliers(rep: dict, w) -> None:
+    """Where the sheet lies and its shape, and the outlier captures left out.
+
+    Parameters as :func:`_print_fit`'s: the solve's statistics, and what writes the text.
+    """
     sh = rep.get("sheet")
     if sh:
         p, sd = sh["pose"], sh["std"]
@@ -317,6 +381,13 @@ def format_solve(rep: dict) -> str:
             + ("..." if len(rep["outliers"]) > 20 else "")
             + "\n"
         )
+
+
+def _print_by_measurement(rep: dict, w) -> None:
+    """The before/after table of the session's measurement: points, targets or spots.
+
+    Parameters as :func:`_print_fit`'s: the solve's statistics, and what writes the text.
+    """
     if rep.get("measurement") == "point":
         w(f"\n{'point':24} {'spread RMS before':>18} {'after':>8}   (mm, tool points about their mean)\n")
         for nm, b in rep["before"]["points"].items():
@@ -342,6 +413,13 @@ def format_solve(rep: dict) -> str:
             )
     else:
         _print_points(rep, w)
+
+
+def _print_cross_validation(rep: dict, w) -> None:
+    """The cross-validated prediction error.
+
+    Parameters as :func:`_print_fit`'s: the solve's statistics, and what writes the text.
+    """
     cv = rep.get("cross_validation")
     if cv:
         of = " of the measured captures" if "by_kind" in cv else ""
@@ -356,6 +434,20 @@ def format_solve(rep: dict) -> str:
                 f"  aimed captures ({a['captures']}): held-out RMS {a['rms_mm']:.3f} mm, max "
                 f"{a['max_mm']:.3f} (their aim's error)\n"
             )
+
+
+def format_solve(rep: dict) -> str:
+    """``lasercal solve``'s statistics (:func:`~lasercal.solver.analysis.stats.solve_report`) as a table."""
+    lines = []
+    w = lines.append
+    for section in (
+        _print_fit,
+        _print_identifiability,
+        _print_sheet_and_outliers,
+        _print_by_measurement,
+        _print_cross_validation,
+    ):
+        section(rep, w)
     return "".join(lines)
 
 

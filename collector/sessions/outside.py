@@ -13,7 +13,7 @@ from __future__ import annotations
 import datetime
 from pathlib import Path
 
-from lasercal.collector.sessions.capture import SPOT_COLUMNS
+from lasercal.collector.sessions.spotphoto import SPOT_COLUMNS
 from lasercal.collector.sessions.store import csv_line, write_atomic
 from lasercal.solver.formats.captures import AIM_XY
 from lasercal.solver.formats.data import reference

@@ -25,15 +25,8 @@ from lasercal.collector.hardware import (
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.hardware.triggers import AutoTrigger, Trigger, make_trigger
 from lasercal.collector.sessions.anywhere import session_layout_file
-from lasercal.collector.sessions.capture import (
-    CaptureOptions,
-    CaptureResult,
-    StateStream,
-    aimed_layout,
-    new_session,
-    run_capture,
-    session_coach,
-)
+from lasercal.collector.sessions.capture import CaptureOptions, CaptureResult, new_session, run_capture
+from lasercal.collector.sessions.coaching import StateStream, aimed_layout, session_coach
 from lasercal.collector.sessions.motion import MAX_STEP, confirmable
 from lasercal.collector.sessions.photos import PhotoPolicy
 from lasercal.collector.sessions.settings import CaptureSettings, ValidateSettings

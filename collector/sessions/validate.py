@@ -25,7 +25,7 @@ from lasercal.collector.errors import DeviceError, RobotConnectionError, Session
 from lasercal.collector.hardware import mujoco_camera, top_camera
 from lasercal.collector.hardware.base import RobotAdapter
 from lasercal.collector.hardware.cameras import OpenCVCamera
-from lasercal.collector.sessions.capture import StateStream, wait_still
+from lasercal.collector.sessions.coaching import StateStream
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
 from lasercal.collector.sessions.photos import (
@@ -35,6 +35,7 @@ from lasercal.collector.sessions.photos import (
     start_estimate_line,
     written_line,
 )
+from lasercal.collector.sessions.standstill import wait_still
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError

@@ -34,7 +34,7 @@ def floors(session, layout_file, point: str, n: int = 30, seed: int = 0) -> tupl
     measures it, against the printed point) and the repeatability floor (where the true beam truly meets the
     paper, the camera left out)
     """
-    from lasercal.collector.sessions.capture import wait_still
+    from lasercal.collector.sessions.standstill import wait_still
     from lasercal.collector.sessions.validate import ValidateOptions, measure_known_view
     from lasercal.solver.formats.session import load_layout
     from lasercal.solver.kinematics.aim import aim

@@ -89,6 +89,47 @@ def _scaled_chi2_p(sim: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return stats.chi2.sf(observed * 2 * mean / var, 2 * mean**2 / var)
 
 
+def _regressors(T: Tester, R: np.ndarray) -> list[dict]:
+    """Each candidate regressor's partial R^2, against the simulated experiment's, and its overlap.
+
+    Parameters
+    ----------
+    T : Tester
+        The candidates' tests on the geometric fit (their columns ``Q`` beyond the geometry).
+    R : ndarray, shape (rows, replicates)
+        The simulated residuals, refitted to first order.
+
+    Returns
+    -------
+    list of dict
+        A row per candidate with columns, the largest partial R^2 first (:func:`simulation_check`).
+    """
+    rss, rss_sim = float(T.res @ T.res), np.sum(R**2, axis=0)
+    tests = T.tests()
+    test_of = {id(t.extension): t for t in tests}
+    Q_best = T.Q[[id(e) for e in T.exts].index(id(tests[0].extension))]
+    rows = []
+    for e, Q in zip(T.exts, T.Q):
+        if Q.shape[1] == 0:
+            continue
+        r2 = float(np.sum((Q.T @ T.res) ** 2) / rss)
+        r2_sim = np.sum((Q.T @ R) ** 2, axis=0) / rss_sim
+        t = test_of[id(e)]
+        rows.append(
+            {
+                "candidate": t.label,
+                "regressor": _regressor_name(e),
+                "partial_r2": r2,
+                "simulated_r2_95": float(np.percentile(r2_sim, 95)),
+                "p_simulated": _upper_p(r2_sim, r2),
+                "p_F": t.p,
+                "p_F_bonferroni": t.p_adjusted,
+                "overlap_with_best": float(np.linalg.svd(Q_best.T @ Q, compute_uv=False)[0]),
+            }
+        )
+    return sorted(rows, key=lambda r: -r["partial_r2"])
+
+
 def simulation_check(d: Diagnosis, n_sim: int, rng: np.random.Generator) -> tuple[dict, dict]:
     """Measured geometric-fit residuals against the same experiment simulated on the fitted robot.
 
@@ -166,30 +207,7 @@ def simulation_check(d: Diagnosis, n_sim: int, rng: np.random.Generator) -> tupl
         "simulated_95": float(np.percentile(rho_sim, 95)),
         "p": _upper_p(rho_sim, rho),
     }
-    rss, rss_sim = float(T.res @ T.res), np.sum(R**2, axis=0)
-    tests = T.tests()
-    test_of = {id(t.extension): t for t in tests}
-    Q_best = T.Q[[id(e) for e in T.exts].index(id(tests[0].extension))]
-    rows = []
-    for e, Q in zip(T.exts, T.Q):
-        if Q.shape[1] == 0:
-            continue
-        r2 = float(np.sum((Q.T @ T.res) ** 2) / rss)
-        r2_sim = np.sum((Q.T @ R) ** 2, axis=0) / rss_sim
-        t = test_of[id(e)]
-        rows.append(
-            {
-                "candidate": t.label,
-                "regressor": _regressor_name(e),
-                "partial_r2": r2,
-                "simulated_r2_95": float(np.percentile(r2_sim, 95)),
-                "p_simulated": _upper_p(r2_sim, r2),
-                "p_F": t.p,
-                "p_F_bonferroni": t.p_adjusted,
-                "overlap_with_best": float(np.linalg.svd(Q_best.T @ Q, compute_uv=False)[0]),
-            }
-        )
-    out["regressors"] = sorted(rows, key=lambda r: -r["partial_r2"])
+    out["regressors"] = _regressors(T, R)
     return out, plot
 
 
