@@ -699,3 +699,47 @@ def layout_markers(dictionary: str, corners: dict) -> dict:
         "dictionary": dictionary,
         "ids": {int(i): np.round(np.asarray(c, float), 4).tolist() for i, c in corners.items()},
     }
+
+
+EYE_MIN_TILT_DEG = 3.0  # a view nearer square-on than this cannot tell its focal length (eq. V2)
+
+
+def camera_eye(H: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
+    """Where the camera stands, (3,) mm in the plane's frame (z toward the camera's side), from a photo's
+    homography: a pinhole with square pixels and its principal point at the photo's centre (eq. V2).
+
+    With G = H^-1 (plane -> px) shifted to the principal point, K^-1 G = s [r1 r2 t] (Zhang 2000): r1, r2
+    orthonormal give two equations in u = 1/f^2,
+
+        u (g1x g2x + g1y g2y) + g1z g2z = 0,   u (g1x^2 + g1y^2 - g2x^2 - g2y^2) + g1z^2 - g2z^2 = 0,
+
+    solved by least squares; then s from |r1| = |r2| = 1, the sign that puts the plane in front (t_z > 0),
+    and the centre -R^T t with R = [r1 r2 r1 x r2].
+
+    Parameters
+    ----------
+    H : (3, 3) array, ideal px -> plane mm (:attr:`PlaneMap.H`)
+    size : (w, h) px
+
+    Returns
+    -------
+    (3,) array, mm, or None when the view cannot tell its focal length: within :data:`EYE_MIN_TILT_DEG` of
+    square-on to the plane (where the two equations degenerate), or a focal length off the photo's scale
+    """
+    w, h = size
+    shift = np.array([[1.0, 0.0, -(w - 1) / 2], [0.0, 1.0, -(h - 1) / 2], [0.0, 0.0, 1.0]])
+    G = shift @ np.linalg.inv(np.asarray(H, dtype=float))
+    g1, g2 = G[:, 0], G[:, 1]
+    p = np.array([g1[0] * g2[0] + g1[1] * g2[1], g1[0] ** 2 + g1[1] ** 2 - g2[0] ** 2 - g2[1] ** 2])
+    q = np.array([g1[2] * g2[2], g1[2] ** 2 - g2[2] ** 2])
+    u = -float(p @ q) / float(p @ p) if float(p @ p) > 0 else 0.0
+    if not u > 0:
+        return None
+    B = np.diag([np.sqrt(u), np.sqrt(u), 1.0]) @ G
+    s = 2.0 / (np.linalg.norm(B[:, 0]) + np.linalg.norm(B[:, 1]))
+    s = s if B[2, 2] > 0 else -s
+    r1, r2, t = s * B[:, 0], s * B[:, 1], s * B[:, 2]
+    R = np.column_stack([r1, r2, np.cross(r1, r2)])
+    f = 1 / np.sqrt(u)
+    square_on = np.degrees(np.arccos(min(abs(R[2, 2]), 1.0))) < EYE_MIN_TILT_DEG
+    return None if square_on or not 0.2 * w < f < 20 * w else -R.T @ t

@@ -253,6 +253,7 @@ class CaptureRun(CoachSteps, PhotoStep):
         self.settled = False  # the camera's exposure, set until a spot is read unclipped (sessions.exposure)
         self.estimated = False  # the disk the photos will take, said after the first photo
         self.by_hand = False
+        self.sighted = False  # the coach plans for the camera's view, once a photo told where it stands
         self.photo_tries = 0  # photos retaken at this capture because the arm moved during one
         self.status = None  # the coach's last status
         self.name, self.aim, self.cmd = "", None, ""  # the capture under way: its point, the coach's aim

@@ -131,6 +131,30 @@ class CoachSteps:
             spots[spent] = predict_spots(self.coach.post.model, q[spent], spots[spent, 2])[0]
         return q, spots
 
+    def sight_from(self, eye) -> None:
+        """Once a photo's markers tell where the camera stands (``eye``, layout frame, mm: eq. V2), the
+        coach plans only poses whose spot and enough markers that camera sees past the arm (eq. V1,
+        :meth:`solver.analysis.design.Coach.see_from`), and says so once."""
+        if self.coach is None or self.sighted or eye is None or self.layout.frame != "sheet":
+            return
+        from lasercal.vision.plane import load_markers
+
+        markers = load_markers(self.store.folder / "session.yaml")
+        if markers is None:
+            return
+        lay = self.layout
+        centres = np.array([np.mean(np.asarray(c, dtype=float), axis=0) for c in markers.corners.values()])
+        base = lay.sheet.to_base(centres, lay.plane_z)
+        at = lay.sheet.to_base(np.asarray(eye, dtype=float)[None, :2], lay.plane_z)[0] + np.r_[0, 0, eye[2]]
+        need = min(markers.min_markers + 1, len(centres))
+        aside = self.coach.see_from(at, base, need)
+        self.sighted = True
+        self.say(
+            f"  coach: the camera stands at ({at[0]:.0f}, {at[1]:.0f}, {at[2]:.0f}) mm (from the markers); "
+            f"{aside} of its {len(self.coach.cand.q)} candidate poses hide the spot or leave fewer than "
+            f"{need} markers in its view: not planned\n"
+        )
+
     def coach_status(self):
         """Refit the coach on every capture so far and say its status block (the prior's with none)."""
         store, coach = self.store, self.coach

@@ -36,11 +36,14 @@ class SpotMeasure:
     xy : (2,) array, the spot in the layout's frame (a sheet's own), mm
     sigma : (2,) array, its 1-sigma uncertainty per axis, mm
     note : str, warnings of the measurement ('' when none)
+    eye : (3,) array or None, where the camera stands in the layout's frame, mm, from the photo's markers
+        (:func:`vision.plane.camera_eye`, eq. V2; None when they cannot tell)
     """
 
     xy: np.ndarray
     sigma: np.ndarray
     note: str = ""
+    eye: np.ndarray | None = None
 
 
 def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
@@ -53,6 +56,7 @@ def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
         saying why.
     """
     from lasercal.vision.measure import measure_photo
+    from lasercal.vision.plane import camera_eye
 
     res = measure_photo(img, name, layout=markers, camera=lens)
     s = res.spots[0]
@@ -61,7 +65,8 @@ def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
     sigma = np.array([s.sigma_x_mm, s.sigma_y_mm])
     if s.on_ink:  # ink under the spot swallows part of it: its centre may be off by a few tenths of a pixel
         sigma = np.hypot(sigma, INK_PX * res.plane.mm_per_px)
-    return SpotMeasure(np.array([s.x_mm, s.y_mm]), sigma, "; ".join(res.warnings))
+    eye = camera_eye(res.plane.H, (img.shape[1], img.shape[0])) if res.plane.camera is None else None
+    return SpotMeasure(np.array([s.x_mm, s.y_mm]), sigma, "; ".join(res.warnings), eye)
 
 
 def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_file, world):

@@ -29,12 +29,14 @@ class Seen:
         caller says what becomes of the capture)
     nbytes : int, the photo's size as encoded for its file, bytes (0 with ``--photos none``)
     img : (h, w, 3) uint8 array, the photo
+    eye : (3,) array or None, where the camera stands, layout frame, mm (:class:`spotcam.SpotMeasure`)
     """
 
     cells: dict
     said: str
     nbytes: int
     img: np.ndarray
+    eye: np.ndarray | None = None
 
     @property
     def measured(self) -> bool:
@@ -85,6 +87,7 @@ def spot_cells(
     try:
         m = measure(img, name)
     except VisionError as e:
+        m = None
         why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
         cells, said = (
             {"photo": name, "camera_note": why},
@@ -107,7 +110,7 @@ def spot_cells(
         write_atomic_bytes(folder / name, data)  # before the row: a row never names a missing photo
     else:
         cells["photo"] = ""
-    return Seen(cells, said, len(data), img)
+    return Seen(cells, said, len(data), img, None if m is None else getattr(m, "eye", None))
 
 
 class PhotoStep:
@@ -152,6 +155,7 @@ class PhotoStep:
             counts[name] == 0,
         )
         self.settled = self.settled or read_unclipped(got)
+        self.sight_from(got.eye)
         if first is not None and not self.estimated:  # the run's first photo: what the photos will take
             self.estimated = True
             left = sum(max(opts.per_point - k, 0) for k in counts.values())

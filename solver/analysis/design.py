@@ -219,12 +219,15 @@ class Candidates:
     point : (N,) array of str, the point each aims at (or whose cell its spot lies in)
     target : (N, 3) array, where its beam meets the plane, mm
     anchor : (N, 3) array, the point itself, mm (= target at the points)
+    hidden : (N,) bool array or None, candidates whose spot the session's camera cannot measure
+        (:meth:`Coach.see_from`): never available
     """
 
     q: np.ndarray
     point: np.ndarray
     target: np.ndarray
     anchor: np.ndarray
+    hidden: np.ndarray | None = None
 
     def available(self, allowed=None, taken=None) -> np.ndarray:
         """Boolean (N,) mask of the candidates at the points ``allowed`` (None: every one), apart from the
@@ -239,6 +242,8 @@ class Candidates:
             error -- which the capture check then calls similar)
         """
         ok = np.ones(len(self.q), bool) if allowed is None else np.isin(self.point, list(allowed))
+        if self.hidden is not None:
+            ok &= ~self.hidden
         if taken is not None and len(taken[0]):
             q, target = (np.asarray(a, dtype=float) for a in taken)
             same = np.linalg.norm(self.anchor[:, None, :] - target[None, :, :], axis=2) < 1e-6  # (N, m)
@@ -912,6 +917,23 @@ class Coach:
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), tolerances)
         self.jacobians = SpotJacobians(self.post.params)
         self.counted = counted_parameters(self.post.params, sheet)
+
+    def see_from(self, eye: np.ndarray, markers: np.ndarray, need: int) -> int:
+        """Plan only poses the session's camera can measure: its spot and at least ``need`` of the sheet's
+        ``markers`` (k, 3) mm in clear sight of the camera's ``eye`` (3,) mm past the arm, both in the base
+        frame, under the current estimate (:func:`solver.analysis.sight.camera_sees`). A point none of whose
+        candidates the camera would see keeps them all (the coach cannot help there). Returns how many
+        candidates are set aside."""
+        from lasercal.solver.analysis.sight import camera_sees
+
+        c = self.cand
+        seen = camera_sees(self.post.model, c.q, c.target[:, 2], eye, markers, need)
+        for name in set(c.point.tolist()):
+            here = c.point == name
+            if not seen[here].any():
+                seen[here] = True
+        self.cand = replace(c, hidden=~seen)
+        return int((~seen).sum())
 
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
         """Refit with all captures so far, (m, n) rad and (m, 3) mm, starting from the last estimate."""
