@@ -704,7 +704,7 @@ def layout_markers(dictionary: str, corners: dict) -> dict:
 EYE_MIN_TILT_DEG = 3.0  # a view nearer square-on than this cannot tell its focal length (eq. V2)
 
 
-def camera_eye(H: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
+def camera_eye(H: np.ndarray, size: tuple[int, int], K: np.ndarray | None = None) -> np.ndarray | None:
     """Where the camera stands, (3,) mm in the plane's frame (z toward the camera's side), from a photo's
     homography: a pinhole with square pixels and its principal point at the photo's centre (eq. V2).
 
@@ -720,6 +720,8 @@ def camera_eye(H: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
     ----------
     H : (3, 3) array, ideal px -> plane mm (:attr:`PlaneMap.H`)
     size : (w, h) px
+    K : (3, 3) array or None, the camera matrix when a calibration gives it (then no focal length is
+        estimated: K^-1 G directly)
 
     Returns
     -------
@@ -727,19 +729,24 @@ def camera_eye(H: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
     square-on to the plane (where the two equations degenerate), or a focal length off the photo's scale
     """
     w, h = size
-    shift = np.array([[1.0, 0.0, -(w - 1) / 2], [0.0, 1.0, -(h - 1) / 2], [0.0, 0.0, 1.0]])
-    G = shift @ np.linalg.inv(np.asarray(H, dtype=float))
-    g1, g2 = G[:, 0], G[:, 1]
-    p = np.array([g1[0] * g2[0] + g1[1] * g2[1], g1[0] ** 2 + g1[1] ** 2 - g2[0] ** 2 - g2[1] ** 2])
-    q = np.array([g1[2] * g2[2], g1[2] ** 2 - g2[2] ** 2])
-    u = -float(p @ q) / float(p @ p) if float(p @ p) > 0 else 0.0
-    if not u > 0:
-        return None
-    B = np.diag([np.sqrt(u), np.sqrt(u), 1.0]) @ G
+    if K is not None:
+        B, u = np.linalg.solve(np.asarray(K, dtype=float), np.linalg.inv(np.asarray(H, dtype=float))), None
+    else:
+        shift = np.array([[1.0, 0.0, -(w - 1) / 2], [0.0, 1.0, -(h - 1) / 2], [0.0, 0.0, 1.0]])
+        G = shift @ np.linalg.inv(np.asarray(H, dtype=float))
+        g1, g2 = G[:, 0], G[:, 1]
+        p = np.array([g1[0] * g2[0] + g1[1] * g2[1], g1[0] ** 2 + g1[1] ** 2 - g2[0] ** 2 - g2[1] ** 2])
+        q = np.array([g1[2] * g2[2], g1[2] ** 2 - g2[2] ** 2])
+        u = -float(p @ q) / float(p @ p) if float(p @ p) > 0 else 0.0
+        if not u > 0:
+            return None
+        B = np.diag([np.sqrt(u), np.sqrt(u), 1.0]) @ G
     s = 2.0 / (np.linalg.norm(B[:, 0]) + np.linalg.norm(B[:, 1]))
     s = s if B[2, 2] > 0 else -s
     r1, r2, t = s * B[:, 0], s * B[:, 1], s * B[:, 2]
     R = np.column_stack([r1, r2, np.cross(r1, r2)])
+    if u is None:  # a calibrated camera: its centre whatever the view
+        return -R.T @ t
     f = 1 / np.sqrt(u)
     square_on = np.degrees(np.arccos(min(abs(R[2, 2]), 1.0))) < EYE_MIN_TILT_DEG
     return None if square_on or not 0.2 * w < f < 20 * w else -R.T @ t

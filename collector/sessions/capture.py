@@ -261,6 +261,8 @@ class CaptureRun(CoachSteps, PhotoStep):
         # the next move (the page never moves the arm)
         self.from_page = False
         self.t_shift = 0.0
+        if self.camera is not None:
+            self.sight_from(None)  # a resumed session plans for the camera its first photo found
 
     # ------------------------------------------------------------------ what the terminal and page show
     def say(self, text: str) -> None:

@@ -5,6 +5,7 @@ coach's refit after each capture, and ``--guide move``'s moves to the pose it su
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -105,6 +106,28 @@ def session_coach(
     return Coach(model, layout, cfg["seed"], tol, sheet=sheet is not None, anywhere=anywhere, pose=sheet)
 
 
+EYE_FILE = "camera_eye.yaml"  # where the camera stands, as the first measured photo's markers said
+
+
+def recorded_eye(folder, eye) -> np.ndarray | None:
+    """The camera's eye a session recorded (:data:`EYE_FILE`), else ``eye`` (layout frame, mm), recorded
+    now: a resumed session plans for the camera its first photo found, as the uninterrupted one did."""
+    from lasercal.collector.sessions.store import write_atomic
+    from lasercal.solver.formats.robots import load_yaml
+
+    path = Path(folder) / EYE_FILE
+    if path.is_file():
+        return np.asarray(load_yaml(path)["eye_mm"], dtype=float)
+    if eye is None:
+        return None
+    write_atomic(
+        path,
+        "# where the camera stands, mm, in the layout's frame: from the first measured photo's markers\n"
+        f"eye_mm: [{eye[0]:.3f}, {eye[1]:.3f}, {eye[2]:.3f}]\n",
+    )
+    return np.asarray(eye, dtype=float)
+
+
 class CoachSteps:
     """The coach's and the moves' steps of a capture run (:class:`~collector.sessions.capture.CaptureRun`,
     whose state they read: the store, the robot, the coach, the layout and its points, the counts, the
@@ -135,11 +158,15 @@ class CoachSteps:
         """Once a photo's markers tell where the camera stands (``eye``, layout frame, mm: eq. V2), the
         coach plans only poses whose spot and enough markers that camera sees past the arm (eq. V1,
         :meth:`solver.analysis.design.Coach.see_from`), and says so once."""
-        if self.coach is None or self.sighted or eye is None or self.layout.frame != "sheet":
+        if self.coach is None or self.sighted or self.layout.frame != "sheet":
             return
+        eye = recorded_eye(self.store.folder, eye)
+        if eye is None:
+            return
+        from lasercal.collector.sessions.anywhere import session_layout_file
         from lasercal.vision.plane import load_markers
 
-        markers = load_markers(self.store.folder / "session.yaml")
+        markers = load_markers(session_layout_file(self.meta.get("collector", {}), self.store.folder))
         if markers is None:
             return
         lay = self.layout

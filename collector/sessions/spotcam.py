@@ -65,7 +65,8 @@ def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
     sigma = np.array([s.sigma_x_mm, s.sigma_y_mm])
     if s.on_ink:  # ink under the spot swallows part of it: its centre may be off by a few tenths of a pixel
         sigma = np.hypot(sigma, INK_PX * res.plane.mm_per_px)
-    eye = camera_eye(res.plane.H, (img.shape[1], img.shape[0])) if res.plane.camera is None else None
+    cam = res.plane.camera
+    eye = camera_eye(res.plane.H, (img.shape[1], img.shape[0]), None if cam is None else cam.K)
     return SpotMeasure(np.array([s.x_mm, s.y_mm]), sigma, "; ".join(res.warnings), eye)
 
 

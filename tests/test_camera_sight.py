@@ -1,0 +1,103 @@
+"""Issue 53: the coach of a hands-free camera session plans only poses its camera can measure. Where the
+camera stands comes from a photo's markers (vision.plane.camera_eye, eq. V2), whether it sees a spot and the
+markers past the arm from the model (solver.analysis.sight, eq. V1)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lasercal.collector.worlds.truearm import arm_segments
+from lasercal.solver.analysis.design import Coach
+from lasercal.solver.analysis.sight import arm_axes, camera_sees, segment_distance
+from lasercal.solver.formats.data import builtin_dir
+from lasercal.solver.formats.robots import load_model
+from lasercal.solver.formats.session import load_layout
+from lasercal.solver.kinematics.laser import beam, plane_hit
+from lasercal.vision.plane import camera_eye
+from lasercal.vision.render import look_down
+
+PANDA = load_model("panda")
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.floats(5, 40), st.floats(-40, 40), st.floats(-180, 180), st.floats(300, 1500), st.integers(0, 10**6)
+)
+def test_the_eye_of_a_tilted_camera_is_found_from_its_homography(tilt_x, tilt_y, yaw, height, seed):
+    """eq. V2 against the renderer's own pinhole (vision.render.look_down): the centre to 1e-4 of its
+    distance (measured over 400 draws at 5-50 deg of tilt: at most 9.2e-6, the homography's own fit by
+    OpenCV setting it); points anywhere on the plane."""
+    view = look_down(
+        (1280, 960), 0.3, centre=(120.0, -40.0), yaw_deg=yaw, tilt_deg=(tilt_x, tilt_y), height=height
+    )
+    xy = np.random.default_rng(seed).uniform(-150, 150, (8, 2)) + [120.0, -40.0]
+    H, _ = cv2.findHomography(view.project(xy), xy, 0)
+    eye = camera_eye(H, view.size)
+    assert eye is not None
+    assert np.linalg.norm(eye - [120.0, -40.0, height]) < 1e-4 * height
+
+
+def test_a_square_on_camera_says_it_cannot_tell():
+    """Within EYE_MIN_TILT_DEG of square-on the focal length is not determined: None, not a guess (the
+    unguarded formula puts such a camera ~580 m up)."""
+    view = look_down((1280, 960), 0.3, centre=(0.0, 0.0), tilt_deg=(1.0, 0.0), height=700.0)
+    xy = np.array([[0, 0], [200, 0], [200, 150], [0, 150.0]]) - 100
+    H, _ = cv2.findHomography(view.project(xy), xy, 0)
+    assert camera_eye(H, view.size) is None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10**6))
+def test_segment_distance_is_the_sampled_minimum(seed):
+    a0, a1, b0, b1 = np.random.default_rng(seed).normal(size=(4, 3)) * 100
+    s = np.linspace(0, 1, 1201)[:, None]
+    brute = np.linalg.norm((a0 + s * (a1 - a0))[:, None] - (b0 + s * (b1 - b0))[None], axis=2).min()
+    got = float(segment_distance(a0, a1, b0, b1))
+    assert got <= brute + 1e-9 and brute - got < 0.5  # the samples lie within 0.2 mm of the true closest
+
+
+def test_the_arm_the_coach_sees_is_the_one_the_world_draws():
+    """solver.analysis.sight's centre line (the solver's POE chain) against the fake world's (scipy's
+    expm)."""
+    q = np.random.default_rng(3).uniform(-1.5, 1.5, (5, PANDA.n))
+    axes = arm_axes(PANDA, q)
+    for a, qi in zip(axes, q):
+        seg = arm_segments(PANDA, qi)
+        assert np.abs(a[:-1] - seg[:, 0]).max() < 1e-9 and np.abs(a[1:] - seg[:, 1]).max() < 1e-9
+
+
+def test_a_camera_behind_the_arm_does_not_see_the_spot():
+    """A camera placed on the line from the spot through a link's middle, beyond it, is hidden; the same
+    camera lifted far above the table sees the spot; a marker behind the arm counts as hidden too."""
+    layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
+    q = layout.aim_at(PANDA, "P1", 1, np.random.default_rng(0))
+    b = beam(np.asarray(PANDA.screws), PANDA.laser_dir, PANDA.aperture, q)
+    spot, _ = plane_hit(b.aperture, b.direction, layout.plane_z)
+    axes = arm_axes(PANDA, q)[0]
+    middle = (axes[3] + axes[4]) / 2  # the upper arm's centre line
+    behind = spot[0] + 2.5 * (middle - spot[0])
+    far_above = spot[0] + np.array([0.0, 0.0, 5000.0])
+    markers = np.array([spot[0] + [60.0, 0, 0], spot[0] + [-60.0, 0, 0]])
+    z = layout.plane_z
+    assert not camera_sees(PANDA, q, z, behind, markers, 0)[0]
+    assert camera_sees(PANDA, q, z, far_above, markers, 2)[0] or np.linalg.norm(b.direction[0, :2]) > 0.3
+    assert not camera_sees(PANDA, q, z, far_above, markers, 3)[0]  # two markers cannot make three
+
+
+def test_the_coach_plans_no_pose_its_camera_cannot_measure():
+    """Coach.see_from sets aside the candidates a camera would not measure, and the plan draws on the
+    others only; a point none of whose candidates the camera sees keeps them (the coach cannot help)."""
+    layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
+    coach = Coach(PANDA, layout, seed=1, per_point=40)
+    eye = np.array([450.0, 0.0, 700.0])  # straight above the points: the arm hides 42 % of the candidates
+    markers = np.array([[x, y, layout.plane_z] for x in (350.0, 550.0) for y in (-150.0, 150.0)])
+    aside = coach.see_from(eye, markers, 3)
+    c = coach.cand
+    seen = camera_sees(PANDA, c.q, c.target[:, 2], eye, markers, 3)
+    assert 0 < aside == int((~seen).sum()) < len(c.q)
+    st = coach.status(np.empty((0, PANDA.n)), k=10)
+    plan_seen = camera_sees(PANDA, st.plan.q, st.plan.target[:, 2], eye, markers, 3)
+    assert plan_seen.all()
