@@ -65,8 +65,10 @@ def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
     sigma = np.array([s.sigma_x_mm, s.sigma_y_mm])
     if s.on_ink:  # ink under the spot swallows part of it: its centre may be off by a few tenths of a pixel
         sigma = np.hypot(sigma, INK_PX * res.plane.mm_per_px)
+    # a calibration's K; a lens fitted to the markers (rms_px nan) tells no focal length
     cam = res.plane.camera
-    eye = camera_eye(res.plane.H, (img.shape[1], img.shape[0]), None if cam is None else cam.K)
+    calibrated = cam is not None and np.isfinite(getattr(cam, "rms_px", np.nan))
+    eye = camera_eye(res.plane.H, (img.shape[1], img.shape[0]), cam.K if calibrated else None)
     return SpotMeasure(np.array([s.x_mm, s.y_mm]), sigma, "; ".join(res.warnings), eye)
 
 
