@@ -93,7 +93,7 @@ def test_the_coach_plans_no_pose_its_camera_cannot_measure():
     layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
     coach = Coach(PANDA, layout, seed=1, per_point=40)
     eye = np.array([450.0, 0.0, 700.0])  # straight above the points: the arm hides 42 % of the candidates
-    markers = np.array([[x, y, layout.plane_z] for x in (350.0, 550.0) for y in (-150.0, 150.0)])
+    markers = np.array([[x, y, layout.plane_z] for x in (300.0, 650.0) for y in (-300.0, 300.0)])
     aside = coach.see_from(eye, markers, 3)
     c = coach.cand
     seen = camera_sees(PANDA, c.q, c.target[:, 2], eye, markers, 3)
@@ -101,3 +101,14 @@ def test_the_coach_plans_no_pose_its_camera_cannot_measure():
     st = coach.status(np.empty((0, PANDA.n)), k=10)
     plan_seen = camera_sees(PANDA, st.plan.q, st.plan.target[:, 2], eye, markers, 3)
     assert plan_seen.all()
+
+
+def test_a_spot_outside_the_markers_the_photo_shows_is_not_planned():
+    """The photo maps to mm only inside the hull of the markers it shows: a spot outside it, or with fewer
+    than three shown, is not measurable."""
+    from lasercal.solver.analysis.sight import inside_shown
+
+    square = np.array([[0, 0], [10, 0], [10, 10], [0, 10.0]])
+    spots = np.array([[5, 5], [11, 5], [5, 5], [2, 8]])
+    shown = np.array([[1, 1, 1, 1], [1, 1, 1, 1], [1, 0, 1, 0], [1, 1, 1, 0]], bool)
+    assert inside_shown(spots, square, shown).tolist() == [True, False, False, False]

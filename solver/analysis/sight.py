@@ -71,12 +71,31 @@ def camera_sees(
     radius: float = ARM_RADIUS_MM,
 ) -> np.ndarray:
     """Whether a camera at ``eye`` (3,) mm measures the spot of each configuration q (m, n) rad on the plane
-    of height z mm (a float or (m,)): the spot in clear sight (eq. V1) and at least ``need`` of the
-    ``markers`` (k, 3) mm, base frame, in clear sight too. Returns (m,) bool."""
+    of height z mm (a float or (m,)): the spot in clear sight (eq. V1), at least ``need`` of the ``markers``
+    (k, 3) mm, base frame (their centres), in clear sight too, and the spot inside their hull. Returns (m,)
+    bool."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     axes = arm_axes(model, q)
     b = beam(np.asarray(model.screws, dtype=float), model.laser_dir, model.aperture, q)
     spot, _ = plane_hit(b.aperture, b.direction, z)
     seen = sight_clear(axes, eye, spot[:, None, :], radius)[:, 0]
     marks = np.broadcast_to(np.asarray(markers, dtype=float), (len(q), *np.shape(markers)))
-    return seen & (sight_clear(axes, eye, marks, radius).sum(1) >= need)
+    shown = sight_clear(axes, eye, marks, radius)  # (m, k)
+    return seen & (shown.sum(1) >= need) & inside_shown(spot[:, :2], np.asarray(markers)[:, :2], shown)
+
+
+def inside_shown(spots: np.ndarray, markers: np.ndarray, shown: np.ndarray) -> np.ndarray:
+    """Whether each spot (m, 2) mm lies inside the convex hull of the markers (k, 2) mm its photo shows
+    (``shown`` (m, k) bool): a photo maps only that area to mm without extrapolating. (m,) bool."""
+    from scipy.spatial import Delaunay, QhullError
+
+    out = np.zeros(len(spots), bool)
+    for pattern in np.unique(shown, axis=0):
+        rows = (shown == pattern).all(1)
+        if pattern.sum() < 3:
+            continue
+        try:
+            out[rows] = Delaunay(markers[pattern]).find_simplex(spots[rows]) >= 0
+        except QhullError:  # the markers shown lie on a line: no area
+            continue
+    return out
