@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from lasercal.vision.bare import rim_centre
 from lasercal.vision.candidates import Candidate
 from lasercal.vision.errors import SpotCountError
 from lasercal.vision.features import (
@@ -103,6 +104,10 @@ class DecisionRule:
     share_max : float, the largest share of the photo a spot clipped over less than
         :data:`SIZE_CLIPPED` of its blob may cover (:attr:`~vision.spot.Evidence.share`): a laser's light
         spread over thousands of pixels clips; a reddish surface beside a shadow does not
+    bare_shift : float, the rim shift a white clipped core alone in the photo needs (rule "bare", issue
+        55; see :mod:`vision.bare`): laser-ward at all, where white light measures up to ~1.06
+    adds_share : float, of several candidates, one whose luma rises by less than this share of the most
+        laser-like one's (:func:`vision.detect._adds`) is a coloured object, not light (issue 55)
     offset, slope, clipped : float, the probability
         ``1 / (1 + exp(-(offset + slope * margin + clipped * c)))`` of a candidate whose evidence
         clears its threshold by ``margin`` (see :func:`margin`), with ``c`` = 1 when its laser channel
@@ -118,6 +123,8 @@ class DecisionRule:
     dominance: float = 0.05
     side_max: float = 0.5
     share_max: float = 0.01
+    bare_shift: float = 1.15
+    adds_share: float = 0.6
     offset: float = -1.91
     slope: float = 0.99
     clipped: float = 1.30
@@ -147,7 +154,7 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
 
     Returns
     -------
-    Evidence with ``rule`` ("rim", "core", "ring", "view", "grey" or None) and ``confidence``
+    Evidence with ``rule`` ("rim", "core", "ring", "view", "bare", "grey" or None) and ``confidence``
     (probability)
     """
     if refusal(ev, rule) != "white":  # its light's shape says it is no beam, whatever its colour
@@ -164,6 +171,9 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
         return replace(ev, rule="ring", confidence=rule.probability(np.log(ev.ring / RING_MIN), True))
     elif ev.white_px and (ev.surround or 0.0) >= MONO:
         return replace(ev, rule="view", confidence=0.75)
+    elif bare_alone(ev, rule):
+        # A core so far past clipping that only a faint laser-ward rim is left, alone in the frame.
+        return replace(ev, rule="bare", confidence=BARE_CONFIDENCE)
     else:
         name = None
     return replace(ev, rule=name, confidence=rule.probability(margin(ev, rule), ev.clipped_px > 0))
@@ -178,6 +188,8 @@ def refusal(ev: Evidence, rule: DecisionRule = RULE) -> str:
         return "side"
     if ev.share > rule.share_max and ev.clipped_fraction < SIZE_CLIPPED:
         return "large"
+    if bare_core(ev, rule) and (ev.bare or 0) > 1:
+        return "several"
     return "white"
 
 
@@ -200,7 +212,29 @@ REASONS = {
     "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
     "side": "laser-coloured on one side only (lit by another spot's halo, or a lamp beside an edge?)",
     "large": "a large region that does not clip (a lit surface beside a shadow?)",
+    "several": (
+        "a white clipped blob with a faint laser-coloured rim, but the photo holds several alike: which "
+        "is the laser it cannot say (lower the exposure, or take a laser-off photo: --reference)"
+    ),
 }
+
+
+# Issue 55: a spot so far past clipping that its colour is gone (a white core, a thin rim a person still
+# sees as coloured) is read when it is the only compact white clipped blob of its kind in the photo
+# (DecisionRule.bare_shift), reported with a low probability and the advice to lower the exposure.
+BARE_CONFIDENCE = 0.3
+
+
+def bare_core(ev: Evidence, rule: DecisionRule = RULE) -> bool:
+    """Whether a candidate is a white clipped core with a faint laser-ward rim (rim shift at least
+    ``rule.bare_shift``), counted against the photo's other compact white blobs
+    (:attr:`~vision.spot.Evidence.bare`)."""
+    return ev.bare is not None and has_core(ev) and (ev.rim_shift or 0.0) >= rule.bare_shift
+
+
+def bare_alone(ev: Evidence, rule: DecisionRule = RULE) -> bool:
+    """Whether such a core is the photo's only compact white clipped blob of its size (rule "bare")."""
+    return bare_core(ev, rule) and ev.bare == 1
 
 
 @dataclass(frozen=True)
@@ -535,6 +569,11 @@ def _measure_blob(
 
     # A blob cut by the photo's edge shows only part of its light, and its centre is extrapolated.
     cut = _cut_by_edge(blob, x0, y0, w, h)
+    # The centre of its clipped core from the rim of the saturation (issue 55): kept beside the fit,
+    # which leans when something joins the core on one side (vision.detect._rim_centred).
+    rim = rim_centre(clipped & near.astype(bool), (u, v)) if clipped[blob].any() else None
+    if rim is not None:
+        ev = replace(ev, rim_centre=(rim[0] + x0, rim[1] + y0))
     return Spot(
         u + x0,
         v + y0,

@@ -47,6 +47,7 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
+from lasercal.vision.bare import RIM_MAX_PX, RIM_MIN_PX, RIM_STRAY, counted, rim_centre, white_cores
 from lasercal.vision.candidates import Candidate, _octave, _shrink, find_candidates
 from lasercal.vision.decide import (
     CLOSE,
@@ -66,7 +67,7 @@ from lasercal.vision.decide import (
     refusal,
 )
 from lasercal.vision.errors import NoSpotError, VisionError
-from lasercal.vision.features import LUMA_CLIP
+from lasercal.vision.features import CLIP, LUMA_CLIP
 from lasercal.vision.imagej import measure as imagej_measure
 from lasercal.vision.images import full_scale
 from lasercal.vision.ring import RING_MIN
@@ -250,6 +251,10 @@ def select(
         )
     if img is not None and img.ndim == 2:
         warnings.append("grey photo: white reflections cannot be told from laser light")
+    if len(spots) > 1:
+        spots, note = _laser_like(spots, rule.adds_share)
+        if note:
+            warnings.append(note)
     if expect is None:
         spots, note = _dominant(spots, rule.dominance, rank)
         if note:
@@ -294,8 +299,56 @@ def _judged(
         if isinstance(done, Rejection):
             refused.append(done)
         else:
-            kept.append(replace(done, evidence=judge(done.evidence, rule)))
+            kept.append(_rim_centred(replace(done, evidence=judge(done.evidence, rule))))
+    # A colourless core is read only where no spot shows the laser's colour (see vision.bare).
+    if any(s.evidence is None or s.evidence.rule != "bare" for s in kept):
+        refused += [Rejection("white", s.u, s.v, s.evidence) for s in kept if s.evidence.rule == "bare"]
+        kept = [s for s in kept if s.evidence is None or s.evidence.rule != "bare"]
     return _one_per_light(_dedupe(kept)), refused
+
+
+def _rim_centred(s: Spot) -> Spot:
+    """A clipped spot centred on the rim of its saturation (:func:`vision.bare.rim_centre`) where the
+    precise fit strays from it by over :data:`~vision.bare.RIM_STRAY`: the fit weighs
+    the clipped pixels and the flanks, and both lean towards whatever joins the core on one side (a
+    flare streak, a glint); the round part of the rim does not. Where the two agree the fit is kept (it
+    is the finer one: 0.02 px against the outline's quantisation). The sigma stays the fit's."""
+    ev = s.evidence
+    if ev is None or ev.rim_centre is None or ev.clipped_px <= 0:
+        return s
+    u, v = ev.rim_centre
+    if np.hypot(s.u - u, s.v - v) <= RIM_STRAY:
+        return s
+    return replace(s, u=float(u), v=float(v))
+
+
+def _adds(s: Spot) -> float:
+    """How much a spot's light is light added, not a surface's colour: its luma's rise over its laser
+    channel's (:attr:`~vision.spot.Evidence.light` / :attr:`~vision.spot.Evidence.excess`). A laser adds
+    light, and its cross-talk, blooming and clipping whiten its core: 0.7-1.5 on the shared photos and
+    the renders. A red object (a box, a red-lit screen patch) is red because its other channels fall
+    below the surface's: its luma barely rises, 0.3-0.45 on the renders."""
+    ev = s.evidence
+    return 1.0 if ev is None or ev.colour is None else float(ev.light / max(ev.excess, 1e-6))
+
+
+def _laser_like(spots: list[Spot], share: float) -> tuple[list[Spot], str | None]:
+    """Of several candidates, those that add light like the most laser-like one: their luma rise over
+    their colour's (:func:`_adds`) at least ``share`` of its (:attr:`DecisionRule.adds_share`); and a
+    warning naming the others. A bright red object outshines a small spot in flux, so strength alone
+    chose it (issue 55)."""
+    best = max(_adds(s) for s in spots)
+    kept = [s for s in spots if _adds(s) >= share * best]
+    rest = [s for s in spots if _adds(s) < share * best]
+    if not rest:
+        return spots, None
+    where = "; ".join(
+        f"({s.u:.1f}, {s.v:.1f}) px (luma rise {_adds(s):.2f} of its colour's)" for s in rest[:3]
+    )
+    return kept, (
+        f"several candidates: refused {len(rest)} that colour the photo more than they light it (a red "
+        f"object, not a laser spot; the laser-like ones add {best:.2f}): {where}"
+    )
 
 
 def _one_per_light(spots: list[Spot]) -> list[Spot]:
@@ -324,6 +377,8 @@ def _colour_margin(s: Spot, rule: DecisionRule) -> float:
         return 0.0
     if ev.rule == "ring":
         return float(np.log(ev.ring / RING_MIN))
+    if ev.rule == "bare":
+        return float(np.log(max(ev.rim_shift or 0.0, 1e-9) / rule.bare_shift))
     thr = rule.core_shift_min if ev.rule == "core" else rule.shift_min
     return float(np.log(max(ev.rim_shift or 0.0, 1e-9) / max(thr, 1e-9)))
 
@@ -398,11 +453,15 @@ def _find(
             ref = refs.get(k)
             near = [_shrunk(o, k) for o in others]
             rs = [
-                _grown(r, k)
+                _full_rim(img, _grown(r, k), colour)
                 for r in measure_spot(small, _shrunk(c, k), colour, ref, near, gamma, True, False)
             ]
         for r in rs:
             (rejected if isinstance(r, Rejection) else found).append(r)
+    if img.ndim == 3 and found:
+        if "white" not in shrunk:
+            shrunk["white"] = white_cores(img)
+        found = [counted(s, shrunk["white"]) for s in found]
     return _ring_first(found), rejected
 
 
@@ -425,6 +484,26 @@ def _ring_first(spots: list[Spot]) -> list[Spot]:
         flux = max([c.evidence.flux] + [s.evidence.flux for s in spots if s not in rings and own(s, c)])
         out.append(replace(c, evidence=replace(c.evidence, flux=flux)))
     return out + [s for s in spots if s not in rings and not any(own(s, c) for c in rings)]
+
+
+def _full_rim(img: np.ndarray, r: Spot | Rejection, colour: str) -> Spot | Rejection:
+    """A spot measured on a shrunk copy, with the rim centre of its clipped core
+    (:func:`vision.bare.rim_centre`) measured in the full photo: a core of tens of px whose blob (its
+    halo, a streak beside it) needs the shrunk copy is still centred to a pixel's fraction by its rim.
+    Not for cores over :data:`~vision.bare.RIM_MAX_PX` (a spot hundreds of px wide, its plateau ragged
+    with speckle)."""
+    ev = r.evidence if isinstance(r, Spot) else None
+    if ev is None or not RIM_MIN_PX <= ev.clipped_px <= RIM_MAX_PX or img.ndim != 3:
+        return r
+    half = int(2 * np.sqrt(ev.clipped_px / np.pi) + 10)
+    h, w = img.shape[:2]
+    x0, y0 = max(int(r.u) - half, 0), max(int(r.v) - half, 0)
+    x1, y1 = min(int(r.u) + half + 1, w), min(int(r.v) + half + 1, h)
+    clipped = img[y0:y1, x0:x1, CHANNEL[colour]] >= CLIP * full_scale(img)
+    rim = rim_centre(clipped, (r.u - x0, r.v - y0))
+    if rim is None:
+        return r
+    return replace(r, evidence=replace(ev, rim_centre=(rim[0] + x0, rim[1] + y0)))
 
 
 def _shrunk(c: Candidate, k: int) -> Candidate:
@@ -452,6 +531,7 @@ def _grown(r: Spot | Rejection, k: int) -> Spot | Rejection:
             area=ev.area * k2,
             flux=ev.flux * k2,
             reach=ev.reach * k,
+            rim_centre=None,  # a core's rim on a shrunk copy: too coarse
         )
     return replace(r, u=u, v=v, sigma_u=su, sigma_v=sv, area=r.area * k * k, evidence=ev, pending=p)
 

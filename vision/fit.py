@@ -39,6 +39,10 @@ DOMINANCE_GRID = (0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5)
 # of the photo an unclipped spot may cover.
 SIDE_GRID = (0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0.8, 1.0)
 SHARE_GRID = tuple(np.round(np.geomspace(1e-4, 0.1, 13), 6))
+# Issue 55: the rim shift a colourless white core alone in the photo needs, and the share of the most
+# laser-like candidate's luma rise another must bring.
+BARE_GRID = (1.0, 1.05, 1.1, 1.15, 1.2, 1.3, 1.4, 1.6, 2.0)
+ADDS_GRID = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 
 @dataclass(frozen=True)
@@ -171,7 +175,7 @@ def fit_rule(photos: list[Labelled], sweeps: int = 3) -> DecisionRule:
     errors with the others held (in log space: the farthest from both kinds of failure that the data
     can tell apart).
     """
-    grids = (SHIFT_GRID, CORE_GRID, DOMINANCE_GRID, SIDE_GRID, SHARE_GRID)  # DecisionRule's order
+    grids = (SHIFT_GRID, CORE_GRID, DOMINANCE_GRID, SIDE_GRID, SHARE_GRID, BARE_GRID, ADDS_GRID)  # its order
     x = [float(np.exp(np.median(np.log(g)))) for g in grids]
     for _ in range(sweeps):
         before = list(x)
@@ -347,4 +351,28 @@ def wild(n: int, seed: int = 0) -> list[Labelled]:
             labels = [dict(x=sc.truth[0], y=sc.truth[1], uncertainty_px=0.5, radius_px=sc.radius)]
             tries = measure_candidates(sc.img, "auto", None, 2.2, True)
             out.append(Labelled("wild", f"{kind} {i}", labels, [], tries))
+    return out
+
+
+def wild55(n: int, seed: int = 0) -> list[Labelled]:
+    """Labelled photos of issue 55's kinds (:data:`vision.render_wild.SCENES_55`: a colourless white core,
+    a clipped core a flare streak leans, a red object beside a spot, a red-lit edge beside a spot), ``n``
+    of each, and ``n`` of the colourless core's counter-case (:func:`~vision.render_wild.two_white_cores`:
+    no spot may be reported there but the true one, and none is right).
+
+    Returns
+    -------
+    list of Labelled, source "wild 55" (the spot's label: its true centre, uncertainty 0.5 px, its core
+    radius; the counter-case's spot is an uncertain one, never false and never needed)
+    """
+    from lasercal.vision.render_wild import SCENES_55, two_white_cores
+
+    out = []
+    for kind, draw in dict(SCENES_55, **{"two white cores": two_white_cores}).items():
+        for i in range(n):
+            sc = draw(seed * 1000 + i)
+            label = dict(x=sc.truth[0], y=sc.truth[1], uncertainty_px=0.5, radius_px=sc.radius)
+            spots, uncertain = ([], [label]) if draw is two_white_cores else ([label], [])
+            tries = measure_candidates(sc.img, "auto", None, 2.2, True)
+            out.append(Labelled("wild 55", f"{kind} {i}", spots, uncertain, tries))
     return out

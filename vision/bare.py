@@ -1,0 +1,135 @@
+"""Issue 55: spots that clip so far their colour is gone, and clipped cores whose pixels lean.
+
+:func:`white_cores`, :func:`counted` -- a spot exposed so far past clipping that its colour is gone
+(highlight desaturation and blooming whiten the laser's neighbours) is a white clipped core with a rim a
+person still sees as coloured, and the brightest compact blob of the frame. Its rim's shift towards the
+laser's hue is faint (measured 1.1-1.7 on the rendered ones, where white light measures up to ~1.06), so
+its colour alone cannot tell it from a glare; being the only compact white blob of its size in the photo
+can (:func:`vision.decide.bare_alone`, rule "bare"). Where the photo holds several alike, each is refused
+("several") with the reason.
+
+:func:`rim_centre` -- the centre of a clipped core from the rim of its saturation: the clipped region,
+its holes filled, opened by a disc of a part of its minor semi-axis (a flare streak, a glint or a
+lobe of speckle joined to one side is thinner than the core and goes; the core's own outline stays),
+then the centre of the ellipse fitted to the outline left. The mean of the clipped pixels leans
+towards whatever joins the core on one side; the rim of the round part does not.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+# The opening's disc, a share of the clipped core's minor semi-axis: a tail or lobe narrower than this
+# share of the core goes, an ellipse of any aspect stays.
+OPEN_SHARE = 0.6
+RIM_STRAY = 0.75  # px: a precise fit this far from the rim's centre leans (vision.detect._rim_centred)
+RIM_MIN_PX = 40  # clipped cores smaller than this are centred well enough by the precise fit
+RIM_MAX_PX = 5000  # px (a core of r ~40 px): larger ones are spots hundreds of px wide, measured shrunk
+
+
+def _filled(mask: np.ndarray) -> np.ndarray:
+    m = mask.astype(np.uint8)
+    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    out = np.zeros_like(m)
+    cv2.drawContours(out, contours, -1, 1, thickness=cv2.FILLED)
+    return out.astype(bool)
+
+
+def rim_centre(clipped: np.ndarray, at: tuple[float, float]) -> tuple[float, float] | None:
+    """The centre (u, v) px, in the mask's box, of the clipped core nearest ``at``, from the rim of its
+    saturation (see the module); None when there is no clipped core of :data:`RIM_MIN_PX` px there.
+
+    Parameters
+    ----------
+    clipped : (h, w) bool, the pixels clipped in the laser's channel
+    at : (u, v) px, where the spot is (its centroid): the core is the clipped region holding it, or the
+        nearest one
+    """
+    n, lab, stats, cents = cv2.connectedComponentsWithStats(clipped.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return None
+    ix, iy = int(round(at[0])), int(round(at[1]))
+    inside = lab[iy, ix] if 0 <= iy < lab.shape[0] and 0 <= ix < lab.shape[1] else 0
+    k = inside or 1 + int(np.argmin(np.hypot(cents[1:, 0] - at[0], cents[1:, 1] - at[1])))
+    if stats[k, cv2.CC_STAT_AREA] < RIM_MIN_PX:
+        return None
+    core = _filled(lab == k)
+    m = cv2.moments(core.astype(np.uint8), binaryImage=True)
+    a, b, c = m["mu20"] / m["m00"], m["mu11"] / m["m00"], m["mu02"] / m["m00"]
+    minor = 2 * np.sqrt(max((a + c) / 2 - np.sqrt(((a - c) / 2) ** 2 + b**2), 1 / 12))
+    r = max(1, int(round(OPEN_SHARE * minor)))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    opened = cv2.morphologyEx(core.astype(np.uint8), cv2.MORPH_OPEN, disc)
+    n2, lab2, stats2, _ = cv2.connectedComponentsWithStats(opened, connectivity=8)
+    if n2 <= 1:
+        return None
+    part = (lab2 == 1 + int(np.argmax(stats2[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    pts = max(contours, key=len).reshape(-1, 2).astype(np.float32)
+    if len(pts) < 6:
+        return None
+    return _robust_ellipse(pts)
+
+
+def _robust_ellipse(pts: np.ndarray, rounds: int = 3) -> tuple[float, float]:
+    """The centre of the ellipse fitted to outline points, refitted without the points that stand out
+    of it (a bump a lobe left at the core's edge): those beyond 1 + 2 x the points' median absolute
+    deviation of the normalised radius."""
+    keep = pts
+    (u, v), axes, ang = cv2.fitEllipse(keep)
+    for _ in range(rounds):
+        t = np.radians(ang)
+        d = pts - (u, v)
+        x = (d[:, 0] * np.cos(t) + d[:, 1] * np.sin(t)) / max(axes[0] / 2, 1e-3)
+        y = (-d[:, 0] * np.sin(t) + d[:, 1] * np.cos(t)) / max(axes[1] / 2, 1e-3)
+        rho = np.hypot(x, y)
+        mad = float(np.median(np.abs(rho - np.median(rho))))
+        sel = pts[rho <= np.median(rho) + max(3 * mad, 0.02)]
+        if len(sel) < 6 or len(sel) == len(keep):
+            break
+        keep = sel
+        (u, v), axes, ang = cv2.fitEllipse(keep)
+    return float(u), float(v)
+
+
+# A white blob is a laser core's size from a lens-blurred spot (MIN_BLOB) up to a core of ~40 px radius: a
+# flashlight's hotspot or a window is larger. Another blob is "alike" when it has a quarter of the area.
+BARE_MIN_PX = 20
+BARE_MAX_PX = 5000
+PEER_SHARE = 0.25
+
+
+def white_cores(img: np.ndarray) -> list[tuple[int, np.ndarray, tuple]]:
+    """The photo's compact white clipped blobs of a laser core's size: (area px, centre (u, v) px, box
+    (x0, y0, x1, y1)) each (white: every channel >= LUMA_CLIP of full scale; compact: see
+    :func:`vision.decide._compact`)."""
+    from lasercal.vision.decide import _compact
+    from lasercal.vision.features import LUMA_CLIP
+    from lasercal.vision.images import full_scale
+
+    white = (img >= LUMA_CLIP * full_scale(img)).all(axis=2).astype(np.uint8)
+    n, lab, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
+    out = []
+    for i in range(1, n):
+        x, y, w, h, a = stats[i]
+        if BARE_MIN_PX <= a <= BARE_MAX_PX and _compact(lab[y : y + h, x : x + w] == i):
+            out.append((int(a), cents[i], (int(x), int(y), int(x + w), int(y + h))))
+    return out
+
+
+def counted(s, cores: list):
+    """A spot (:class:`~vision.spot.Spot`) whose position lies on one of ``cores`` (:func:`white_cores`),
+    with :attr:`~vision.spot.Evidence.bare` set to how many of them are alike (its own included); as it
+    was when it lies on none."""
+    from dataclasses import replace
+
+    ev = s.evidence
+    if ev is None or not ev.white_px:
+        return s
+    mine = [c for c in cores if c[2][0] - 2 <= s.u <= c[2][2] + 1 and c[2][1] - 2 <= s.v <= c[2][3] + 1]
+    if not mine:
+        return s
+    area = max(c[0] for c in mine)
+    alike = sum(c[0] >= PEER_SHARE * area for c in cores)
+    return replace(s, evidence=replace(ev, bare=int(alike)))
