@@ -157,7 +157,7 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
     Evidence with ``rule`` ("rim", "core", "ring", "view", "bare", "grey" or None) and ``confidence``
     (probability)
     """
-    if refusal(ev, rule) != "white":  # its light's shape says it is no beam, whatever its colour
+    if refusal(ev, rule) in ("side", "large"):  # its light's shape says it is no beam, whatever its colour
         return replace(ev, rule=None, confidence=0.0)
     if ev.colour is None:  # a grey photo: brightness is all there is
         return replace(ev, rule="grey", confidence=rule.probability(ev.lit, ev.clipped_px > 0))
@@ -182,7 +182,8 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
 def refusal(ev: Evidence, rule: DecisionRule = RULE) -> str:
     """Why ``rule`` would refuse a candidate, a key of :data:`REASONS`: its laser-coloured light is
     one-sided ("side"), it is a large unclipped region ("large"), or else its colour is not the laser's
-    ("white"). A spot the photo's edge cuts shows its light on one side only, whatever made it: its
+    ("white"; "several" where it is a colourless white core among several alike, see :func:`bare_core`).
+    A spot the photo's edge cuts shows its light on one side only, whatever made it: its
     one-sidedness says nothing (LiamAG ``laser4.png``: 0.99), and its strength counts a quarter."""
     if (ev.side or 0.0) > rule.side_max and not ev.cut:
         return "side"
