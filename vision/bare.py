@@ -24,6 +24,9 @@ import numpy as np
 # share of the core goes, an ellipse of any aspect stays.
 OPEN_SHARE = 0.6
 RIM_STRAY = 0.75  # px: a precise fit this far from the rim's centre leans (vision.detect._rim_centred)
+# The opening must take at least this share of the clipped core for the core to lean: a round or
+# elliptical core loses only its outline's jaggies (and a 4:2:0 JPEG's blocky red), and is left to the fit.
+LEAN_MIN = 0.08
 RIM_MIN_PX = 40  # clipped cores smaller than this are centred well enough by the precise fit
 RIM_MAX_PX = 5000  # px (a core of r ~40 px): larger ones are spots hundreds of px wide, measured shrunk
 
@@ -38,7 +41,8 @@ def _filled(mask: np.ndarray) -> np.ndarray:
 
 def rim_centre(clipped: np.ndarray, at: tuple[float, float]) -> tuple[float, float] | None:
     """The centre (u, v) px, in the mask's box, of the clipped core nearest ``at``, from the rim of its
-    saturation (see the module); None when there is no clipped core of :data:`RIM_MIN_PX` px there.
+    saturation (see the module); None when there is no clipped core of :data:`RIM_MIN_PX` px there, or
+    when it does not lean (the opening takes less than :data:`LEAN_MIN` of it).
 
     Parameters
     ----------
@@ -65,6 +69,8 @@ def rim_centre(clipped: np.ndarray, at: tuple[float, float]) -> tuple[float, flo
     if n2 <= 1:
         return None
     part = (lab2 == 1 + int(np.argmax(stats2[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    if part.sum() > (1 - LEAN_MIN) * core.sum():  # nothing joins the core: the precise fit stands
+        return None
     contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     pts = max(contours, key=len).reshape(-1, 2).astype(np.float32)
     if len(pts) < 6:
