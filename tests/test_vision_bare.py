@@ -65,11 +65,24 @@ def test_several_colourless_cores_are_refused_with_the_reason(scored):
     assert any("several alike" in line for line in said), said
 
 
-def test_a_leaning_clipped_core_is_centred_on_its_rim(scored):
-    # A flare streak joined to the core on one side pulled the fit 1.5-4.0 px towards it (median 2.4 px on
-    # these seeds, one of them missed at 4.01 px); the rim of the saturation leaves it within 1.9 px.
+def test_a_leaning_clipped_core_is_found(scored):
+    # The rim centring (vision.bare.RIM_STRAY) is off by default: it cost the phone sweep's clipped red
+    # spots (see the next test). The leaning cores are found, 1.5-4 px off.
     found, false, near, _ = scored["leaning core"]
-    assert found == len(SEEDS) and false == 0
+    assert found >= len(SEEDS) - 1 and false == 0
+
+
+def test_the_rim_centres_a_leaning_core_when_turned_on(monkeypatch):
+    # A flare streak joined to the core on one side pulls the fit 1.5-4.0 px towards it (median 2.4 px on
+    # these seeds); with the rim centring on at 0.75 px the median falls under 1.2 px.
+    from lasercal.vision import detect
+
+    monkeypatch.setattr(detect, "RIM_STRAY", 0.75)
+    near = []
+    for seed in SEEDS:
+        sc = SCENES_55["leaning core"](seed)
+        spots, _ = reported(sc.img)
+        near.append(min(float(np.hypot(s.u - sc.truth[0], s.v - sc.truth[1])) for s in spots))
     assert np.median(near) < 1.2 and max(near) < 2.5, near
 
 
