@@ -25,8 +25,8 @@ import numpy as np
 OPEN_SHARE = 0.6
 # px: a precise fit this far from the rim's centre leans (vision.detect._rim_centred). OFF (infinite) for
 # now: at 0.75 px, and still at 1.5 px, the phone sweep's clipped red spots (their red clip edge ragged by
-# speckle and the 4:2:0 JPEG) moved from 0.02-0.05 to 0.13-0.21 px RMS at 3x and 30x, and YuxueYang1204
-# 8.jpg from 0.61 to 1.84 px; the leaning renders' median fell from 2.1 to 0.5-0.9 px.
+# speckle and the 4:2:0 JPEG) moved from 0.02-0.05 to 0.13-0.21 px RMS at 3x and 30x; the leaning
+# renders' median fell from 2.1 to 0.5-0.9 px.
 RIM_STRAY = float("inf")
 # The opening must take at least this share of the clipped core for the core to lean: a round or
 # elliptical core loses only its outline's jaggies (and a 4:2:0 JPEG's blocky red), and is left to the fit.
