@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
 
 from lasercal.solver.analysis.simulate import simulate_captures
 from lasercal.solver.formats.data import builtin_dir
@@ -18,10 +19,17 @@ from lasercal.solver.formats.session import load_layout, load_session, session_m
 from lasercal.solver.identify.spot import predict_spots
 from lasercal.solver.kinematics.aim import aim
 
+# Property tests draw new examples on every run; in CI (CI=true) they draw the same ones, so that a red CI
+# is a change in the code, not a new draw (a bound on a random error holds in most draws, not in all)
+settings.register_profile("ci", derandomize=True, database=None)
+if os.environ.get("CI") == "true":
+    settings.load_profile("ci")
+
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 MUKCA = SHARED / "mukca"
 # What a skip for want of ../shared/data names (each test file says it its own way: a path, a data set's
-# folder, "real photos"); CI sets LASERCAL_REQUIRE_SHARED=1 (.ci/run), where such a skip is a failure
+# folder, "real photos"); under LASERCAL_REQUIRE_SHARED=1 such a skip is a failure, under
+# LASERCAL_REQUIRE_ALL=1 (CI, .ci/run) every skip is
 SHARED_WORDS = (
     "shared/data",
     "../shared",
@@ -35,7 +43,7 @@ SHARED_WORDS = (
 )
 SHARED_SKIP = (
     f"these tests read the real data in {SHARED} (PROVENANCE.md there), which is not beside this clone or "
-    "lacks the data set they read; CI (LASERCAL_REQUIRE_SHARED=1) fails instead"
+    "lacks the data set they read; CI (LASERCAL_REQUIRE_ALL=1) fails instead"
 )
 
 # The files that take longest, longest first (``--durations`` with two workers), run before the rest: with
@@ -61,6 +69,8 @@ RUN_FIRST = (
     "test_docs_api.py",
 )
 
+REQUIRE_ALL_SAID = "LASERCAL_REQUIRE_ALL=1 (CI has everything a test needs), and"
+
 
 def shared_skip(reason: str) -> bool:
     """Whether a skip's reason is the shared data's absence (:data:`SHARED_WORDS`)."""
@@ -72,20 +82,39 @@ _SHARED_LINE = shared_skip.__code__.co_firstlineno  # where the summary's one li
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
-    """A skip for want of ../shared/data: a failure under ``LASERCAL_REQUIRE_SHARED=1`` (CI: the data
-    vanishing must not pass unseen), else one reason for them all, so the summary says it once."""
+    """A skip for want of ../shared/data: a failure under ``LASERCAL_REQUIRE_SHARED=1`` (the data vanishing
+    must not pass unseen), else one reason for them all, so the summary says it once. Under
+    ``LASERCAL_REQUIRE_ALL=1`` (CI, .ci/run: it installs every extra, the browser and the renderer, and has
+    ../shared beside the clone) every skip is a failure: a test that needs a browser or MuJoCo's renderer
+    must not pass CI by not running."""
     report = (yield).get_result()
     if not report.skipped or hasattr(report, "wasxfail") or not isinstance(report.longrepr, tuple):
         return
     path, line, reason = report.longrepr
+    why = reason.removeprefix("Skipped: ")
+    if os.environ.get("LASERCAL_REQUIRE_ALL") == "1":
+        report.outcome = "failed"
+        report.longrepr = f"{REQUIRE_ALL_SAID} this test skipped: {why}"
+        return
     if not shared_skip(reason):
         return
     if os.environ.get("LASERCAL_REQUIRE_SHARED") == "1":
         report.outcome = "failed"
-        why = reason.removeprefix("Skipped: ")
         report.longrepr = f"LASERCAL_REQUIRE_SHARED=1, and this test skipped for want of shared data: {why}"
     else:
         report.longrepr = (str(Path(__file__)), _SHARED_LINE, f"Skipped: {SHARED_SKIP}")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """A whole module skipped at collection (a module-level ``importorskip``: MuJoCo, franky-sim): a failure
+    under ``LASERCAL_REQUIRE_ALL=1``, as a test's skip is."""
+    report = (yield).get_result()
+    required = os.environ.get("LASERCAL_REQUIRE_ALL") == "1"
+    if report.skipped and required and isinstance(report.longrepr, tuple):
+        report.outcome = "failed"
+        why = report.longrepr[2].removeprefix("Skipped: ")
+        report.longrepr = f"{REQUIRE_ALL_SAID} this module skipped: {why}"
 
 
 def pytest_terminal_summary(terminalreporter):

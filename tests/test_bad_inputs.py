@@ -3,9 +3,9 @@
 Each case runs ``main([...])`` in-process on copies of small valid inputs (a simulated
 session, its identified model, a validation run, circle-point measurements, a MUKCa robot
 folder and its point session) with one thing wrong, and checks: exit code 2; stderr is exactly
-one line ``lasercal: error: ...`` that names the file or option at fault; no traceback; the
-output path was not created; no file in the working folder changed (bytes and mtime). A
-watchdog turns a hang into a failure.
+one line ``lasercal: error: ...`` (argparse's own: ``lasercal COMMAND: error: ...``) that names the
+file or option at fault; no traceback; the output path was not created; no file in the working folder
+changed (bytes and mtime). A watchdog turns a hang into a failure.
 
 Cases are grouped by category (the first word of each test id): ``traceback`` (files a newcomer
 saves wrongly: not UTF-8, UTF-16 without a byte-order mark, binary, empty, a folder for a file),
@@ -1539,7 +1539,8 @@ def test_bad_input_exits_2_with_one_line(argv, setup, needle, base, tmp_path, ca
     lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("\r")]
     assert rc == 2, f"exit {rc}; stderr {err[-500:]!r}"
     assert "Traceback" not in err
-    assert len(lines) == 1 and lines[0].startswith("lasercal: error: "), err
+    # argparse's own errors name the command (lasercal capture: error: argument --hold: ...)
+    assert len(lines) == 1 and re.match(r"lasercal( [\w-]+)?: error: ", lines[0]), err
     assert needle.lower() in lines[0].lower(), f"{needle!r} not named in {lines[0]!r}"
     assert not out.exists(), "an output was written"
     assert _snapshot(d) == before, "an existing file changed"
@@ -1605,7 +1606,9 @@ def test_every_numeric_option_refuses_bad_values(cmd, opt, nargs, base, tmp_path
     for value in [v for c, o, v, _ in NUMERIC if (c, o) == (cmd, opt)]:
         rc = main(argv + [opt, value] + [ok] * (k - 1))
         err = capsys.readouterr().err
-        assert rc == 2 and len(err.splitlines()) == 1 and err.startswith("lasercal: error: argument"), err
+        assert (
+            rc == 2 and len(err.splitlines()) == 1 and err.startswith(f"lasercal {cmd}: error: argument")
+        ), err
         assert opt in err, err
     assert not (tmp_path / "out").exists()
 

@@ -69,7 +69,11 @@ def test_demo_finds_the_hidden_effect(demo):
     d = s["diagnosis"]
     assert s["found"] and d["effect"] == "joint_compliance" and d["joints"] == [2]
     c = d["parameters"]["c2"]
-    assert abs(c["value"] - 1.2e-4) < 3 * c["std_error"] and c["std_error"] < 3e-5
+    # 4 standard errors (issue 51): the demo's operator and camera draw their noise keyed by q's last bits
+    # (collector/hardware/fake.py, sessions/spotcam.py), so another CPU's rounding is a fresh draw; the
+    # standardised error is N(0, 1.01-1.05^2) (README, bench_prior_mc.py): 3 sigma failed 1 in 370 draws
+    # (1 in 270 at RMS 1.05), 4 fails 1 in 16,000 (1 in 7,000 at RMS 1.05; >= 99.9 % either way)
+    assert abs(c["value"] - 1.2e-4) < 4 * c["std_error"] and c["std_error"] < 3e-5
     assert d["gain_percent"] > 5
     p4 = s["p4"]
     assert (

@@ -95,7 +95,6 @@ def test_an_eye_sheet_sessions_residual_leaves_room_for_a_candidate(tmp_path, sh
 
 
 CASES = [  # (kind, seed, --effect NAME, joints, size): every effect family on every kind of session
-    ("eye", 11, "joint_compliance", "4", "1.5e-4"),
     ("eye", 13, "encoder_eccentricity", "3", "3e-3"),  # a phase the joint's zero cannot absorb (the seed's)
     ("camera", 13, "joint_compliance", "2", "5e-5"),
     ("camera", 14, "drift", "4", "3e-7"),
@@ -118,6 +117,23 @@ def test_an_effect_hidden_in_a_sheet_session_is_named_at_its_joint(
         d["details"]["candidates"][:3],
     )
     assert d["acceptance"]["accepted"] and d["gain_percent"] > 0
+
+
+def test_an_eye_sessions_marginal_compliance_is_proposed_and_refused_by_its_folds(tmp_path, sheet):
+    # was a case of the test above (named, gain > 0, with the choice made on the whole session). The whole
+    # session's F test still proposes it (corrected p = 0.0015); on 80 % of the rows 1 fold of 5 chooses
+    # it (p 0.002 - 0.10 in the folds), and there it loses held out: 0.860 mm without, 0.870 mm with
+    s = simulated(
+        tmp_path,
+        sheet,
+        "eye",
+        11,
+        ["--effect", "joint_compliance", "--effect-joints", "4"] + ["--effect-size", "1.5e-4"],
+    )
+    d = diagnosis(tmp_path, s)
+    acc = d["acceptance"]
+    assert d["effect"] == "none" and d["proposed"]["joints"] == [4], d["label"]
+    assert acc["folds_agree"] == 1 and acc["holdout_rms_mm"]["extended"] > acc["holdout_rms_mm"]["geometric"]
 
 
 @pytest.mark.parametrize("kind, seed", [("eye", 21), ("camera", 22), ("mixed", 23)])
@@ -204,7 +220,7 @@ def test_the_print_scale_and_tilt_are_recovered_within_their_sigma_from_many_cap
         assert abs(getattr(model.sheet, k) - getattr(true, k)) < 3 * model.sheet_std[k], k
 
 
-def test_a_camera_session_of_the_fake_robot_names_the_compliance_its_truth_holds(tmp_path, sheet):
+def test_a_camera_session_of_the_fake_robot_proposes_the_compliance_its_truth_holds(tmp_path, sheet):
     # issue 45's second command: `capture --backend fake --camera fake --guide move --auto --truth T`, T a
     # model whose extensions hold a joint-2 compliance; the fake arm ignored T's extensions and solve found
     # nothing (every F = 0)
@@ -218,10 +234,13 @@ def test_a_camera_session_of_the_fake_robot_names_the_compliance_its_truth_holds
         + ["--guide", "move", "--auto", "--per-point", "6", "--truth", str(truth), "-o", s]
     )
     d = diagnosis(tmp_path, s)
-    assert d["effect"] == "joint_compliance" and d["joints"] == [2], d["label"]
-    c2 = d["parameters"]["c2"]
-    assert abs(c2["value"] - 1.5e-4) < 4 * c2["std_error"]
-    # 30 captures (6 per point): at 4 per point some draws leave 5 of 20 unmeasured (the arm hides the
-    # spot, or it is outside the view), and 4 folds of ~11 measured captures cannot fit 33 directions
-    held = d["acceptance"]["holdout_by_kind"]["measured"]
+    # the fake arm holds T's compliance: the whole session's F test proposes it (corrected p = 9.7e-6; every
+    # F = 0 before issue 45). Named before issue 52 (c2 within 4 sigma of the truth); with the selection
+    # inside the folds, 2 of 5 folds choose it on their ~21 measured captures (corrected p 1e-6, 1e-5; the
+    # other three 0.03-0.16), short of the 4 the agreement rule needs: 'none', its gain still measured (the
+    # measured captures held out 1.843 -> 1.745 mm).
+    assert d["effect"] == "none" and d["proposed"]["joints"] == [2] and d["p_value"] < 1e-4, d["label"]
+    acc = d["acceptance"]
+    assert acc["folds_agree"] == 2 and "folds chose different causes" in acc["rejected"]
+    held = acc["holdout_by_kind"]["measured"]
     assert held["extended"] < held["geometric"]

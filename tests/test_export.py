@@ -204,7 +204,7 @@ def test_export_cli(tmp_path, capsys):
     capsys.readouterr()
     assert main(["export", str(tmp_path / "missing.yaml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("lasercal: error:") and "missing.yaml" in err[0]
+    assert len(err) == 1 and err[0].startswith("lasercal export: error:") and "missing.yaml" in err[0]
 
 
 def _pinocchio_frames(text: str, names: list, q: np.ndarray, prismatic=None) -> dict:

@@ -158,7 +158,13 @@ def test_solve_recovers_a_drawn_print_scale_and_tilt_within_its_sigma(scaled_ses
         k: (found[k] - getattr(true, k)) / std[k] for k in ("scale_x", "scale_y", "tilt_x_rad", "tilt_y_rad")
     }
     print("found - true in sigmas", z, "found", found, "true", true)
-    assert all(abs(v) < 2.0 for v in z.values()), z
+    # The bound is a measured quantile, not a guess: over 22 sessions (benchmarks/bench_sheet_scale_camera.py
+    # 22 100: seeds 100-121, each a new world, new poses and new photos) the four z-scores had means +0.16,
+    # +0.23, -0.25, +0.07 and spreads 0.51, 0.51, 0.95, 0.76; under that Gaussian (2e6 draws, the scales'
+    # correlation kept) a session's largest |z| passes 3.22 in 0.1 % and 3.5 in 0.04 % of sessions. The old
+    # bound of 2 failed in 4.9 % (seed 117: tilt_x +2.54; another CPU drew -2.30). A tilt left unfound puts
+    # |z| above 5 (the table's 3 mrad against a sigma under 0.6 mrad, asserted below).
+    assert all(abs(v) < 3.5 for v in z.values()), z
     assert std["tilt_x_rad"] < 0.6e-3 and std["tilt_y_rad"] < 0.6e-3  # the data see the tilt
     spread = (found["scale_x"] - found["scale_y"]) - (true.scale_x - true.scale_y)
     assert abs(spread) < 3e-4 and abs(true.scale_x - true.scale_y) > 3e-3

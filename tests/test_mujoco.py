@@ -10,6 +10,7 @@ tests that photograph skip with one reason.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: it picks its renderer then
 pytest.importorskip("mujoco", reason="MuJoCo is not installed: pip install 'lasercal[mujoco]'")
@@ -198,48 +200,93 @@ def test_the_camera_measures_the_spot_where_mujoco_ray_meets_the_sheet(scenes):
     assert np.sqrt((np.array(err) ** 2).mean()) < 0.05
 
 
-@pytest.mark.usefixtures("renders")
-def test_a_short_hands_free_session_calibrates_in_mujoco(scenes, tmp_path):
-    """CI's MuJoCo session: 15 captures hands-free in the perturbed scene with a spring (the simulated arm
-    driven through the coach's poses, each photographed by MuJoCo's camera and measured), solve, then
-    validate at P6 through the mujoco backend: the calibrated model lands far nearer than the nominal, and
-    the configurations command gives the very configurations validate commanded."""
-    sheet, world = scenes / "sheet" / "layout.yaml", scenes / "spring" / "scene.xml"
-    common = ["--backend", "mujoco", "--world", world, "--robot", "fr3"]
-    code, out, err = lasercal(
-        "capture", *common, "--layout", sheet, "--camera", "mujoco", "--guide", "move", "--auto",
-        "--per-point", 3, "-o", tmp_path / "s",
-    )  # fmt: skip
-    assert code == 0, err
-    assert out.count("camera: spot at") >= 12
-    code, out, err = lasercal("solve", tmp_path / "s", "-o", tmp_path / "m.yaml", "--folds", 0)
-    assert code == 0, err
-    means = {}
-    for model, extra in (("fr3", ["--sheet-from", tmp_path / "m.yaml"]), (tmp_path / "m.yaml", [])):
-        out_dir = tmp_path / f"v{len(means)}"
-        code, out, err = lasercal(
-            "validate", model, "--layout", sheet, "--point", "P6", "-n", 4, *common, *extra, "-o", out_dir
+# CI's MuJoCo session (issue 51): the README's row (45 captures, seed 0, validate -n 30: nominal 8.738 ->
+# 0.024 mm; with --spring 2:1e-4 the spring named at joint 2, c = -0.9926e-4, 8.965 -> 0.087 mm) at the
+# smallest size that still tests it: 30 captures (--per-point 6; 15 named no spring on seeds 0 and 1) in
+# the spring scene, validate -n 4 at P6. Measured by benchmarks/bench_mujoco_short.py (docs/sessions.md):
+# at this size the spring is named at joint 2 on seeds 1-3, c -1.0049e-4 to -0.9957e-4; calibrated at P6
+# 0.889 (seed 1: its validation poses lie where its 30 captures did not pin the geometry), 0.103, 0.137
+# mm; the README's own session (45 captures, seed 0) gives 0.165 mm at -n 4. The session is
+# deterministic (MuJoCo's photos carry no noise draw; the arm's and the coach's draws are keyed by the
+# capture, not by q's bits), so the figures of its seed are the ones to reproduce, within 2x. Seed 3: every
+# configuration but one (the arm hides its spot from the camera) measured in both validations.
+SEED, PER_POINT = 3, 6
+FIGURE = {"nominal": 6.437, "calibrated": 0.137}  # validate -n 4 at P6, error mean, mm
+HIDDEN = {"nominal": [2], "calibrated": [2]}  # the configurations whose spot the arm hides from the camera
+
+
+@pytest.fixture(scope="module")
+def session(scenes, renders, tmp_path_factory):
+    """Capture (hands-free: the arm driven through the coach's poses, each photographed by MuJoCo's camera
+    and measured), solve --extend auto, validate the nominal and the calibrated model at P6: made once per
+    run (shared by the xdist workers), every command's exit code and output kept."""
+
+    def make(d: Path) -> None:
+        sheet, world = scenes / "sheet" / "layout.yaml", d / "scene" / "scene.xml"
+        runs = {}
+        runs["scene"] = lasercal(
+            "mujoco-scene", "--layout", sheet, "-o", d / "scene", "--seed", SEED, "--spring", "2:1e-4"
         )
-        assert code in (0, 1), err  # 1: a configuration gave no spot (the arm hid it): said, the run kept
-        assert int(out.split(" spots measured")[0].split()[-1]) >= 3, out
-        means[str(model)] = float(out.split("error mean ")[1].split(" mm")[0])
-    nominal, calibrated = means["fr3"], means[str(tmp_path / "m.yaml")]
-    assert nominal > 2.0 and calibrated < nominal / 5
+        common = ["--backend", "mujoco", "--world", world, "--robot", "fr3"]
+        runs["capture"] = lasercal(
+            "capture", *common, "--layout", sheet, "--camera", "mujoco", "--guide", "move", "--auto",
+            "--per-point", PER_POINT, "-o", d / "s",
+        )  # fmt: skip
+        runs["solve"] = lasercal("solve", d / "s", "-o", d / "m.yaml", "--folds", 0, "--extend", "auto")
+        for name, model, extra in (
+            ("nominal", "fr3", ["--sheet-from", d / "m.yaml"]),
+            ("calibrated", d / "m.yaml", []),
+        ):
+            at = ["--layout", sheet, "--point", "P6", "-n", 4]
+            runs[name] = lasercal("validate", model, *at, *common, *extra, "-o", d / name)
+        (d / "runs.json").write_text(json.dumps(runs))
+
+    d = made_once(tmp_path_factory, "mujoco_session", make)
+    return d, json.loads((d / "runs.json").read_text())
+
+
+def test_a_hands_free_session_names_the_spring_at_joint_2(session):
+    """The spring after joint 2 (1e-4 rad/Nm, which the encoder does not see) is what solve --extend auto
+    finds: a compliance of joint 2 whose c -- lasercal's sign: q_link = q + c tau, tau the torque holding the
+    arm, so a link sagging under it has c < 0 (the spring's bend is -1e-4 tau, as the test above measures)
+    -- is the spring's within 4 of its reported sigmas (their calibration: README, standardised errors RMS
+    1.01-1.05, so 4 sigma fails 1 in 7,000; measured: 0.31, 0.11, 0.10 sigma on seeds 1-3 at this size,
+    0.53 on the README's 45 captures: lasercal's gravity model, franka_description's inertials, agrees with
+    franky-sim's MuJoCo arm below that)."""
+    d, runs = session
+    assert [runs[k][0] for k in ("scene", "capture", "solve")] == [0, 0, 0], runs
+    out = runs["solve"][1]
+    assert "finding: joint_compliance at joint 2 (" in out, out
+    jc = yaml.safe_load((d / "m.yaml").read_text())["extensions"]["joint_compliance"]
+    assert jc["joints"] == [2], jc
+    c = jc["c"][0]
+    se = float(out.split("c2 = ")[1].split("+-")[1].split()[0])
+    assert c < 0 and abs(c + 1e-4) < 4 * se, (c, se)
+
+
+def test_a_hands_free_session_calibrates_in_mujoco(session, scenes, tmp_path):
+    """validate at P6 through the mujoco backend: each model's error mean within 2x of this session's
+    measured figure (and the calibrated far nearer than the nominal), the exit code exact -- 1, the
+    configuration the arm hides from the camera said, the others measured -- and the configurations command
+    gives the very configurations validate commanded."""
+    d, runs = session
+    means = {}
+    for name in ("nominal", "calibrated"):
+        code, out, err = runs[name]
+        assert code == (1 if HIDDEN[name] else 0), (code, err)
+        rows = np.genfromtxt(d / name / "validation.csv", delimiter=",", skip_header=2, usecols=(0, 9))
+        assert sorted(rows[np.isnan(rows[:, 1]), 0].astype(int).tolist()) == HIDDEN[name], out
+        assert int(out.split(" spots measured")[0].split()[-1]) == 4 - len(HIDDEN[name]), out
+        means[name] = float(out.split("error mean ")[1].split(" mm")[0])
+        assert FIGURE[name] / 2 < means[name] < 2 * FIGURE[name], (name, means[name], FIGURE[name])
+    assert means["calibrated"] < means["nominal"] / 5
+    sheet = scenes / "sheet" / "layout.yaml"
     code, _, err = lasercal(
-        "configurations",
-        tmp_path / "m.yaml",
-        "--layout",
-        sheet,
-        "--point",
-        "P6",
-        "-n",
-        4,
-        "-o",
-        tmp_path / "c.csv",
+        "configurations", d / "m.yaml", "--layout", sheet, "--point", "P6", "-n", 4, "-o", tmp_path / "c.csv"
     )
     assert code == 0, err
     planned = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=2)
-    done = np.genfromtxt(tmp_path / "v1" / "validation.csv", delimiter=",", skip_header=2)
+    done = np.genfromtxt(d / "calibrated" / "validation.csv", delimiter=",", skip_header=2)
     index = done[:, 0].astype(int)  # the rows validate wrote, by configuration
     assert np.abs(planned[index, 1:8] - done[:, 1:8]).max() < 1e-5  # the arm reached what it was commanded
 

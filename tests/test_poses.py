@@ -377,4 +377,11 @@ def test_the_real_data_recipe_runs_as_written(tmp_path, monkeypatch):
     model_err = errors(pred, whole[1].T)[0].mean()
     nominal = register(load_model("ur10"), whole[0])
     nominal_err = errors(predict_session(nominal, whole[1]), whole[1].T)[0].mean()
-    assert model_err < 0.8 * nominal_err
+    # the claim (docs/real-data.md, fitted on A+B, placed on C's first half, C's second half held out):
+    # 0.362 mm, nominal 0.908. On every eighth row the figure spreads with the rows taken: over the 8
+    # offsets (rows[1 + k::8], benchmarks/bench_recipe_rows.py) 0.347-0.402 mm, mean 0.370 sd 0.018
+    # (this test's offset 0: 0.377), the nominal 0.839-0.947, the ratio 0.373-0.434 (mean 0.406 sd 0.018).
+    # Bounds: the normal fits' 99.9 % quantiles, 0.425 mm and 0.462 (0.8 x the nominal passed 0.74 mm,
+    # twice the claim)
+    assert model_err < 0.43, (model_err, nominal_err)
+    assert model_err < 0.47 * nominal_err, (model_err, nominal_err)

@@ -65,9 +65,14 @@ def test_noise_floor(tmp_path, name):
     s, truth = session(tmp_path, name, 60, sigma, 2)
     ident = fit(s)
     cv = cross_validate(s, k=5)
-    assert 1.5 * sigma < cv.errors.mean() < 1.75 * sigma
+    # bounds from the figures' spread over 30 seeds per robot (benchmarks/bench_noise_floor.py, seeds
+    # 2-31): the CV mean 1.56-1.82 sigma (ur5 mean 1.660 sd 0.051, arm7 1.667 sd 0.052; the old upper bound
+    # 1.75 failed 3 of 60 draws, a fourth at 1.750), the truth RMS 0.33-0.59 sigma (0.442 sd 0.052, 0.479 sd
+    # 0.056): the bounds are the normal fits' 0.05 % / 99.95 % quantiles (CV, two-sided) and 99.9 %
+    # quantile (truth), of the worse robot
+    assert 1.48 * sigma < cv.errors.mean() < 1.85 * sigma
     assert cv.nominal_errors.mean() > 20 * sigma  # the perturbation is far above the noise
-    assert np.sqrt(np.mean(heldout_error(ident.model, truth) ** 2)) < 0.6 * sigma
+    assert np.sqrt(np.mean(heldout_error(ident.model, truth) ** 2)) < 0.66 * sigma
 
 
 def _pin_fk(urdf: Path, q: np.ndarray, frame: str, prismatic: np.ndarray) -> np.ndarray:

@@ -87,13 +87,29 @@ def test_consistency_matches_mukca_definitions():
 
 
 # ------------------------------------------------------------------ the real data
+def study_args(out, jobs: int) -> list[str]:
+    """``study-mukca``'s --quick study of panda_1 and panda_4 into ``out``, ``jobs`` robots at once."""
+    return [
+        "study-mukca",
+        str(MUKCA),
+        "-o",
+        str(out),
+        "--robots",
+        "panda_1,panda_4",
+        "--quick",
+        "--jobs",
+        str(jobs),
+    ]
+
+
 @pytest.fixture(scope="module")
 def quick_report(tmp_path_factory):
-    """The CLI's --quick study of panda_4 (and its cleaned subset), run once."""
+    """The CLI's --quick study of panda_1 and panda_4 (and their cleaned subsets), run once, one robot after
+    the other (``--jobs 1``): the serial study the parallel one is compared with."""
     if not (MUKCA / "panda_4").is_dir():
         pytest.skip(f"MUKCa data not found at {MUKCA}")
     out = tmp_path_factory.mktemp("study")
-    assert main(["study-mukca", str(MUKCA), "-o", str(out), "--robots", "panda_4", "--quick"]) == 0
+    assert main(study_args(out, jobs=1)) == 0
     return out, json.loads((out / "report.json").read_text())
 
 
@@ -220,13 +236,10 @@ def test_format_error_crosses_a_process_boundary_whole():
 
 
 @needs_data
-def test_parallel_study_equals_the_serial_one(tmp_path):
-    reports = []
-    for jobs in ("1", "2"):
-        out = tmp_path / jobs
-        args = ["study-mukca", str(MUKCA), "-o", str(out), "--robots", "panda_1,panda_4", "--quick"]
-        assert main(args + ["--jobs", jobs]) == 0
-        reports.append(json.loads((out / "report.json").read_text()))
+def test_parallel_study_equals_the_serial_one(quick_report, tmp_path):
+    out = tmp_path / "2"
+    assert main(study_args(out, jobs=2)) == 0
+    reports = [quick_report[1], json.loads((out / "report.json").read_text())]
 
     def untimed(d):  # the timings differ; nothing else may
         if isinstance(d, dict):

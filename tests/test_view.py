@@ -75,6 +75,8 @@ class Gated(SessionState):
             self._hold("outside")
         if phase == "settling":
             self._hold("inside")
+        if phase == "captured" and sum(p["done"] for p in self.data["progress"]) == 9:
+            self._hold("last")  # the last capture (its count not yet shown): the page discards it
 
     def problem(self, text, img=None):
         super().problem(text, img)
@@ -86,10 +88,12 @@ class Gated(SessionState):
         self._hold("end")
 
 
-def _get(url: str, token: str | None = None, data: dict | None = None):
+def _get(url: str, token: str | None = None, data: dict | None = None, headers: dict | None = None):
     req = urllib.request.Request(url, method="POST" if data is not None else "GET")
     if token:
         req.add_header("X-Token", token)
+    for k, v in (headers or {}).items():
+        req.add_header(k, v)
     body = None if data is None else json.dumps(data).encode()
     try:
         with urllib.request.urlopen(req, body, timeout=10) as r:
@@ -155,15 +159,18 @@ def _true_spot_on_sheet(started) -> np.ndarray:
 @needs_browser
 def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypatch):
     monkeypatch.setattr(start_module, "SessionState", Gated)
-    Gated.want = {"setup", "outside", "inside", "hidden", "end"}
+    Gated.want = {"setup", "outside", "inside", "hidden", "last", "end"}
     given = {"backend": "fake", "per_point": 2, "camera": "fake", "aim_noise": 3.0, "seed": 0}
     started = start_capture(
         capture_settings(given, str(sheet), str(tmp_path / "s")), CaptureGuide(auto=True, move=True, yes=True)
     )
     out = io.StringIO()
-    moves = []
+    # who released each move: the last of the terminal's commands (the command line's --yes at the start,
+    # the simulated operator's trigger after) and the page's accepted presses before it
+    log, moves = ["terminal"], []
     real_move = started.robot.move_to
-    started.robot.move_to = lambda q: (moves.append(threading.current_thread().name), real_move(q))[1]
+    started.robot.move_to = lambda q: (moves.append(log[-1]), real_move(q))[1]
+    started = replace(started, trigger=Logged(started.trigger, log))
     result = {}
     session = threading.Thread(
         target=lambda: result.update(r=started.run(out, ViewOptions(port=0, fps=8))),
@@ -194,6 +201,12 @@ def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypat
             if name == "outside":  # moving: the page may stop the session, not capture or discard
                 assert _get(base + "action", token, {"do": "capture"})[0] == 409
                 assert _get(base + "action", token, {"do": "discard"})[0] == 409
+            if name == "last":  # the page discards the last capture: the retake's move is the terminal's
+                assert _get(base + "action", token, {"do": "discard"})[0] == 200
+                log.append("page")
+                Gated.want.discard(name)
+                go.set()
+                continue
             shown, snap = _settle(page, state, since)
             frame = snap["frame"]
             # what the page shows is the session's state
@@ -231,21 +244,43 @@ def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypat
             seen[name] = shown
             Gated.want.discard(name)
             go.set()
-        # the page's buttons: capture is refused hands-free (the camera captures), and nothing it asks
-        # moves the arm: no move was made from any thread but the session's
         browser.close()
     session.join(600)
-    assert result["r"].complete and set(moves) == {"session"}
+    # the page's buttons: capture is refused hands-free (the camera captures), and nothing it asks moves
+    # the arm: after its discard of the last capture, the retake's move waited for the terminal (here the
+    # simulated operator's trigger); old code moved at once, released by the page
+    assert result["r"].complete and "discarded the last capture at" in out.getvalue()
+    assert len(moves) > 10 and set(moves) == {"terminal"}, moves
     assert set(seen) == {"setup", "outside", "inside", "hidden", "end"}
 
 
-class Never:
-    """A trigger nobody presses (the terminal left alone): only the page's actions drive the session."""
+class Logged:
+    """A trigger whose every command is logged as the terminal's (who released the moves after it)."""
 
-    hint = "nobody"
+    def __init__(self, trigger, log: list):
+        self.trigger, self.log, self.hint = trigger, log, trigger.hint
 
     def wait(self) -> str:
-        threading.Event().wait()
+        cmd = self.trigger.wait()
+        self.log.append("terminal")
+        return cmd
+
+    def close(self) -> None:
+        self.trigger.close()
+
+
+class Typed:
+    """The terminal's trigger, typed by the test; each command it gives is logged as the terminal's."""
+
+    hint = "the test's terminal"
+
+    def __init__(self, log: list):
+        self.log, self.typed = log, queue.Queue()
+
+    def wait(self) -> str:
+        cmd = self.typed.get()
+        self.log.append("terminal")
+        return cmd
 
     def close(self) -> None:
         """Nothing to release."""
@@ -253,19 +288,22 @@ class Never:
 
 @pytest.mark.skipif(sync_playwright is None, reason="the live view needs the test extra's aiohttp")
 def test_the_pages_three_actions_drive_a_hand_guided_session_and_move_nothing(tmp_path):
-    """Hand-guided (no camera, no coach): the page's capture now captures, discard the last removes it,
-    stop ends the session, resumable; no action moves the arm (the simulated operator guides it, as a
-    hand would), an action the session cannot take is refused with the reason, and the ended session
-    leaves nothing serving."""
+    """Hand-guided with --guide move (the arm goes to each suggested pose, the operator refines by hand):
+    the page's capture now captures, discard the last removes it, stop ends the session, resumable; none
+    moves the arm -- after the page's capture or discard the next move waits for the terminal, which
+    releases it (recorded: who released each move); an action the session cannot take is refused with the
+    reason, and the ended session leaves nothing serving."""
     from lasercal.solver.formats.session import load_session
 
     given = {"backend": "fake", "per_point": 2, "aim_noise": 1.0, "seed": 1}
     started = start_capture(
-        capture_settings(given, "thesis", str(tmp_path / "s")), CaptureGuide(auto=False, coach=False)
+        capture_settings(given, "thesis", str(tmp_path / "s")), CaptureGuide(auto=False, move=True)
     )
-    started = replace(started, trigger=Never())
-    moves = []
-    started.robot.move_to = lambda q: moves.append(q)
+    log, moves = ["terminal"], []  # the command line released the first move
+    terminal = Typed(log)
+    started = replace(started, trigger=terminal)
+    real_move = started.robot.move_to
+    started.robot.move_to = lambda q: (moves.append(log[-1]), real_move(q))[1]
     out = io.StringIO()
     result = {}
     session = threading.Thread(
@@ -289,18 +327,29 @@ def test_the_pages_three_actions_drive_a_hand_guided_session_and_move_nothing(tm
     def done(s) -> int:
         return sum(p["done"] for p in s["progress"])
 
+    def page(action):
+        got = _get(base + "action", token, {"do": action})
+        if got[0] == 200:
+            log.append("page")
+        return got
+
     when(lambda s: s["phase"] == "aiming")
-    for k in range(3):
-        assert _get(base + "action", token, {"do": "capture"}) == (200, b'{"ok": true, "queued": "capture"}')
-        when(lambda s, k=k: s["phase"] == "aiming" and done(s) == k + 1)
-    assert _get(base + "action", token, {"do": "discard"})[0] == 200
-    when(lambda s: s["phase"] == "aiming" and done(s) == 2)
+    assert moves and set(moves) == {"terminal"}
+    for k, action in enumerate(["capture"] * 3 + ["discard"]):
+        before = len(moves)
+        assert page(action) == (200, b'{"ok": true, "queued": "%s"}' % action.encode())
+        want = 2 if action == "discard" else k + 1
+        # the press is taken where the arm is; then the session waits for the terminal (no move)
+        s = when(lambda s, b=before: s["phase"] == "confirm" or len(moves) > b)
+        assert len(moves) == before and done(s) == want and s["actions"] == ["stop"], (moves, s)
+        terminal.typed.put("capture")  # the terminal releases the move to the next pose
+        when(lambda s, b=before: s["phase"] == "aiming" and len(moves) > b)
     assert "discarded the last capture at" in out.getvalue()
-    assert _get(base + "action", token, {"do": "jump"})[0] == 409  # not one of the three
-    assert _get(base + "action", token, {"do": "stop"})[0] == 200
+    assert page("jump")[0] == 409  # not one of the three
+    assert page("stop")[0] == 200
     session.join(120)
     assert not result["r"].complete and load_session(tmp_path / "s").m == 2
-    assert not moves  # the page moved nothing (the simulated operator guided the arm, by hand)
+    assert len(moves) > 4 and set(moves) == {"terminal"}, moves  # the page released no move
     assert "stopped: 2 captures are safe" in out.getvalue()
     with pytest.raises(OSError):  # the session ended: nothing serves any more, nothing is left behind
         urllib.request.urlopen(base + "state?token=" + token, timeout=5)

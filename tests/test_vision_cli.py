@@ -197,7 +197,7 @@ def test_command_wide_errors_are_reported_as_errors(files, capsys, tmp_path):
         == f"lasercal: error: {bad}, field 'markers.ids.0': expected 4 corners [[x, y], ...] in mm"
     )
     code, _, err = run(capsys, "spots", files["one"], "--reference", files["missing"])
-    assert code == 2 and "lasercal: error:" in err and "no such file" in err
+    assert code == 2 and "lasercal spots: error:" in err and "no such file" in err
     code, _, err = run(capsys, "spots", files["one"], "--camera", str(tmp_path / "nocam.yaml"))
     assert code == 2 and "cannot read camera file" in err
 

@@ -79,7 +79,9 @@ def test_any_subpixel_centre_size_and_brightness(u, v, sigma, peak):
     img = render(Photo(VIEW, spots=(LaserSpot(u, v, sigma, peak),), **SENSOR), 7)
     s = detect_spots(img)[0][0]
     err = np.hypot(s.u - u, s.v - v)
-    assert err < 0.2 and err < 0.03 + 3 * np.hypot(s.sigma_u, s.sigma_v)
+    # the distance of a 2-D Gaussian error is Rayleigh: beyond 3.5 hypot(sigma_u, sigma_v) = 4.95 sigma in
+    # exp(-4.95^2 / 2) = 5e-6 of draws (15 examples: 1e-4 a run); 3 hypot failed 2e-3 of runs
+    assert err < 0.2 and err < 0.03 + 3.5 * np.hypot(s.sigma_u, s.sigma_v)
     # Paper is at ~0.5 of full scale in the red channel: the spot clips from peak ~0.5 on.
     if peak > 0.7 or peak < 0.35:
         assert s.saturated == (peak > 0.7)

@@ -14,7 +14,15 @@ from lasercal.vision.errors import NoSpotError
 from lasercal.vision.measure import Options, measure_photo
 from lasercal.vision.render_wild import SCENES
 
-SEEDS = range(6)
+# Scored on seeds the rule was not tuned on (issue 51: issue 47 tuned RULE on seeds 0-5, and the bounds were
+# the counts those seeds gave). The bounds below are quantiles of the counts' distribution over these 6
+# seeds, from each kind's per-photo rates measured on seeds 1000-1111
+# (benchmarks/bench_vision_wild_seeds.py; the test's seeds among them): a count of 6 photos is
+# Binomial(6, rate), and a bound is its 0.1 % (found) or
+# 99.9 % (false spots) quantile -- so that another CPU's rounding, flipping a borderline photo, fails it at
+# most 1 in 1,000. A rate measured as 0 (or 1) on all N seeds gives the bound 0 (or 6): its true rate is
+# below 3/N (95 %), i.e. such a photo turns up in this test's 6 at most ~6 x 3/N of the time.
+SEEDS = range(1000, 1006)
 
 
 def reported(img):
@@ -28,38 +36,41 @@ def reported(img):
 @pytest.fixture(scope="module")
 def scored():
     """Per scene kind: found (within max(4 px, 2 x 0.5 px) of the truth) and false spots (farther than
-    3 x the core radius + 6 px from it), the outside check's rule, over :data:`SEEDS`."""
+    3 x the core radius + 6 px from it), the outside check's rule, over :data:`SEEDS`; and the most false
+    spots in one photo."""
     out = {}
     for kind, draw in SCENES.items():
-        found = false = 0
+        found = false = most = 0
         for seed in SEEDS:
             sc = draw(seed)
             d = [np.hypot(s.u - sc.truth[0], s.v - sc.truth[1]) for s in reported(sc.img)]
             found += any(x <= 4.0 for x in d)
-            false += sum(x > 3 * sc.radius + 6 for x in d)
-        out[kind] = found, false
+            n = sum(x > 3 * sc.radius + 6 for x in d)
+            false, most = false + n, max(most, n)
+        out[kind] = found, false, most
     return out
 
 
 def test_a_disc_a_glint_or_a_reddish_surface_is_never_a_second_spot(scored):
-    # Before issue 47 these seeds gave 11 false spots: 5 of 6 lamps at an edge and all 6 reddish
-    # surfaces (each of which also pushed the faint true spot out of the report). Now none but two
-    # lamps whose edge passes so close to the core that its red light lies around it nearly all round
-    # (one-sidedness 0.27, under the fitted side_max 0.5: a spot half on a dark mark looks the same).
-    false = {kind: f for kind, (_, f) in scored.items()}
+    # Before issue 47, seeds 0-5 gave 11 false spots: 5 of 6 lamps at an edge and all 6 reddish surfaces.
+    # On the untuned seeds 1000-1111: no disc, glint or reddish surface gave a false spot, 0 of 112 each
+    # (the bound: 0); a lamp at an edge gave one in 55 of 112 photos (0.49), never two. Its count over
+    # 6 photos is Binomial(6, 0.49), whose 99.9 % quantile is 6: no bound on the count can be set
+    # from 6 photos (the tuned seeds' "at most 2" was their draw); the bound is per photo, at most 1.
+    false = {kind: f for kind, (_, f, _) in scored.items()}
     assert false["disc in halo"] == false["glint beside"] == false["reddish surface"] == 0, false
-    assert false["lamp at an edge"] <= 2, false
+    assert scored["lamp at an edge"][2] <= 1, scored["lamp at an edge"]
 
 
 def test_the_true_spot_is_found_beside_each_distractor(scored):
-    # Measured on these seeds (before issue 47: 5, 3, 6, 0 of 6; now 4, 1, 6, 6): every spot beside a lamp
-    # or a reddish surface. A disc that touches the spot's core (13-26 px from its centre) merges with it
-    # and pulls the centre a few px. A clipped glint beside a spot is a loss since issue 47: its white
-    # light pulls the brightest part of the spot's luma, the centre of its one-sidedness, towards it, and
-    # the spot's own halo then looks one-sided (0.9): refused, the photo reports no spot (never a false one).
-    found = {kind: f for kind, (f, _) in scored.items()}
-    assert found["lamp at an edge"] == 6 and found["reddish surface"] == 6, found
-    assert found["disc in halo"] >= 4 and found["glint beside"] >= 1, found
+    # On the untuned seeds 1000-1111: found beside a reddish surface 112 of 112 (bound: 6), beside a
+    # lamp at an edge 107 of 112 (Binomial(6, 0.955)'s 0.1 % quantile: 3), beside a disc in the halo
+    # 61, beside a glint 17 -- rates whose 0.1 % quantiles over 6 photos are 0: no bound (the tuned
+    # seeds 0-5 gave 4 and 1 of 6). A disc that touches the spot's core (13-26 px from its centre) merges
+    # with it and pulls the centre a few px; a clipped glint's white light pulls the spot's luma towards it,
+    # and the spot's own halo then looks one-sided: refused, the photo reports no spot (never a false one).
+    found = {kind: f for kind, (f, _, _) in scored.items()}
+    assert found["reddish surface"] == 6 and found["lamp at an edge"] >= 3, found
 
 
 def test_a_glint_in_a_spots_halo_is_lit_on_one_side():

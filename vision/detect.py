@@ -31,9 +31,9 @@ pink (or pale green) rim, and spots hundreds of pixels wide.
    flanks; clipped pixels only bound the profile from below, so the centre of a clipped spot
    comes from the plateau's edge and the unclipped flanks (see :func:`_fit_profile`). In a
    4:2:0 JPEG an unclipped spot is fitted in the luma plus a fifth of the chroma difference Cr
-   (see :data:`CHROMA_WEIGHT`). Its sigma propagates the asymmetry of the fit's residuals about
-   the centre through the fit (see :func:`_centre_sigma`). Where printed ink lies under a spot,
-   its pixels are left out; spots on ink are flagged.
+   (see :data:`CHROMA_WEIGHT`). Its sigma is the fit's gain through the pixels' error
+   covariance, estimated from the odd part of its residuals (see :func:`_centre_sigma`). Where
+   printed ink lies under a spot, its pixels are left out; spots on ink are flagged.
 
 With a laser-off reference photo the candidates come from the difference image, which holds
 nothing but laser light, and fainter spots are believed. ``colour="auto"`` tries both lasers

@@ -3,14 +3,16 @@
 An elliptical profile is fitted in linear light to the spot and its flanks; clipped pixels only
 bound the profile from below, so the centre of a clipped spot comes from the plateau's edge and the
 unclipped flanks (see :func:`_fit_profile`). In a 4:2:0 JPEG an unclipped spot is fitted in the luma
-plus a fifth of the chroma difference Cr (see :data:`CHROMA_WEIGHT`). Its sigma propagates the
-asymmetry of the fit's residuals about the centre through the fit (see :func:`_centre_sigma`).
+plus a fifth of the chroma difference Cr (see :data:`CHROMA_WEIGHT`). Its sigma is the fit's gain
+through the pixels' error covariance, whose sizes come from the odd part of the residuals with the
+fit's own share taken out (see :func:`_centre_sigma`).
 """
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+from scipy import sparse
 from scipy.optimize import least_squares
 
 from lasercal.vision.errors import VisionError
@@ -135,149 +137,145 @@ def _fit_profile(
     # The error of the centre comes from what is asymmetric about it: the odd part of the errors
     # under point reflection through the centre (noise, JPEG, speckle, the uneven bloom of a
     # speckled core, a ragged plateau edge), propagated through the fit (see _centre_sigma).
-    su, sv = _centre_sigma(res, xx, yy, valid.shape, u, v)
+    su, sv = _centre_sigma(res, xx, yy, valid.shape, u, v, sd, model(res.x) - res.x[6])
     return u, v, float(su), float(sv)
 
 
-# The reported sigma is the geometric mean of two sandwich estimates of the centre's variance with
-# opposite biases (see _centre_sigma); the lagged one is scaled by LAG_SCALE, set on the phone
-# renderer over 0.3-30x clipping, both colours and speckle 0-0.2 (120 photos a cell: the
-# correlation-sum estimate alone gave an actual spread of 0.68-1.27 of it, the lagged one alone,
-# unscaled, 1.04-1.58). Checked on three other sets of 80 photos a cell: 0.71-1.31 in every cell.
-LAG_SCALE = 1.3
+# The noise of a pixel, in the fit's linear DN, is taken as the sum of (see _centre_sigma):
+# additive noise (read noise, rounding, JPEG) of variance a + c m (m the spot's light there: shot
+# noise), and multiplicative noise (speckle, the bloom of a speckled core) of variance b m**2; both
+# correlated between neighbouring pixels (speckle grains, demosaicing, JPEG blocks), with a covariance
+# each for the four pixels beside a pixel and the four diagonal ones (NOISE_LAGS). The multiplicative
+# noise's correlation 2 and sqrt 5 px away (FAR_LAGS) follows from its correlation at 1 px as a
+# Gaussian's; estimated freely from one spot, those two lags made the stated sigma's spread over the fake
+# camera's photos 0.36 of itself instead of 0.24 (z RMS 1.40 against 1.17), and without them the phone
+# renderer's clipped speckled spots were under-reported 1.53x.
+NOISE_LAGS = (((1, 0), (0, 1)), ((1, 1), (-1, 1)))
+FAR_LAGS = {4: ((2, 0), (0, 2)), 5: ((2, 1), (1, 2), (-2, 1), (-1, 2))}
 
 
 def _centre_sigma(
-    res, xx: np.ndarray, yy: np.ndarray, shape: tuple, u: float, v: float
-) -> tuple[float, float]:
-    """1-sigma error of a fitted centre, from the asymmetry of the fit's residuals about it.
+    res, xx: np.ndarray, yy: np.ndarray, shape: tuple, u: float, v: float, sd: np.ndarray, light: np.ndarray
+):
+    """1-sigma error of a fitted centre: the fit's gain through the covariance of the pixels' errors,
+    that covariance estimated from the fit's residuals with the fit's own share taken out.
 
-    The model is point-symmetric about (u, v), so only the odd part of the errors moves the
-    centre, and the odd part of the data is the odd part of the residuals. A residual minus its
-    mirror image (bilinear, so divided by sqrt(1 + the interpolation weights' squares)) stands for
-    a pixel's error; mirroring the residuals rather than the data keeps the interpolation error
-    of a steep profile (a clipped plateau's edge) out, which the data's own mirror counted as error.
-    The errors are propagated through the fit's influence on (u, v) (its gain) in two ways, whose
-    geometric mean is returned:
+    The fitted parameters move by ``-G e`` for weighted pixel errors ``e`` (``G = (J^T J)^-1 J^T``, J the
+    weighted Jacobian), so the centre's covariance is (eq. C1)
 
-    - correlation sum: the sum of gain**2 err**2, times the sum of the error field's
-      autocorrelation out to 3 px (speckle grains and demosaicing make neighbours alike). The
-      field is smoothed by [1 2 1] first: Bayer demosaicing leaves a pixel-scale zipper on a
-      spot's edges that is odd about the centre but averages out in the fit. Each pixel's square
-      is divided by 1 - kappa * leverage (capped): the fitted centre has already absorbed part of
-      the odd error it is estimated from. Its correlation comes from the whole field, so where
-      flank noise outweighs the speckle on the core it is diluted: it over-reports clean clipped
-      spots (up to ~1.5x) and under-reports speckled ones.
-    - lagged pairs: the sum of gain_i gain_j err_i err_j over pixel pairs up to 2 px apart
-      (a truncated heteroscedasticity-and-autocorrelation sandwich), leaving out each pixel's
-      pairs near its own mirror image (anti-correlated by construction). Each pair is weighted
-      by its own gains, so the speckle on the core counts where it acts, and an alternating
-      zipper cancels as it does in the fit. But the residuals are orthogonal to the gain, which
-      eats part of the sum: it under-reports, by a factor that varies less (scaled by LAG_SCALE).
+        Cov(u, v) = G Sigma G^T,   Sigma = sum_l theta_l S_l,
+
+    with Sigma the weighted errors' covariance, a sum of known shapes S_l times unknown sizes theta_l:
+    additive noise (``D^2``, ``D^2 diag(m)``: constant and shot), multiplicative noise (``D M E_k M D``)
+    and correlated additive noise (``D E_k D``), D = diag(1 / sd) the fit's weights, M = diag(m) the
+    spot's light, E_k the pairs of neighbouring pixels of a lag group (:data:`NOISE_LAGS`; E_0 = I),
+    and the multiplicative noise at :data:`FAR_LAGS`, sized from its correlation at 1 px.
+
+    The sizes are fitted by moments of the residuals r. Only the part of the errors that is odd under
+    point reflection through (u, v) moves the centre, and a symmetric misfit of the profile (a spot not
+    quite a Gaussian, a tone curve assumed wrong) is even: the moments are taken of the odd part
+    ``o = O r`` (O: a residual minus the bilinear sample of the residuals at its mirror pixel, where all
+    four of its pixels were fitted). The residuals are not the errors: the fit has absorbed their part
+    along its own Jacobian (for a spot a few speckle grains wide, a large part), ``r = K e`` with
+    ``K = I - Q Q^T`` (Q an orthonormal basis of J's columns). So the sizes solve the moment equations
+    of restricted maximum likelihood (eq. C2): for each shape, with ``T_k = O^T S_k O``,
+
+        E[o^T S_k o] = sum_l theta_l tr(T_k K S_l K),
+
+        tr(T K S K) = tr(T S) - 2 tr(Q^T S T Q) + tr(Q^T T Q Q^T S Q),
+
+    a linear system for theta. Taking the residuals' moments for the errors' (leaving K out) under-reports
+    a speckled spot ~1.5x in the fake camera's photos. Censored pixels (clipped, the model above the
+    clipping level: no Jacobian) are left out. Where the noisy theta make the variance fall below half
+    what the lag-0 terms alone give, that half is kept.
 
     Parameters
     ----------
     res : scipy OptimizeResult of the weighted fit; ``res.fun`` weighted residuals, ``res.jac``
         their Jacobian, (u, v) its first two parameters
     xx, yy : (n,) int arrays, the fitted pixels; shape : (h, w) of the box
-    u, v : the fitted centre, px
+    u, v : float, the fitted centre, px
+    sd : (n,) array, the fit's error model per pixel (its weights are 1 / sd), linear DN
+    light : (n,) array, the fitted spot's light per pixel over its background, linear DN
 
     Returns
     -------
     (sigma_u, sigma_v), px
     """
-    J = res.jac
-    cov = np.linalg.pinv(J.T @ J)
-    gain = (cov @ J.T)[:2]  # d(u, v) / d(weighted data)
-    R = np.zeros(shape, np.float32)
-    M = np.zeros(shape, np.float32)
-    R[yy, xx], M[yy, xx] = res.fun, 1
-    mx, my = (2 * u - xx).astype(np.float32), (2 * v - yy).astype(np.float32)
-    mirror = _remap_points(R, mx, my)
-    whole = _remap_points(M, mx, my) > 0.999
-    fx, fy = mx - np.floor(mx), my - np.floor(my)
-    w2 = ((1 - fx) ** 2 + fx**2) * ((1 - fy) ** 2 + fy**2)
-    err = np.where(whole, (res.fun - mirror) / np.sqrt(1 + w2), 0)
-    # Correlation sum.
-    field = np.zeros(shape)
-    field[yy, xx] = err
-    k121 = np.array([0.25, 0.5, 0.25])
-    field = cv2.sepFilter2D(field, -1, k121, k121, borderType=cv2.BORDER_CONSTANT)
-    kappa = _correlation_sum(field, 3)
-    lever = np.einsum("ij,jk,ik->i", J[:, :2], cov[:2, :2], J[:, :2])  # each pixel's pull on (u, v)
-    var_sum = kappa * (gain**2 @ (field[yy, xx] ** 2 / (1 - np.minimum(kappa * lever, 0.5))))
-    # Lagged pairs.
-    P = np.zeros((2, *shape))
-    P[:, yy, xx] = gain * err
+    used = np.nonzero(np.abs(res.jac).sum(1) > 0)[0]
+    n = len(used)
+    J, r = res.jac[used], res.fun[used]
+    d, m = 1 / sd[used], np.maximum(light[used], 0)
+    gain = (np.linalg.pinv(J.T @ J) @ J.T)[:2]  # d(u, v) / d(weighted data)
+    Q = np.linalg.qr(J)[0]
+    px, py = xx[used], yy[used]
+    grid = np.full(shape, -1)  # index of the fitted pixel at (y, x), -1 where none
+    grid[py, px] = np.arange(n)
     h, w = shape
-    Y, X = np.mgrid[:h, :w]
-    lag0 = (P * P).sum((1, 2))
-    var_lag = lag0.copy()
-    r = 2
-    for dy in range(0, r + 1):  # each unordered pair once, counted twice
-        for dx in range(-r, r + 1):
-            if dy == 0 and dx <= 0:
-                continue
-            a = (slice(0, h - dy), slice(max(0, -dx), w - max(0, dx)))
-            b = (slice(dy, h), slice(max(0, dx), w - max(0, -dx)))
-            own_mirror = (np.abs(2 * X[a] + dx - 2 * u) <= r) & (np.abs(2 * Y[a] + dy - 2 * v) <= r)
-            var_lag += 2 * np.where(own_mirror, 0, P[(slice(None), *a)] * P[(slice(None), *b)]).sum((1, 2))
-    var_lag = LAG_SCALE**2 * np.maximum(var_lag, 0.25 * lag0)
-    su, sv = (var_sum * var_lag) ** 0.25
+    D = sparse.diags(d)
+    shapes = [D @ D, D @ sparse.diags(m) @ D, sparse.diags((d * m) ** 2)]
+
+    def pairs(group):
+        ij = []
+        for dx, dy in group:
+            a = grid[max(0, -dy) : h - max(0, dy), max(0, -dx) : w - max(0, dx)]
+            b = grid[max(0, dy) : h - max(0, -dy), max(0, dx) : w - max(0, -dx)]
+            ok = (a >= 0) & (b >= 0)
+            ij.append((a[ok], b[ok]))
+        i, j = np.concatenate([q[0] for q in ij]), np.concatenate([q[1] for q in ij])
+        E = sparse.coo_matrix((np.ones(len(i)), (i, j)), (n, n)).tocsr()
+        return E + E.T
+
+    DM = D @ sparse.diags(m)
+    for group in NOISE_LAGS:
+        E = pairs(group)
+        shapes += [DM @ E @ DM, D @ E @ D]
+    # The odd part under point reflection through the centre: a pixel's residual minus the bilinear
+    # sample of the residuals at its mirror image, where all four of that sample's pixels were fitted.
+    mx, my = 2 * u - px, 2 * v - py
+    x0, y0 = np.floor(mx).astype(int), np.floor(my).astype(int)
+    fx, fy = mx - x0, my - y0
+    rows, cols, vals, whole = [], [], [], np.ones(n, bool)
+    for ox, oy, wgt in (
+        (0, 0, (1 - fx) * (1 - fy)),
+        (1, 0, fx * (1 - fy)),
+        (0, 1, (1 - fx) * fy),
+        (1, 1, fx * fy),
+    ):
+        cx, cy = x0 + ox, y0 + oy
+        inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+        k = np.where(inside, grid[np.clip(cy, 0, h - 1), np.clip(cx, 0, w - 1)], -1)
+        whole &= (k >= 0) | (wgt == 0)
+        rows.append(np.arange(n)), cols.append(np.maximum(k, 0)), vals.append(np.where(k >= 0, wgt, 0))
+    mirror = sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), (n, n))
+    odd = sparse.diags(whole.astype(float)) @ (sparse.identity(n) - mirror.tocsr())
+    # E[o^T S_k o] = sum_l theta_l tr(T_k K S_l K), T_k = O^T S_k O, o = O r (eq. C2 with the odd part)
+    T = [(odd.T @ S @ odd).tocsr() for S in shapes]
+    SQ = [S @ Q for S in shapes]
+    TQ = [t @ Q for t in T]
+    QSQ, QTQ = [Q.T @ x for x in SQ], [Q.T @ x for x in TQ]
+    k = len(shapes)
+    A = np.empty((k, k))
+    for p in range(k):
+        for q in range(k):
+            A[p, q] = (
+                T[p].multiply(shapes[q]).sum()
+                - 2 * float((TQ[p] * SQ[q]).sum())
+                + float((QTQ[p] * QSQ[q].T).sum())
+            )
+    o = odd @ r
+    moments = np.array([o @ (S @ o) for S in shapes])
+    theta = np.linalg.lstsq(A, moments, rcond=None)[0]
+    # eq. C1, per axis
+    # Farther lags of the multiplicative noise (FAR_LAGS), from its correlation at 1 px as a Gaussian's:
+    # rho(d) = rho(1)**(d**2) (speckle grains and bloom are smooth blobs).
+    rho = float(np.clip(theta[3] / theta[2], 0.0, 0.9)) if theta[2] > 0 else 0.0
+    far = [(theta[2] * rho**d2, DM @ pairs(group) @ DM) for d2, group in FAR_LAGS.items()]
+    var = np.array([sum(t * float(g @ (S @ g)) for t, S in [*zip(theta, shapes), *far]) for g in gain])
+    floor = np.array([sum(t * float(g @ (S @ g)) for t, S in zip(theta[:3], shapes[:3])) for g in gain])
+    # A noisy estimate can come out below what the pixels' own variance says: half that is the floor.
+    su, sv = np.sqrt(np.maximum(var, 0.5 * np.maximum(floor, 0)) + 1e-18)
     return float(su), float(sv)
-
-
-REMAP_ROW = 32_000  # cv2.remap refuses maps (and images) of 32,767 px or more on a side
-
-
-def _remap_points(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Bilinear samples of ``img`` at points (x, y), px, 0 outside (``cv2.remap`` with
-    ``BORDER_CONSTANT``), for any number of points: the point list is folded into rows short
-    enough for remap (a large spot's window has more than 32,767 pixels).
-
-    Parameters
-    ----------
-    img : (h, w) float32 array, h and w < 32,767; x, y : (n,) float32 arrays, px
-
-    Returns
-    -------
-    (n,) float32 array
-    """
-    n = len(x)
-    rows = -(-n // REMAP_ROW)
-    pad = rows * REMAP_ROW - n
-    mx = np.pad(x, (0, pad), constant_values=-1).reshape(rows, -1)
-    my = np.pad(y, (0, pad), constant_values=-1).reshape(rows, -1)
-    return cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).ravel()[:n]
-
-
-def _correlation_sum(res: np.ndarray, reach: int) -> float:
-    """How many pixels one independent error spans: the sum of the errors' autocorrelation.
-
-    Demosaicing, JPEG blocks and speckle grains make neighbouring errors alike; the variance
-    of a fitted centre grows by the sum of their normalised autocorrelation over lags up to
-    ``reach`` px (a stationary-noise sandwich estimate).
-
-    Parameters
-    ----------
-    res : (h, w) array, errors, 0 outside the fitted pixels
-    reach : int, largest lag, px
-
-    Returns
-    -------
-    float >= 1
-    """
-    ys, xs = np.nonzero(res)
-    if len(ys) == 0:
-        return 1.0
-    res = res[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
-    h, w = res.shape
-    r0 = float((res * res).sum())
-    f = np.fft.rfft2(res, (2 * h, 2 * w))  # zero-padded: no wrap-around
-    ac = np.fft.irfft2(f * np.conj(f), (2 * h, 2 * w))
-    dy, dx = np.fft.fftfreq(2 * h, 1 / (2 * h)), np.fft.fftfreq(2 * w, 1 / (2 * w))  # signed lags, px
-    near = (np.abs(dy)[:, None] <= reach) & (np.abs(dx)[None, :] <= reach)
-    return max(float(ac[near].sum()) / r0, 1.0)
 
 
 def _centroid_sigma(sig: np.ndarray, wgt: np.ndarray, u: float, v: float) -> tuple[float, float]:

@@ -21,6 +21,7 @@ The command line's ``lasercal solve`` is this function, its :meth:`Calibration.s
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -170,6 +171,7 @@ def calibrate(
     seed: int = 0,
     alpha: float = ALPHA,
     payload=None,
+    sheet_shape: str = "auto",
 ) -> Calibration:
     """Calibrate the robot of a capture session: the decisions of ``lasercal solve`` (module docstring).
 
@@ -193,6 +195,10 @@ def calibrate(
     alpha : float, the diagnosis's family-wise significance level (``extend`` not 'none')
     payload : (kg, (3,) mm at q = 0), the mass the flange carries (hand, tool), for the gravity torques
         of a session that logs none (``extend`` not 'none'; e.g. the MUKCa study's)
+    sheet_shape : str, a sheet session fitted by 'lm': 'auto' tests the print's shear and the paper's
+        height field (eqs. S5, S6) against a flat sheet and models them when the data ask
+        (:mod:`solver.identify.sheetshape`: before the diagnosis, so that every later fit holds them);
+        'flat' keeps eq. S3's flat sheet
 
     Returns
     -------
@@ -230,6 +236,16 @@ def calibrate(
         )
     if extend != "none" and method != "lm":
         raise IdentificationError("--extend needs --method lm")
+    shape = None
+    if sheet_shape not in ("auto", "flat"):
+        raise IdentificationError(f"sheet shape {sheet_shape!r}: expected auto or flat")
+    sheet_lm = session.frame == "sheet" and session.measurement == "laser" and method == "lm"
+    if sheet_shape == "auto" and sheet_lm:
+        from lasercal.solver.identify.sheetshape import decide_sheet_shape, modelled
+
+        shape = decide_sheet_shape(session, fit(session, robust=robust), folds, seed, alpha, robust)
+        if shape is not None and shape.kept:
+            session = modelled(session)  # once named, modelled: every fit below holds the sheet's shape
     diagnosis = None
     if extend != "none":
         diagnosis = diagnose(
@@ -258,6 +274,8 @@ def calibrate(
             session, method, folds, seed, inlier=ident.weights > 0, robust=robust, extension=ext
         )
     rep = solve_report(session, ident, cv)
+    if shape is not None:
+        rep["sheet_shape"] = shape.as_dict()
     if diagnosis is not None:
         rep["diagnosis"] = diagnosis.as_dict()
     rep["partial"] = bool(missing)
@@ -313,7 +331,14 @@ def model_file(
             "partial": rep["partial"],
         }
     )
-    for k in ("unidentifiable_combinations", "prior", "determined_by", "cross_validation", "diagnosis"):
+    for k in (
+        "unidentifiable_combinations",
+        "prior",
+        "determined_by",
+        "cross_validation",
+        "diagnosis",
+        "sheet_shape",
+    ):
         if k in rep:
             meta[k] = rep[k]
     if payload is not None:
@@ -324,7 +349,19 @@ def model_file(
         meta["diagnosis"] = {**d, "details": {k: v for k, v in d["details"].items() if k != "seconds"}}
     ref = source.robot_source or (source.meta["robot"], source.path)
     return ident.model.replace(
-        identification=meta,
+        identification=_defined(meta),
         extensions=robot_extensions(ident.model.extensions),
         nominal=robot_reference(*ref),
     )
+
+
+def _defined(record):
+    """A record with every figure that is not defined (a held-out error when every fold failed: NaN) as
+    None, written ``null``: model files hold no ``.nan``, which every loader refuses as a torn file."""
+    if isinstance(record, dict):
+        return {k: _defined(v) for k, v in record.items()}
+    if isinstance(record, list | tuple):
+        return [_defined(v) for v in record]
+    if isinstance(record, float) and not math.isfinite(record):
+        return None
+    return record

@@ -14,6 +14,7 @@ from lasercal.collector.cli.options import (
     number,
     output_argument,
     photo_arguments,
+    photo_options_used,
     resume_or_another,
     unused,
     view_arguments,
@@ -63,7 +64,10 @@ def args_capture(p: argparse.ArgumentParser) -> None:
         help="sent before each reading (e.g. 'D\\n'); default: the device streams",
     )
     p.add_argument(
-        "--auto", action="store_true", help="fake backend: the simulated operator triggers too (no keyboard)"
+        "--auto",
+        action="store_true",
+        help="the fake and MuJoCo backends (--backend fake, --backend mujoco): the simulated operator aims "
+        "and triggers by itself (no keyboard), and discards the captures the check flags",
     )
     p.add_argument(
         "--auto-pace",
@@ -132,6 +136,7 @@ def cmd_capture(args) -> int:
     if args.guide != "move":
         unused(args, "only --guide move commands moves", "max_step", "yes")
     settings = capture_settings(given_settings(vars(args)), args.layout, args.output, args.resume)
+    photo_options_used(args, settings.cfg.get("camera"))
     guide = CaptureGuide(
         auto=args.auto,
         auto_pace=args.auto_pace or 0.0,

@@ -19,7 +19,14 @@ def args_demo(p: argparse.ArgumentParser) -> None:
         default="lasercal-demo",
         help="folder for the session, models, validations and report (default: ./lasercal-demo)",
     )
-    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument(
+        "--seed",
+        type=SEED,
+        default=0,
+        metavar="S",
+        help="seed of the simulated world (the robot's hidden errors, the operator's aim, the camera's "
+        "noise); the README's figures are seed 0's (a whole number, default 0)",
+    )
 
 
 def cmd_demo(args) -> int:

@@ -20,6 +20,8 @@ import warnings
 from contextlib import contextmanager
 from typing import NamedTuple
 
+from lasercal.solver.errors import LasercalError  # one small module: no numpy
+
 
 class Command(NamedTuple):
     """One subcommand: ``module`` (in lasercal.collector.cli) holds ``args_<name>`` and ``handler``."""
@@ -175,13 +177,20 @@ COMMANDS = (
 BY_NAME = {c.name: c for c in COMMANDS}
 
 
+class UsageError(LasercalError):
+    """The command line itself is wrong (argparse's message); ``prog`` the parser's name."""
+
+    def __init__(self, message: str, prog: str):
+        super().__init__(message)
+        self.prog = prog
+
+
 class UsageArgumentParser(argparse.ArgumentParser):
-    """A parser whose errors are one line (``lasercal: error: argument --hold: ...``), not usage + error."""
+    """A parser whose errors are one line naming the command (``lasercal capture: error: argument --hold:
+    ...``), not usage + error."""
 
     def error(self, message: str):
-        from lasercal.solver.errors import LasercalError
-
-        raise LasercalError(message)
+        raise UsageError(message, self.prog)
 
 
 class DefaultsHelpFormatter(argparse.HelpFormatter):
@@ -343,7 +352,13 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = next((a for a in argv if not a.startswith("-")), None)
     try:
-        args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
+        try:
+            args = build_parser(selected if selected in BY_NAME else None).parse_args(argv)
+        except UsageError as e:  # one line that names the command (the top parser's errors too)
+            prog = f"lasercal {selected}" if selected in BY_NAME else e.prog
+            more = f" ({prog} --help lists its options)" if str(e).startswith("unrecognized") else ""
+            print(f"{prog}: error: {e}{more}", file=sys.stderr)
+            return 2
         quiet_libraries()
         with warnings_as_lines():
             code = int(args.func(args) or 0)

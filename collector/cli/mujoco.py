@@ -143,6 +143,12 @@ def cmd_mujoco_scene(args) -> int:
 
     passive = passives(args)  # the options' own mistakes first
     layout = load_layout(args.layout)
+    if layout.frame != "sheet":
+        raise FormatError(
+            layout.path,
+            "this layout is not a printed sheet (its points are in the robot's base frame): mujoco-scene "
+            "draws a sheet lasercal sheet printed (expected the layout.yaml beside its sheet.pdf)",
+        )
     pdf = Path(layout.path).parent / "sheet.pdf"
     if not pdf.is_file():
         raise FormatError(layout.path, f"no sheet.pdf beside it (expected {pdf}: lasercal sheet writes both)")

@@ -35,19 +35,26 @@ def number(
     metres. The returned function carries the :class:`Range` as ``.range`` (the tests read it).
     """
     rng = Range(lo, hi, unit, lo_open, hi_open, integer)
+    expected = rng.expected()
+    if integer and lo is not None and hi is not None:  # whole bounds in full, not 4.29497e+09
+        lb, rb = "(" if lo_open else "[", ")" if hi_open else "]"
+        expected = f"a whole number in {lb}{int(lo)}, {int(hi)}{rb} {unit}".rstrip()
 
     def parse(text: str):
         try:
             v = rng.parse(text)
         except ValueError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
+            said = str(e).replace(rng.expected(), expected)
+            if integer:  # nan, inf: not a whole number, as 1.5 is not
+                said = said.replace("is not finite (", "is not a whole number (")
+            raise argparse.ArgumentTypeError(said) from None
         if metres and 0 < abs(v) < METRES_BELOW_MM:
             raise argparse.ArgumentTypeError(
                 f"{v:g} mm is below {METRES_BELOW_MM:g} mm: this looks like metres (expected mm)"
             )
         return v
 
-    parse.__name__ = rng.expected()  # argparse names the type in some messages
+    parse.__name__ = expected  # argparse names the type in some messages
     parse.range = rng
     return parse
 
@@ -427,7 +434,14 @@ def bootstrap_arguments(p: argparse.ArgumentParser) -> None:
         default=10,
         help="diagnosis: full simulations of the experiment with refits (default 10)",
     )
-    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument(
+        "--seed",
+        type=SEED,
+        default=0,
+        metavar="S",
+        help="diagnosis: seed of its simulated replicates and refits; the same seed gives the same figures "
+        "(a whole number, default 0)",
+    )
 
 
 PAYLOAD_KG = number(0, 100, "kg", lo_open=True)
@@ -561,6 +575,31 @@ def photo_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def photo_options_used(args, camera) -> None:
+    """Refuse ``--photos`` / ``--photo-format`` where they would change nothing: a session without a camera
+    takes no photo; ``--photos none`` keeps none, in no format.
+
+    Raises
+    ------
+    LasercalError
+        One line naming the option.
+    """
+    from lasercal.solver.errors import LasercalError
+
+    given = [
+        f"--{d.replace('_', '-')} {getattr(args, d)}" for d in ("photos", "photo_format") if getattr(args, d)
+    ]
+    if given and not camera:
+        raise LasercalError(
+            f"{' '.join(given)}: no photo is taken without a camera (expected --camera, or drop "
+            f"{'it' if len(given) == 1 else 'them'})"
+        )
+    if args.photos == "none" and args.photo_format:
+        raise LasercalError(
+            f"--photo-format {args.photo_format}: --photos none keeps no photo, in any format (drop one)"
+        )
+
+
 def view_arguments(p: argparse.ArgumentParser) -> None:
     """``--view``, ``--view-host``, ``--view-port`` (capture, validate, beam-check): the live view."""
     p.add_argument(
@@ -573,8 +612,8 @@ def view_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--view-host",
         metavar="ADDR",
-        help="with --view: serve it on this address instead (another device, e.g. a tablet, can then open "
-        "it); a one-time token is printed that the page asks for",
+        help="with --view: serve it on this address instead, for another device (a phone, a tablet): its "
+        "link is printed with the run's token; 0.0.0.0: every address of this machine, one link each",
     )
     p.add_argument(
         "--view-port",

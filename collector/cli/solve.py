@@ -56,6 +56,13 @@ def args_solve(p: argparse.ArgumentParser) -> None:
         "better; or name one (default none; joint_map: the joint error map, pose and position sessions). "
         "Only robot effects (compliance, eccentricity, the joint map) are written to the model",
     )
+    p.add_argument(
+        "--sheet-shape",
+        default="auto",
+        choices=["auto", "flat"],
+        help="a sheet session (lm): auto (default) tests the print's shear and the paper's curl against a "
+        "flat sheet (F test and held-out captures) and models them when the data ask; flat: a plane",
+    )
     payload_argument(p)
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
     p.add_argument(
@@ -184,7 +191,17 @@ def cmd_solve(args) -> int:
     if any(is_pose_session(s) for s in args.session):
         from lasercal.collector.cli.poses import solve_poses
 
-        unused(args, "pose sessions", "method", "payload", "allow_partial", "base_link", "tip_link", "json")
+        unused(
+            args,
+            "pose sessions",
+            "method",
+            "payload",
+            "allow_partial",
+            "base_link",
+            "tip_link",
+            "json",
+            "sheet_shape",
+        )
         return solve_poses(args)
     if len(args.session) > 1:
         raise LasercalError(
@@ -202,6 +219,7 @@ def cmd_solve(args) -> int:
         robust=not args.no_robust,
         allow_partial=args.allow_partial,
         payload=parse_payload(args.payload),
+        sheet_shape=args.sheet_shape,
     )
     if "warning" in cal.statistics:  # on stderr, where a script (and the outside check) looks for it
         warn(f"{args.session}: {cal.statistics['warning']}")

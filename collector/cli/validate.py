@@ -14,6 +14,7 @@ from lasercal.collector.cli.options import (
     motion_arguments,
     output_argument,
     photo_arguments,
+    photo_options_used,
     resume_or_another,
     sheet_pose,
     sheet_pose_argument,
@@ -84,6 +85,7 @@ def cmd_validate(args) -> int:
     from lasercal.solver.analysis.stats import spot_stats
     from lasercal.solver.errors import LasercalError
 
+    photo_options_used(args, True)  # a validation always photographs
     settings = validate_settings(
         given_settings(vars(args)),
         args.model,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from lasercal.solver.kinematics.effects import drift_t0
-from lasercal.solver.kinematics.sheet import SheetPose
+from lasercal.solver.kinematics.sheet import SHAPE_KEYS, SheetPose
 
 
 def format_diagnosis(d) -> str:
@@ -20,7 +20,14 @@ def format_diagnosis(d) -> str:
         lines.append(f"finding: none -- the geometric model and {what} explain the data ({best})")
     else:
         where = f"point {o['point']}" if o["point"] else "joint " + ", ".join(d.extension.tags)
-        lines.append(f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g})")
+        line = f"finding: {o['effect']} at {where} (corrected p = {o['p_value']:.3g}"
+        if "folds_agree" in d.acceptance:  # the gain of the selection made inside each fold
+            acc = d.acceptance
+            line += (
+                f"; held-out gain {o['gain_percent']:.1f} %, chosen by {acc['folds_agree']} of "
+                f"{len(acc['fold_choices'])} folds"
+            )
+        lines.append(line + ")")
         for nm, v in o["parameters"].items():
             if not nm.startswith("map"):  # a joint map's hundreds of knots: one line below
                 lines.append(f"  {nm} = {v['value']:.4g} +- {v['std_error']:.2g} {v['units']}")
@@ -76,6 +83,15 @@ def format_diagnosis(d) -> str:
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
             + f"  (torques: {d.torque_source})"
         )
+        if "fold_choices" in acc:
+            chose = {}
+            for c in acc["fold_choices"]:
+                chose[c["label"]] = chose.get(c["label"], 0) + 1
+            lines.append(
+                "  each fold's own choice, from its training rows alone: "
+                + ", ".join(f"{lb} in {n}" for lb, n in chose.items())
+                + f" (a cause is named when {acc['folds_needed']} of them agree)"
+            )
         for i, why in acc.get("failed_folds", {}).items():
             lines.append(f"  fold {i} could not be fitted: {why}")
     else:
@@ -88,7 +104,7 @@ def format_diagnosis(d) -> str:
             f"{jm['label']} ({jm['knots']} knots), held-out ({jm['folds']} folds by configuration): "
             f"{h['without']:.3f} mm without, {h['with']:.3f} mm with; gain per fold "
             + (f"95% CI [{ci[0]:.1f}, {ci[1]:.1f}]%" if ci else "n/a")
-            + f": {verdict}"
+            + f" (the keep decision's own folds): {verdict}"
         )
     if st:
         lines.append(f"{'RMS (mm)':10} {'nominal':>9} {'geometric':>10} {'extended':>9}")
@@ -143,6 +159,35 @@ def _print_and_tilt(pose, std=None) -> str:
     return f"printed at {scale} %, tilted {tilt} mrad along its x, y"
 
 
+def sheet_shape_line(d: dict) -> str:
+    """``solve``'s finding on the sheet's shape (:mod:`solver.identify.sheetshape`'s record), one line that
+    names the sheet, never a joint: 'finding (the sheet): not flat -- curl 1.6 mm over the sheet, shear
+    0.4 mm per m; modelled (F = 27.8, p = 1.8e-12; held out 0.594 -> 0.356 mm)'."""
+    if not d.get("tested"):
+        return f"finding (the sheet): shape not tested -- {d.get('reason', '')}"
+    ho = d.get("holdout") or {}
+    held = f"; held out {ho['flat_mm']:.3f} -> {ho['shaped_mm']:.3f} mm" if ho else "; no folds"
+    test = f"F = {d['F']:.3g}, p = {d['p_value']:.2g}{held}" if d.get("F") is not None else d["reason"]
+    sizes = f"curl {d['curl_mm']:.2f} mm over the sheet, shear {abs(d['shear_mm_per_m']):.2f} mm per m"
+    if d["kept"]:
+        cam = d.get("camera_warp_mm") or 0.0
+        seen = (
+            f"; the camera saw the raised paper {cam:.2f} mm RMS askew, this session's (eq. S7)"
+            if cam
+            else ""
+        )
+        return f"finding (the sheet): not flat -- {sizes}; modelled ({test}){seen}"
+    reg = d.get("regions") or {}
+    line = f"finding (the sheet): flat and square within what the data see ({test}; {d['reason']})"
+    if reg and reg["p"] < 0.01:  # structure beyond the noise that no sheet term holds: its size and where
+        worst = reg["cells"][reg["worst"]]["mean_mm"]
+        line += (
+            f"; yet its residuals vary over the sheet beyond their noise: {reg['structure_mm']:.3f} mm RMS "
+            f"(p = {reg['p']:.2g}), most at {reg['worst']} ({np.hypot(*worst):.3f} mm)"
+        )
+    return line
+
+
 def format_true_sheet(found, true, laid, G) -> str:
     """A simulated sheet session's check of ``solve``'s sheet pose against the truth (one line).
 
@@ -156,7 +201,7 @@ def format_true_sheet(found, true, laid, G) -> str:
     turn = np.degrees(np.arctan2(G[1, 0], G[0, 0]))
     tilt = np.degrees(np.arccos(np.clip(G[2, 2], -1.0, 1.0)))
     found = SheetPose(**{k: v for k, v in found.items() if k != "std"}).as_dict() | {"std": found["std"]}
-    keys = [k for k in found["std"] if k in found]
+    keys = [k for k in found["std"] if k in found and k not in SHAPE_KEYS]  # the truth's shape: not a pose's
     z = [(found[k] - getattr(true, k)) / max(found["std"][k], 1e-12) for k in keys]
     return (
         f"simulated: the sheet truly lies at x {true.x_mm:.2f} mm, y {true.y_mm:.2f} mm, yaw "
@@ -263,6 +308,8 @@ def format_solve(rep: dict) -> str:
             "nominal's; a robot whose base differs from the nominal's sees a sheet laid at its placement "
             "elsewhere, docs/formats.md)\n"
         )
+    if rep.get("sheet_shape"):
+        w(sheet_shape_line(rep["sheet_shape"]) + "\n")
     if rep["outliers"]:
         w(
             f"outlier captures (left out): {len(rep['outliers'])}: "

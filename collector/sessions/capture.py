@@ -28,7 +28,13 @@ from lasercal.collector.report.text import identifiable_text
 from lasercal.collector.sessions.anywhere import CAMERA_NOISE_MM
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, MotionRefused, confirm, plan_moves, preview
-from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.photos import (
+    ALL_PNG,
+    PhotoPolicy,
+    estimate_line,
+    start_estimate_line,
+    written_line,
+)
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
@@ -417,6 +423,12 @@ class Seen:
         return "camera_x" in self.cells
 
 
+def read_unclipped(seen: Seen) -> bool:
+    """The photo's spot was measured, and not so clipped that the measurement advises a lower exposure
+    (:func:`vision.exposure.exposure_advice`: clipped over more than ``CLIPPED_MAX`` px)."""
+    return seen.measured and "spot clipped over" not in seen.cells.get("camera_note", "")
+
+
 def spot_cells(
     folder: Path,
     camera,
@@ -606,11 +618,15 @@ class CaptureRun:
         # --guide move with a camera: hands-free, the arm drives itself through the coach's poses and the
         # camera measures each; a pose whose spot it cannot measure is guided by hand once (then aimed)
         self.hands_free = opts.move and camera is not None
-        self.settled = False  # the camera's exposure, set on the first photo (sessions.exposure)
+        self.settled = False  # the camera's exposure, set until a spot is read unclipped (sessions.exposure)
+        self.estimated = False  # the disk the photos will take, said after the first photo
         self.by_hand = False
         self.photo_tries = 0  # photos retaken at this capture because the arm moved during one
         self.status = None  # the coach's last status
         self.name, self.aim, self.cmd = "", None, ""  # the capture under way: its point, the coach's aim
+        # the page's capture or discard brought the session here: the arm stays until the terminal releases
+        # the next move (the page never moves the arm)
+        self.from_page = False
         self.t_shift = 0.0
 
     # ------------------------------------------------------------------ what the terminal and page show
@@ -715,8 +731,12 @@ class CaptureRun:
             pol = self.opts.photos
             self.say(
                 f"camera: each capture is photographed and its spot measured at once (captures.csv); photos "
-                f"kept: {pol.keep}, {pol.fmt.upper()} ({pol.choices()})\n"
+                f"kept: {pol.words()} ({pol.choices()})\n"
             )
+            left = sum(max(self.opts.per_point - k, 0) for k in self.counts.values())
+            need = start_estimate_line(pol, left, len(self.requested))
+            if need:
+                self.say(need + "\n")
         # the session's t keeps increasing across resumes; a simulated clock that continues the session's
         # time shifts it by exactly 0, so a resumed session's t is the unbroken one's to the bit
         self.t_shift = max(store.t, default=0.0) - robot.clock.now()
@@ -736,6 +756,7 @@ class CaptureRun:
         page = self.state.take()  # the page's stop or discard, taken before anything moves
         if page is not None:
             self.cmd = "quit" if page == "stop" else page
+            self.from_page = True
             return self.command
         todo = self.todo()
         if not todo:
@@ -766,10 +787,39 @@ class CaptureRun:
             xy, words = (lay.points[name] + self.beside)[:2], name
         self.state.update(target={"xy": [float(v) for v in xy], "tol_mm": AIM_TOL_MM, "label": words})
 
+    def released(self) -> bool:
+        """After the page's capture or discard the arm stays where it is: the move to the next pose waits
+        for the terminal (its trigger: Enter, a pedal, the simulated operator), which releases this one
+        move; the terminal's quit, or the page's stop, ends the session, the terminal's discard is taken
+        (and releases the move after it). True when released."""
+        wait = getattr(self.trigger, "wait_terminal", None)
+        if wait is None:  # no page: every command is the terminal's
+            self.from_page = False
+            return True
+        line = (
+            "the arm stays here: the move to the next pose waits for the terminal (the page cannot move it)"
+        )
+        self.state.phase("confirm", line, ("stop",))
+        self.say(f"  {line}; the terminal's capture releases it   [{self.trigger.hint}]\n")
+        cmd = wait()
+        self.from_page = False
+        if cmd == "capture":
+            self.say("  released at the terminal: moving\n")
+            return True
+        self.cmd = cmd  # quit, or discard: taken by ``command`` (a discard's move is the terminal's)
+        return False
+
     def move_to(self, q: np.ndarray) -> bool:
-        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move. False
-        when the page asked to stop (or discard) between two steps: the arm stays where it is."""
+        """``--guide move``: to q in steps of at most ``max_step``; confirmed before the first move, and
+        after a page's capture or discard released at the terminal (:meth:`released`). False when the
+        session does not move now: stopped (the page's stop between two steps: the arm stays where it is),
+        or a discard asked instead."""
         robot, opts = self.robot, self.opts
+        if self.state.stop_asked():
+            self.cmd = "quit"
+            return False
+        if self.from_page and not self.released():
+            return False
         plan = plan_moves(robot.read().q, q[None], self.nominal, opts.max_step)
         self.say(preview(plan))
         if not self.confirmed:
@@ -813,6 +863,7 @@ class CaptureRun:
         self.state.phase("aiming", line, ACTIONS)
         self.say(f"{line}   [{self.trigger.hint}]\n")
         self.cmd = self.trigger.wait()
+        self.from_page = getattr(self.trigger, "source", "terminal") == "page"
         return self.command
 
     def command(self):
@@ -858,6 +909,9 @@ class CaptureRun:
             self.robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll, countdown
         )
         self.state.update(standstill=None)
+        if self.state.stop_asked():  # the page's stop while the arm settled: nothing photographed
+            self.cmd = "quit"
+            return self.command
         if self.still is None:
             msg = (
                 f"the arm did not come to rest within {opts.still_timeout:g} s (max |dq| {peak:.4f} "
@@ -884,9 +938,9 @@ class CaptureRun:
         seen, got = "", None
         if camera is not None:
             self.state.phase("photo", "photographing the spot")
-            # the exposure is settled on the session's first photo, with the laser on a point
+            # the exposure is set with the laser on a point, and again at each capture until a photo's spot
+            # was read unclipped: a first spot off the markers' area, or one that clips later, does not fix it
             first = None if self.settled else settle_exposure(camera, readable_by(self.measure))
-            self.settled = True
             aimed_at = self.points[name] if aim is None else aim[1]
             got = spot_cells(
                 store.folder,
@@ -899,7 +953,9 @@ class CaptureRun:
                 opts.photos,
                 counts[name] == 0,
             )
-            if first is not None:  # the run's first photo: its size says what the photos will take
+            self.settled = self.settled or read_unclipped(got)
+            if first is not None and not self.estimated:  # the run's first photo: what the photos will take
+                self.estimated = True
                 left = sum(max(opts.per_point - k, 0) for k in counts.values())
                 self.say(estimate_line(opts.photos, got.nbytes, left, len(self.requested)) + "\n")
             moved = moved_during_photo(self.robot, state, self.nominal, lay.plane_z)

@@ -6,7 +6,9 @@ progress, the last capture's measured spot and residual, the coach's prediction 
 standstill countdown, what went wrong -- and says its lines through :meth:`SessionState.say`. The terminal
 is a listener that prints those lines; the live view (``--view``, :mod:`collector.view`) serves
 :meth:`SessionState.snapshot` and its frames. The view posts only three actions (:data:`ACTIONS`), which
-the machine takes at its own safe points (:meth:`SessionState.take`): nothing here moves the arm.
+the machine takes at its own safe points (:meth:`SessionState.take`): nothing here moves the arm. A stop is
+accepted in every phase and stays asked (:meth:`SessionState.stop_asked`): the machine ends at its next
+safe point (before a move, between two steps of a move, at a trigger, before a photo).
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ class SessionState:
         self._out = out
         self._actions: queue.Queue = queue.Queue()
         self._accepts: set = set()
+        self._stop = threading.Event()  # the page asked to stop: taken at the machine's next safe point
         self.seq = 0
         self.data: dict = {
             "kind": kind,
@@ -135,10 +138,18 @@ class SessionState:
             return action in self._accepts
 
     def post(self, action: str) -> str | None:
-        """The page asks for ``action``: queued for the machine, or the reason it is refused now."""
+        """The page asks for ``action``: queued for the machine, or the reason it is refused now. A stop is
+        accepted in every phase (the machine ends at its next safe point); capture and discard only in the
+        phases that take them."""
         with self._lock:
             if action not in ACTIONS:
                 return f"unknown action {action!r} (expected {', '.join(ACTIONS)})"
+            if action == "stop":
+                if not self._stop.is_set():
+                    self._stop.set()
+                    self.data["log"].append("[view] stop asked from the page: taken at the next safe point")
+                    self._changed()
+                return None
             if action not in self._accepts:
                 return f"{action} is not possible while {PHASES[self.data['phase']]}"
             self._actions.put(action)
@@ -146,8 +157,15 @@ class SessionState:
             self._changed()
         return None
 
+    def stop_asked(self) -> bool:
+        """Whether the page asked to stop (it stays asked: every safe point after it sees it)."""
+        return self._stop.is_set()
+
     def take(self, timeout: float | None = 0.0) -> str | None:
-        """The next action the page asked for, or None (waits up to ``timeout`` s; None: forever)."""
+        """The next action the page asked for, or None (waits up to ``timeout`` s; None: forever). A stop,
+        once asked, comes before anything else, every time."""
+        if self._stop.is_set():
+            return "stop"
         try:
             return self._actions.get(timeout=timeout) if timeout != 0 else self._actions.get_nowait()
         except queue.Empty:
@@ -158,7 +176,8 @@ class SessionState:
         """A JSON-able copy of the state, with the live frame's analysis and the accepted actions."""
         with self._lock:
             out = {k: (list(v) if isinstance(v, deque) else v) for k, v in self.data.items()}
-            out.update(seq=self.seq, actions=sorted(self._accepts), frame=dict(self.frame_info))
+            accepts = self._accepts | ({"stop"} if not self.data["ended"] else set())  # stop: always
+            out.update(seq=self.seq, actions=sorted(accepts), frame=dict(self.frame_info))
             out["phase_words"] = PHASES[out["phase"]]
         return out
 
@@ -181,13 +200,15 @@ class EitherTrigger:
     command (Enter, pedal, pilot button, the simulated operator) or the page's capture / discard / stop.
 
     The device's ``wait`` blocks (a keyboard's read), so it runs in a helper thread; a command it gives
-    after the page's is kept for the next ``wait``, as a device queues a double press.
+    after the page's is kept for the next ``wait``, as a device queues a double press. ``source`` says
+    where the last command came from: ``"terminal"`` (the device) or ``"page"``.
     """
 
     def __init__(self, trigger, state: SessionState):
         self.trigger, self.state, self.hint = trigger, state, trigger.hint
         self._device: queue.Queue = queue.Queue()
         self._waiting = False
+        self.source = "terminal"
 
     def _read(self) -> None:
         try:
@@ -195,7 +216,9 @@ class EitherTrigger:
         except BaseException as e:  # a lost device: raised in the session's thread
             self._device.put(e)
 
-    def wait(self) -> str:
+    def wait(self, page: bool = True) -> str:
+        """The next command: the device's, or (``page``) the page's capture / discard / stop; with
+        ``page=False`` only the device's, or the page's stop (``quit``)."""
         if not self._waiting:
             self._waiting = True
             threading.Thread(target=self._read, daemon=True, name="trigger").start()
@@ -203,14 +226,23 @@ class EitherTrigger:
             try:
                 cmd = self._device.get(timeout=0.05)
             except queue.Empty:
-                page = self.state.take()
-                if page is not None:
-                    return "quit" if page == "stop" else page
+                if self.state.stop_asked():
+                    self.source = "page"
+                    return "quit"
+                asked = self.state.take() if page else None
+                if asked is not None:
+                    self.source = "page"
+                    return "quit" if asked == "stop" else asked
                 continue
             self._waiting = False
             if isinstance(cmd, BaseException):
                 raise cmd
+            self.source = "terminal"
             return cmd
+
+    def wait_terminal(self) -> str:
+        """The device's next command (the terminal's), or ``quit`` when the page asked to stop."""
+        return self.wait(page=False)
 
     def close(self) -> None:
         self.trigger.close()

@@ -27,7 +27,13 @@ from lasercal.collector.sessions.cameras import OpenCVCamera
 from lasercal.collector.sessions.capture import StateStream, wait_still
 from lasercal.collector.sessions.exposure import CountedPhotos, readable_by, settle_exposure
 from lasercal.collector.sessions.motion import MAX_STEP, confirm, plan_moves, preview
-from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line, written_line
+from lasercal.collector.sessions.photos import (
+    ALL_PNG,
+    PhotoPolicy,
+    estimate_line,
+    start_estimate_line,
+    written_line,
+)
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CsvLog, cut_torn_line, write_atomic, write_atomic_bytes
 from lasercal.solver.errors import FormatError
@@ -229,10 +235,19 @@ def check_layout(layout: Layout, model: RobotModel, model_ref: str, point: str) 
     p = layout.points[point]
     for nm in layout.calibration:
         if np.linalg.norm(layout.points[nm] - p) < SAME_POINT_MM:
+            others = [
+                k
+                for k in layout.points
+                if all(
+                    np.linalg.norm(layout.points[c] - layout.points[k]) >= SAME_POINT_MM
+                    for c in layout.calibration
+                )
+            ]
+            hint = f", e.g. --point {others[0]}" if others else ""
             raise FormatError(
                 layout.path,
                 f"validation point {point} is calibration point {nm} (expected a point the model was not "
-                "fitted to: pass --point)",
+                f"fitted to{hint})",
                 field="points",
             )
     if model.plane_z is not None and abs(model.plane_z - layout.plane_z) > SAME_POINT_MM:
@@ -467,8 +482,12 @@ class ValidationRun:
         policy = self.policy
         self.say(
             f"every photo {'is measured at once (validation.csv) and ' if self.measure else ''}kept as the "
-            f"options say: {policy.keep}, {policy.fmt.upper()} ({policy.choices()})\n"
+            f"options say: {policy.words()} ({policy.choices()})\n"
         )
+        kept = len(self.todo) if opts.keep_photos is None else min(len(self.todo), opts.keep_photos)
+        need = start_estimate_line(policy, kept, 1)
+        if need:
+            self.say(need + "\n")
         if resume:
             self.say(
                 f"resuming {folder}: {len(self.done)} of {opts.n} configurations done, {len(self.todo)} to "
@@ -546,11 +565,8 @@ class ValidationRun:
         """The next configuration: the arm moved there, or the operator guides it and triggers."""
         if self.k >= len(self.todo):
             return None
-        page = self.state.take()
-        if page == "stop":
-            self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
-            self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
-            return None
+        if self.state.stop_asked():  # the page's stop, asked in any phase before
+            return self.stopped()
         i, opts = self.todo[self.k], self.opts
         q = self.planned[i]
         if self.guided:
@@ -561,9 +577,7 @@ class ValidationRun:
             self.say(f"\n{line}\n  now off by {np.round(q - now, 3).tolist()} rad   [{self.trigger.hint}]\n")
             cmd = self.trigger.wait()
             if cmd == "quit":
-                self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
-                self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
-                return None
+                return self.stopped()
             if cmd == "discard":
                 self.say(f"configuration {i + 1} skipped\n")
                 self.k += 1
@@ -572,13 +586,23 @@ class ValidationRun:
             steps = self.plan.steps[self.plan.target_of == self.k]
             self.state.phase("moving", f"moving to configuration {i + 1}/{opts.n}", ACTIONS[2:])
             for step in steps:
+                if self.state.stop_asked():  # between two steps: the arm stays where it is
+                    return self.stopped()
                 self.robot.move_to(step)
         return self.settle
+
+    def stopped(self):
+        """The operator stopped the run (the terminal's quit, or the page's stop at a safe point)."""
+        self.say(f"stopped after {self.photos} photos: {self.log.path}\n")
+        self.state.end(f"stopped after {self.photos} photos: {self.log.path}", "stopped")
+        return None
 
     def settle(self):
         opts, i = self.opts, self.todo[self.k]
         self.state.phase("settling", "waiting for the arm to be still", ACTIONS[2:])
         state, peak = wait_still(self.robot, opts.speed_threshold, opts.hold, opts.still_timeout, opts.poll)
+        if self.state.stop_asked():  # nothing photographed after a stop
+            return self.stopped()
         if state is None:
             self.failed += 1
             msg = f"configuration {i + 1}: the arm did not come to rest (max |dq| {peak:.4f} rad/s): skipped"
@@ -595,10 +619,11 @@ class ValidationRun:
         opts, policy, i, state, p = self.opts, self.policy, self.todo[self.k], self.still, self.p
         self.state.phase("photo", f"photographing configuration {i + 1}/{opts.n}")
         q = self.planned[i]
-        # the exposure is settled on the first photo, with the laser on the point
-        first = not self.settled
+        # the exposure is set with the laser on the point, and again at each photo until a spot was read
+        # unclipped (an advice to lower it is a clipped spot): one photo off the markers does not fix it
+        first = self.photos == 0
         img = self.camera.photo() if self.settled else settle_exposure(self.camera, readable_by(self.measure))
-        self.settled = True
+        self.settled |= self.measure is None  # nothing to read the spot by: set once, on the first photo
         name = f"photos/{i:04d}.{policy.fmt}"
         row = {"index": str(i), **{f"q{j + 1}": v for j, v in enumerate(state.q)}}
         seen, last = "", {"point": self.point, "number": i + 1, "measured": False}
@@ -611,6 +636,7 @@ class ValidationRun:
                 self.state.problem(f"configuration {i + 1}: the spot could not be measured ({e})", img)
             else:
                 row.update(x_mm=float(xy[0]), y_mm=float(xy[1]))
+                self.settled = self.settled or not (advice and "spot clipped over" in advice)
                 self.spots.append(xy)
                 err = float(np.hypot(*(xy - p[:2])))
                 seen = f", spot {err:.2f} mm from {self.point}"

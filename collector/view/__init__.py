@@ -59,6 +59,30 @@ def simulated_scene(camera):
     return lambda: (robot.true_q().tobytes(), getattr(camera, "gain", 1.0))
 
 
+def qr_lines(url: str) -> str:
+    """The link as a QR code in the terminal, when the pure-Python ``segno`` or ``qrcode`` is installed;
+    otherwise nothing (lasercal does not depend on either: the printed link is typed or copied)."""
+    import io
+
+    try:
+        import segno
+    except ImportError:
+        segno = None
+    out = io.StringIO()
+    try:
+        if segno is not None:
+            segno.make(url, error="l").terminal(out=out, compact=True)
+        else:
+            import qrcode
+
+            qr = qrcode.QRCode(border=1)
+            qr.add_data(url)
+            qr.print_ascii(out=out)
+    except Exception:  # ImportError, or a library's own failure: the link alone
+        return ""
+    return out.getvalue()
+
+
 @contextmanager
 def live_view(state, options: ViewOptions, camera=None, layout_file=None):
     """Serve the view of a session while the ``with`` block runs it.
@@ -90,9 +114,12 @@ def live_view(state, options: ViewOptions, camera=None, layout_file=None):
         server.feed = feed
     server.start()
     if server.remote:
+        urls = server.urls()
         state.say(
-            f"live view: {server.url(False)} (served to other devices on {options.host}); the page asks for "
-            f"this run's token: {server.token}\n"
+            f"live view: {urls[0]}   (served to other devices on {options.host}: open "
+            f"{'it' if len(urls) == 1 else 'any of these'} on a phone or tablet on the same network)\n"
+            + "".join(f"live view: {u}\n" for u in urls[1:])
+            + qr_lines(urls[0])
         )
     else:
         state.say(f"live view: {server.url()}\n")

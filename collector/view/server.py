@@ -7,32 +7,92 @@ thread each, its ``StreamResponse`` is server-sent events as they are, and ``App
 the server from the session's side in a few lines. The page (``page.html``) is one file of HTML and
 JavaScript, no build step.
 
-Routes (every one needs the run's token: ``?token=`` or the ``X-Token`` header; a request without it is
-refused with 403):
+Routes (every one but the page needs the run's token: ``?token=`` or the ``X-Token`` header; a request
+without it, or with another or a malformed one, is refused with 403):
 
-- ``GET /`` the page; ``GET /state`` the state as JSON; ``GET /events`` the state as server-sent events,
-  one ``data:`` line per change;
+- ``GET /`` the page (without the token: the same file, which holds no state of the run and asks for the
+  token); ``GET /state`` the state as JSON; ``GET /events`` the state as server-sent events, one ``data:``
+  line per change;
 - ``GET /frame?after=N`` the first live frame after frame N (JPEG; headers ``X-Frame-Seq`` and
   ``X-Frame-Time``, the time the camera gave it, s since the epoch), waiting up to 2 s (then 204);
 - ``GET /problem.jpg`` the photo that showed what went wrong;
 - ``POST /action`` ``{"do": "capture" | "discard" | "stop"}``: queued for the session, which takes it at
-  its next safe point (409 with the reason when it does not take it now). Nothing here moves the arm.
+  its next safe point (409 with the reason when it does not take it now; a stop is taken in every phase).
+  Nothing here moves the arm: after the page's capture or discard the next move waits for the terminal.
 
-The server binds to 127.0.0.1 unless ``--view-host`` says otherwise; the token is printed with the
-address, once, and the page keeps it for the run.
+The server binds to 127.0.0.1 unless ``--view-host`` says otherwise; the token is printed in the
+address(es), once, and the page keeps it for the run. Served on all addresses (``0.0.0.0``, ``::``), the
+links printed are the machine's own interface addresses (:func:`local_addresses`), which another device
+on the same network can open.
 """
 
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import json
 import secrets
+import socket
 import threading
 from importlib import resources
 
 from lasercal.collector.errors import DeviceError, MissingExtraError
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+ANY = ("0.0.0.0", "::", "")  # every address of the machine
+PROBE = ("10.255.255.254", 9)  # a UDP socket 'connected' here (no packet is sent) says the outgoing address
+
+
+def _fib_trie_addresses() -> list[str]:
+    """Linux: the machine's own IPv4 addresses (the kernel's 'host LOCAL' routes), read from /proc."""
+    try:
+        lines = open("/proc/net/fib_trie").read().splitlines()
+    except OSError:
+        return []
+    found, leaf = [], ""
+    for line in lines:
+        text = line.strip()
+        if text.startswith("|--"):
+            leaf = text[3:].strip()
+        elif text.startswith("/32 host LOCAL") and leaf and leaf not in found:
+            found.append(leaf)
+    return found
+
+
+def local_addresses(family: int = socket.AF_INET) -> list[str]:
+    """The machine's non-loopback addresses another device on its networks can open, from the standard
+    library and the kernel only: the host name's addresses, the kernel's local routes (Linux) and the
+    address a UDP socket would send from (``connect`` on UDP sends nothing). Sorted, without duplicates;
+    empty when the machine has none.
+    """
+    found: list[str] = []
+    try:
+        found += [a[4][0] for a in socket.getaddrinfo(socket.gethostname(), None, family)]
+    except OSError:
+        pass
+    if family == socket.AF_INET:
+        found += _fib_trie_addresses()
+        try:
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+                probe.connect(PROBE)
+                found.append(probe.getsockname()[0])
+        except OSError:
+            pass
+    keep = []
+    for a in found:
+        try:
+            ip = ipaddress.ip_address(a.split("%")[0])
+        except ValueError:
+            continue
+        if not (ip.is_loopback or ip.is_unspecified or ip.is_multicast) and a not in keep:
+            keep.append(a)
+    return sorted(keep, key=lambda a: ipaddress.ip_address(a.split("%")[0]))
+
+
+def _token_bytes(given) -> bytes:
+    """A token as bytes, whatever it holds (non-ASCII, or a header's undecodable bytes): compared, never
+    failing."""
+    return str(given).encode("utf-8", "surrogateescape")
 
 
 def aiohttp_web():
@@ -68,9 +128,21 @@ class ViewServer:
     def remote(self) -> bool:
         return self.host not in LOOPBACK
 
-    def url(self, with_token: bool = True) -> str:
-        host = f"[{self.host}]" if ":" in self.host else self.host
+    def url(self, with_token: bool = True, host: str | None = None) -> str:
+        host = self.host if host is None else host
+        host = f"[{host}]" if ":" in host else host
         return f"http://{host}:{self.port}/" + (f"?token={self.token}" if with_token else "")
+
+    def urls(self) -> list[str]:
+        """The links, with the token, another device opens: the bound address, or when it is every address
+        of the machine (``0.0.0.0``, ``::``) each of its non-loopback addresses (none: loopback's)."""
+        if self.host not in ANY:
+            return [self.url()]
+        family = socket.AF_INET6 if self.host == "::" else socket.AF_INET
+        found = local_addresses(family)
+        if family == socket.AF_INET6:  # '::' takes IPv4 too on most systems
+            found = local_addresses(socket.AF_INET) + found
+        return [self.url(host=a) for a in found] or [self.url(host="127.0.0.1")]
 
     def start(self) -> ViewServer:
         """Start serving; returns once the port is bound (raises DeviceError when it cannot be)."""
@@ -126,15 +198,20 @@ class ViewServer:
     async def _guard(self, request, handler):
         """Every request needs the run's token; on loopback, a Host header of this machine (a page of
         another site that resolves its name to 127.0.0.1 gets nothing)."""
-        given = request.query.get("token") or request.headers.get("X-Token") or ""
-        if not secrets.compare_digest(given, self.token):
+        host = request.host.rsplit(":", 1)[0].strip("[]")
+        if not self.remote and host not in LOOPBACK:
+            return self.web.json_response({"error": f"host {host} is not this machine"}, status=403)
+        try:
+            given = request.query.get("token") or request.headers.get("X-Token") or ""
+        except (UnicodeError, ValueError):  # a query that does not decode
+            given = ""
+        if not secrets.compare_digest(_token_bytes(given), _token_bytes(self.token)):
+            if request.method == "GET" and request.path == "/":  # the page alone: it asks for the token
+                return await self._page(request)
             return self.web.json_response(
                 {"error": "a token is required: open the address lasercal printed, with its ?token="},
                 status=403,
             )
-        host = request.host.rsplit(":", 1)[0].strip("[]")
-        if not self.remote and host not in LOOPBACK:
-            return self.web.json_response({"error": f"host {host} is not this machine"}, status=403)
         return await handler(request)
 
     async def _page(self, request):

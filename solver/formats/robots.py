@@ -25,7 +25,7 @@ from lasercal.solver.kinematics.effects import extension_from_model
 from lasercal.solver.kinematics.minimal import normalise_screw
 from lasercal.solver.kinematics.model import FORMAT, Link, RobotModel, _frozen
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
-from lasercal.solver.kinematics.sheet import SCALE_KEYS, TILT_KEYS, SheetPose
+from lasercal.solver.kinematics.sheet import SCALE_KEYS, SHAPE_KEYS, TILT_KEYS, SheetPose
 
 PLANE_Z = Range(-5000.0, 5000.0, "mm")
 MASS = Range(0.0, 1000.0, "kg")
@@ -60,17 +60,20 @@ def _checked_screw(w, v, path, where: str, notes: list) -> np.ndarray:
 
 
 def sheet_values(d: dict, key: str, path, partial: bool = False, scale: float = 1.0) -> list | None:
-    """A mapping ``d[key]`` {x_mm, y_mm, yaw_deg[, scale_x, scale_y]} (a sheet's pose or its standard
-    deviations) as five finite numbers (None if absent; a pose key left out is 0 when ``partial``, a scale
-    left out is ``scale``: 1 for a pose, an exact print; 0 for its standard deviation)."""
+    """A mapping ``d[key]`` {x_mm, y_mm, yaw_deg[, scale_x, scale_y, tilt_x_rad, tilt_y_rad, shear,
+    curl_xx_per_mm, curl_xy_per_mm, curl_yy_per_mm]} (a sheet's pose or its standard deviations) as eleven
+    finite numbers (None if absent; a pose key left out is 0 when ``partial``, a scale left out is
+    ``scale``: 1 for a pose, an exact print; 0 for its standard deviation; a tilt or shape key left out 0:
+    level, square and flat, as files written before the shape was modelled say)."""
     m = d.get(key)
     if m is None:
         return None
-    keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS
+    keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS + SHAPE_KEYS
     if not isinstance(m, dict) or set(m) - set(keys) or (not partial and set(SHEET_KEYS) - set(m)):
         raise FormatError(
             path,
-            f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg[, scale_x, scale_y, tilt_x_rad, tilt_y_rad]}}",
+            f"'{key}' must be a mapping {{x_mm, y_mm, yaw_deg[, scale_x, scale_y, tilt_x_rad, tilt_y_rad, "
+            "shear, curl_xx_per_mm, curl_xy_per_mm, curl_yy_per_mm]}",
             field=key,
         )
     vals = []
@@ -104,6 +107,15 @@ def sheet_pose(d: dict, key: str, path, placement: bool = False) -> SheetPose | 
     for k, v in zip(TILT_KEYS, vals[5:]):
         if not abs(v) < 0.1:  # a table a few mrad off level: degrees or a slope in percent written here
             raise FormatError(path, f"{v:g} (expected a tilt in rad, a few 0.001)", field=f"{key}.{k}")
+    for k, v in zip(SHAPE_KEYS, vals[7:]):
+        if not abs(v) < (0.1 if k == "shear" else 0.01):  # a shear in mm per m or a curvature in 1/m here
+            raise FormatError(
+                path,
+                f"{v:g} (expected a print's shear in mm per mm, a few 0.001)"
+                if k == "shear"
+                else f"{v:g} (expected a sheet's curvature in 1/mm, a few 1e-5)",
+                field=f"{key}.{k}",
+            )
     for k, v in zip(SCALE_KEYS, vals[3:5]):
         if not 0.9 < v < 1.1:  # a printer scales by a few 0.1 %: a percentage or a ppm figure written here
             raise FormatError(
@@ -255,7 +267,7 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
             path, "'sheet_std' needs 'sheet' (the pose it is the uncertainty of)", field="sheet_std"
         )
     if sheet_std is not None and min(sheet_std) < 0:
-        k = (SHEET_KEYS + SCALE_KEYS + TILT_KEYS)[int(np.argmin(sheet_std))]
+        k = (SHEET_KEYS + SCALE_KEYS + TILT_KEYS + SHAPE_KEYS)[int(np.argmin(sheet_std))]
         raise FormatError(
             path, f"{min(sheet_std):g} (expected a standard deviation >= 0)", field=f"sheet_std.{k}"
         )
@@ -284,7 +296,11 @@ def model_from_dict(d: dict, path="<model>") -> RobotModel:
         sheet=sheet,
         sheet_std=None
         if sheet_std is None
-        else {k: v for k, v in zip(SHEET_KEYS + SCALE_KEYS + TILT_KEYS, sheet_std) if k in d["sheet_std"]},
+        else {
+            k: v
+            for k, v in zip(SHEET_KEYS + SCALE_KEYS + TILT_KEYS + SHAPE_KEYS, sheet_std)
+            if k in d["sheet_std"]
+        },
         identification=dict(d.get("identification", {}) or {}),
         notes=tuple(notes),
         nominal=nominal,

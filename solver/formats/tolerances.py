@@ -36,6 +36,8 @@ KINDS = {
     "sheet_yaw": "sheet_rad",  # a printed sheet's rotation on the table
     "sheet_scale": "print_scale",  # a printer's scale along a sheet's axis, minus 1
     "sheet_tilt": "table_tilt_rad",  # a sheet's rise per mm along its axis (the table against joint 1)
+    "sheet_shear": "print_scale",  # a printer's shear (eq. S5), mm per mm: as wide as its scale error
+    "sheet_curl": "table_tilt_rad",  # a sheet's curvature (eq. S6), 1/mm: the tilt's figure per mm, wide
     "joint_compliance": "compliance_rad_per_nm",
     "lateral_compliance": "compliance_rad_per_nm",  # a link bending across its joint (same tolerance)
     "encoder_eccentricity": "eccentricity_rad",

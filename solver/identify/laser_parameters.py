@@ -45,6 +45,16 @@ SHEET_KINDS = [
     "sheet_tilt",
 ]
 NSHEET = len(SHEET_NAMES)
+# 1, 1/mm x 3: the print's shear and the paper's height field (eqs. S5, S6), fitted only when tested
+# (solver.identify.sheetshape); their priors are wide on purpose (the print scale's for the shear, the table
+# tilt's per mm for the curvatures: a 10 m radius is no constraint), so the data decide them
+SHAPE_NAMES = ["sheet.g", "sheet.kxx", "sheet.kxy", "sheet.kyy"]
+SHAPE_KINDS = ["sheet_shear", "sheet_curl", "sheet_curl", "sheet_curl"]
+# 1/mm x 6: a camera's view of a paper that is not flat (eq. S7 of solver.identify.spot), with the shape on a
+# session the camera measured
+WARP_NAMES = ["camera.axx", "camera.axy", "camera.ayy", "camera.bxx", "camera.bxy", "camera.byy"]
+WARP_KINDS = ["sheet_curl"] * 6
+NWARP = len(WARP_NAMES)
 
 
 def unseen_by_spots(sheet: bool) -> int:
@@ -84,12 +94,16 @@ class CountedParameters:
     free : (k,) int array, indices into ``names`` of the parameters the fit moves (the count)
     robot : int, how many of ``names`` are the robot's
     sheet : bool, a sheet session (its pose among the parameters, the gauge held)
+    shape : bool, the sheet's shape too (eqs. S5, S6: shear and height field)
+    warp : bool, with it the camera's view of the raised paper (eq. S7)
     """
 
     names: tuple
     free: np.ndarray
     robot: int
     sheet: bool
+    shape: bool = False
+    warp: bool = False
 
     @property
     def held(self) -> list[str]:
@@ -107,7 +121,12 @@ class CountedParameters:
         parts = [f"{joints} joints x 4 (axis direction, position)", "beam direction 2", "beam start 3"]
         if self.sheet:
             parts.append("sheet pose 3, print scale 2 and tilt 2")
-        extra = len(self.names) - self.robot - NSHEET * self.sheet
+        if self.shape:
+            parts.append("sheet shear 1 and curl 3")
+        if self.warp:
+            parts.append("the camera's view of the raised paper 6")
+        extra = len(self.names) - self.robot - NSHEET * self.sheet - len(SHAPE_NAMES) * self.shape
+        extra -= NWARP * self.warp
         if extra:
             parts.append(f"extension {extra}")
         text = f"{self.count} = " + " + ".join(parts)
@@ -116,7 +135,9 @@ class CountedParameters:
         return text
 
 
-def counted_parameters(P: LaserParams, sheet: bool, extension_names=()) -> CountedParameters:
+def counted_parameters(
+    P: LaserParams, sheet: bool, extension_names=(), shape: bool = False, warp: bool = False
+) -> CountedParameters:
     """The parameters a laser fit of this robot moves (module docstring): the one definition of the count.
 
     Parameters
@@ -124,10 +145,15 @@ def counted_parameters(P: LaserParams, sheet: bool, extension_names=()) -> Count
     P : LaserParams
     sheet : bool, the session's points lie on a sheet of unknown pose (``frame: sheet``)
     extension_names : parameter names of a fitted extension, if any
+    shape : bool, the sheet's shear and height field too (eqs. S5, S6; a sheet session)
+    warp : bool, with the shape, the camera's view of the raised paper (eq. S7; a camera session)
     """
-    names = tuple(P.names) + tuple(SHEET_NAMES if sheet else ()) + tuple(extension_names)
+    shape = shape and sheet
+    warp = warp and shape
+    sheet_names = SHEET_NAMES + (SHAPE_NAMES if shape else []) + (WARP_NAMES if warp else []) if sheet else []
+    names = tuple(P.names) + tuple(sheet_names) + tuple(extension_names)
     held = sheet_gauge(P) if sheet else []
-    return CountedParameters(names, np.setdiff1d(np.arange(len(names)), held), P.size, sheet)
+    return CountedParameters(names, np.setdiff1d(np.arange(len(names)), held), P.size, sheet, shape, warp)
 
 
 def counted_rank(

@@ -20,7 +20,7 @@ from lasercal.solver.identify.degenerate import (
     determination,
     laser_gauge,
 )
-from lasercal.solver.identify.laser_parameters import SHEET_NAMES
+from lasercal.solver.identify.laser_parameters import SHAPE_NAMES, SHEET_NAMES, WARP_NAMES
 from lasercal.solver.identify.point import identify_point, session_targets, tips
 from lasercal.solver.identify.position import identify_position, position_residuals
 from lasercal.solver.identify.spot import Identification, identify, plane_residuals
@@ -145,7 +145,7 @@ def determined_by(session: Session, ident: Identification) -> Determination | No
     held = laser_gauge(names, ident.model.laser_dir) if session.measurement == "laser" else []
     # a sheet's print scale and tilt are the set-up's, not the robot's: the sheet's line gives their sigmas
     # (an aimed session leaves them to the prior), and the verdict is about the robot
-    held += [i for i, nm in enumerate(names) if nm in SHEET_NAMES[3:]]
+    held += [i for i, nm in enumerate(names) if nm in SHEET_NAMES[3:] + SHAPE_NAMES + WARP_NAMES]
     joints = session.robot.joint_names
     rows = np.flatnonzero(prior.finite)
     return determination(ident.extra["cov"], prior.whitening, rows, names, joints, session.q, held)

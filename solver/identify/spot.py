@@ -30,7 +30,14 @@ from scipy import optimize
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.formats.tolerances import Tolerances
-from lasercal.solver.identify.laser_parameters import NSHEET, SHEET_KINDS, counted_parameters
+from lasercal.solver.identify.laser_parameters import (
+    NSHEET,
+    NWARP,
+    SHAPE_KINDS,
+    SHEET_KINDS,
+    WARP_KINDS,
+    counted_parameters,
+)
 from lasercal.solver.identify.lsq import Identifiability, fit_subspace, flag_outliers, identifiability
 from lasercal.solver.identify.prior import Prior, make_prior
 from lasercal.solver.kinematics.effects import Extension, require
@@ -38,7 +45,15 @@ from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_
 from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.model import RobotModel
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
-from lasercal.solver.kinematics.sheet import SCALE_KEYS, TILT_KEYS, SheetPose, sheet_residual, sheet_to_base
+from lasercal.solver.kinematics.sheet import (
+    NFULL,
+    SCALE_KEYS,
+    SHAPE_KEYS,
+    TILT_KEYS,
+    SheetPose,
+    sheet_residual,
+    sheet_to_base,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -211,6 +226,56 @@ def sheet_start(session: Session, model: RobotModel) -> SheetPose:
     return SheetPose(float(t[0]), float(t[1]), float(np.degrees(yaw)))
 
 
+def camera_warp_rows(uv: np.ndarray, measured: np.ndarray, anchors: np.ndarray | None = None) -> np.ndarray:
+    """Eq. S7's rows (m, 2, 6): d(residual)/d(a_xx, a_xy, a_yy, b_xx, b_xy, b_yy) at layout points uv (m, 2)
+    mm, the measured captures' (zero for aimed ones).
+
+    A camera that maps the paper through its markers' homography takes the paper for a plane: a spot on
+    paper raised by h(s) (eq. S6) lies, in the photo, where the plane's point h(s) w further from the camera
+    does (w the horizontal over the vertical distance from the camera: parallax). The homography is exact
+    at the markers; between them the measured spot is displaced by a smooth field, to second order
+
+        m = s + 1/2 [s^T A s, s^T B s] - L(s),   A = [[a_xx, a_xy], [a_xy, a_yy]], B likewise     (eq. S7)
+
+    in mm (A, B in 1/mm), L the affine map that best matches the quadratic at the ``anchors`` (the sheet's
+    marker centres, layout mm; None: the measured spots themselves): the field vanishes where the homography
+    was fitted, so it does not move the sheet's pose. It is the capture camera's, a session effect: fitted
+    with the sheet's shape, reported, never applied to where the arm aims (``validate`` has its own camera).
+    """
+    meas = np.asarray(measured, dtype=bool)
+
+    def quad(p):
+        return np.column_stack([0.5 * p[:, 0] ** 2, p[:, 0] * p[:, 1], 0.5 * p[:, 1] ** 2])
+
+    anchors = uv[meas] if anchors is None or len(anchors) < 3 else np.asarray(anchors, dtype=float)
+    A = np.column_stack([np.ones(len(anchors)), anchors])
+    coef = np.linalg.lstsq(A, quad(anchors), rcond=None)[0]  # (3, 3): the affine part at the anchors
+    q = (quad(uv) - np.column_stack([np.ones(len(uv)), uv]) @ coef) * meas[:, None]
+    W = np.zeros((len(uv), 2, 6))
+    W[:, 0, :3], W[:, 1, 3:] = q, q
+    return W
+
+
+def marker_centres(session: Session) -> np.ndarray | None:
+    """The centres (k, 2) mm, layout frame, of the markers of the layout a sheet session names (None: not
+    found): where a camera's homography is fitted (eq. S7)."""
+    from pathlib import Path
+
+    import yaml
+
+    coll = session.meta.get("collector") if isinstance(session.meta, dict) else None
+    name = coll.get("layout") if isinstance(coll, dict) else None  # where capture recorded its layout
+    if not name or session.path is None:
+        return None
+    path = Path(session.path) / name
+    try:
+        ids = (yaml.safe_load(path.read_text()) or {}).get("markers", {}).get("ids", {})
+        out = np.array([np.mean(np.asarray(c, dtype=float), axis=0) for c in ids.values()])
+    except (OSError, yaml.YAMLError, AttributeError, TypeError, ValueError):
+        return None
+    return out if out.ndim == 2 and out.shape[1] == 2 and len(out) >= 3 and np.isfinite(out).all() else None
+
+
 def placed_targets(session: Session, pose: SheetPose) -> np.ndarray:
     """A sheet session's reference points (m, 3) in the base frame with the sheet at ``pose`` (eq. S1):
     its ``target`` holds x, y on the sheet and the plane's height in the base frame."""
@@ -329,6 +394,7 @@ def identify_lm(
     robust: bool = True,
     extension: Extension | None = None,
     suspects: np.ndarray | None = None,
+    shape: bool | None = None,
 ) -> Identification:
     """Levenberg-Marquardt on in-plane spot residuals in the identifiable subspace (method ``lm``).
 
@@ -346,6 +412,9 @@ def identify_lm(
         (its parameters start at zero; a compliance extension uses the session's torques)
     suspects : (m,) bool array, optional: the only captures the outlier test may flag (an extension fitted
         on its geometric fit's rows: that fit's outliers; :func:`solver.identify.lsq.fit_subspace`)
+    shape : bool, a sheet session: fit the print's shear and the paper's height field too (eqs. S5, S6 of
+        :mod:`solver.kinematics.sheet`; :mod:`solver.identify.sheetshape` decides whether to keep them);
+        None (default): when the session is marked so (:func:`solver.identify.sheetshape.modelled`)
 
     Returns
     -------
@@ -361,14 +430,22 @@ def identify_lm(
     if extension:
         require(extension, t, tau)
     sheet = session.frame == "sheet"
-    nsh = NSHEET if sheet else 0
+    if shape is None:
+        shape = bool(isinstance(session.meta, dict) and session.meta.get("_sheet_shape_modelled", False))
+    shape = shape and sheet
+    nsh = (NFULL if shape else NSHEET) if sheet else 0
+    nw = NWARP if shape and session.measured.any() else 0  # the camera's view of a raised paper (eq. S7)
+    pe = p + nsh + nw  # where the extension's parameters start
+    W = camera_warp_rows(target[:, :2], session.measured, marker_centres(session)) if nw else None
     if 2 * m <= 8:
         raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
     pose0 = (session.sheet or sheet_start(session, start)) if sheet else None
-    u0 = np.r_[P.x0(), pose0.vector if sheet else [], np.zeros(k)]
-    counted = counted_parameters(P, sheet, extension.names if extension else ())
+    u0 = np.r_[P.x0(), (pose0.full_vector if shape else pose0.vector) if sheet else [], np.zeros(nw + k)]
+    counted = counted_parameters(P, sheet, extension.names if extension else (), shape, nw > 0)
     held, free, names_all = counted.held, counted.free, list(counted.names)
-    kinds_all = P.kinds + (SHEET_KINDS if sheet else []) + (extension.kinds if extension else [])
+    sheet_kinds = (SHEET_KINDS + (SHAPE_KINDS if shape else [])) if sheet else []
+    sheet_kinds += WARP_KINDS if nw else []
+    kinds_all = P.kinds + sheet_kinds + (extension.kinds if extension else [])
     names = [names_all[i] for i in free]
     tol = session.tolerances
     if tol is not None and sheet and session.sheet is None:  # no stated placement: no prior on the pose
@@ -383,21 +460,22 @@ def identify_lm(
         """True configurations, in-plane base-frame targets and the plane's height at each (eqs. S1, S3)
         under parameters u = [x, pose, theta]."""
         placed = sheet_to_base(u[p : p + nsh], target[:, :2], target[:, 2])[0] if sheet else target
-        qt = extension.with_params(u[p + nsh :]).true_q(q, t, tau) if extension else q
+        qt = extension.with_params(u[pe:]).true_q(q, t, tau) if extension else q
         return qt, placed[:, :2], placed[:, 2]
 
     aimed = ~session.measured
 
     def offset(u):
         """A reference point's offset (m, 2) mm, in the residual's frame (a sheet's: its own units)."""
-        return extension.with_params(u[p + nsh :]).target_offset(session.point, aimed) if extension else 0.0
+        return extension.with_params(u[pe:]).target_offset(session.point, aimed) if extension else 0.0
 
     def residual(v):
         u = embed(v)
         qt, tg, z = model_inputs(u)
         spot, _ = P.spots(u[:p], qt, z)
         r = spot[:, :2] - tg
-        return (sheet_residual(u[p : p + nsh], r)[0] if sheet else r) - offset(u)
+        warp = W @ u[p + nsh : pe] if nw else 0.0  # eq. S7: the measured spot's offset, the residual's sign
+        return (sheet_residual(u[p : p + nsh], r)[0] if sheet else r) - offset(u) + warp
 
     def jacobian(v):
         u = embed(v)
@@ -417,6 +495,8 @@ def identify_lm(
             _, M, dM = sheet_residual(u[p : p + nsh], spot[:, :2] - tg)
             J = np.einsum("ij,mjk->mik", M, J)
             J[:, :, p : p + nsh] += dM
+        if nw:
+            J = np.concatenate([J[:, :, : p + nsh], W, J[:, :, p + nsh :]], axis=2)
         if extension and extension.effect == "reference_point_offset":
             Je = np.zeros((m, 2, 2))
             Je[(session.point == extension.point) & aimed] = -np.eye(2)
@@ -507,13 +587,14 @@ def identify_lm(
         "rank": fit.identifiability.rank,
         "n_params": len(free),
     }
-    fitted = extension.with_params(u[p + nsh :], se_all[p + nsh :]) if extension else None
+    fitted = extension.with_params(u[pe:], se_all[pe:]) if extension else None
     extensions = fitted.model_entries() if fitted and fitted.acts_on_joints else {}
     model = P.to_model(u[:p], identification=meta, extensions=extensions)
     if sheet:
-        std = se_all[p : p + nsh] * [1, 1, 180 / np.pi, 1, 1, 1, 1]
+        std = se_all[p : p + nsh] * ([1, 1, 180 / np.pi] + [1] * (nsh - 3))
         pose = SheetPose.from_vector(u[p : p + nsh])
-        model = model.replace(sheet=pose, sheet_std=dict(zip(SHEET_KEYS + SCALE_KEYS + TILT_KEYS, std)))
+        keys = SHEET_KEYS + SCALE_KEYS + TILT_KEYS + (SHAPE_KEYS if shape else ())
+        model = model.replace(sheet=pose, sheet_std=dict(zip(keys, std)))
         nominal = nominal.replace(sheet=sheet_start(session, start))  # the nominal's best pose ("before")
     return Identification.from_fit(
         nominal,
@@ -530,6 +611,7 @@ def identify_lm(
             "held": held,
             "counted": counted.describe(),
             **({} if noise is None else {"scale": scale, "noise": noise}),
+            **({"camera_warp": u[p + nsh : pe], "camera_warp_std": se_all[p + nsh : pe]} if nw else {}),
         },
         fitted,
         iterations=iterations,
