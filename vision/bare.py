@@ -13,6 +13,13 @@ its holes filled, opened by a disc of a part of its minor semi-axis (a flare str
 lobe of speckle joined to one side is thinner than the core and goes; the core's own outline stays),
 then the centre of the ellipse fitted to the outline left. The mean of the clipped pixels leans
 towards whatever joins the core on one side; the rim of the round part does not.
+
+:func:`lopsided` -- what a laser spot is: a beam's light is point-symmetric about its centre (a
+Gaussian, an ellipse, a clipped plateau: each the same turned half round), so its light, turned half
+round about its centre, lands on itself. A glow along a lit edge (cut by a dark object on one side) or a
+core a flare streak leans on does not. :attr:`~vision.decide.DecisionRule.lopsided_max` refuses such a
+candidate among several (:func:`vision.detect._point_symmetric`); :attr:`~vision.decide.DecisionRule.lean_min`
+centres a clipped core that lopsided on the rim of its saturation (:func:`vision.detect._rim_centred`).
 """
 
 from __future__ import annotations
@@ -20,27 +27,21 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from lasercal.vision.ring import _filled
+
 # The opening's disc, a share of the clipped core's minor semi-axis: a tail or lobe narrower than this
 # share of the core goes, an ellipse of any aspect stays.
 OPEN_SHARE = 0.6
-# px: a precise fit this far from the rim's centre leans (vision.detect._rim_centred). OFF (infinite) for
-# now: at 0.75 px, and still at 1.5 px, the phone sweep's clipped red spots (their red clip edge ragged by
-# speckle and the 4:2:0 JPEG) moved from 0.02-0.05 to 0.13-0.21 px RMS at 3x and 30x; the leaning
-# renders' median fell from 2.1 to 0.5-0.9 px.
-RIM_STRAY = float("inf")
+# px: a precise fit this far from the rim's centre leans (vision.detect._rim_centred), where the spot's
+# light is also lopsided (DecisionRule.lean_min). Alone (no lopsidedness asked), at 0.75 px and still at
+# 1.5 px, it moved the phone sweep's clipped red spots (their red clip edge ragged by speckle and the
+# 4:2:0 JPEG) from 0.02-0.05 to 0.13-0.21 px RMS at 3x and 30x.
+RIM_STRAY = 0.75
 # The opening must take at least this share of the clipped core for the core to lean: a round or
 # elliptical core loses only its outline's jaggies (and a 4:2:0 JPEG's blocky red), and is left to the fit.
 LEAN_MIN = 0.08
 RIM_MIN_PX = 40  # clipped cores smaller than this are centred well enough by the precise fit
 RIM_MAX_PX = 5000  # px (a core of r ~40 px): larger ones are spots hundreds of px wide, measured shrunk
-
-
-def _filled(mask: np.ndarray) -> np.ndarray:
-    m = mask.astype(np.uint8)
-    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    out = np.zeros_like(m)
-    cv2.drawContours(out, contours, -1, 1, thickness=cv2.FILLED)
-    return out.astype(bool)
 
 
 def rim_centre(clipped: np.ndarray, at: tuple[float, float]) -> tuple[float, float] | None:
@@ -143,3 +144,41 @@ def counted(s, cores: list):
     area = max(c[0] for c in mine)
     alike = sum(c[0] >= PEER_SHARE * area for c in cores)
     return replace(s, evidence=replace(ev, bare=int(alike)))
+
+
+# The window of :func:`lopsided`: 1.5 x the blob's radius (the core and its flanks), 4-40 px.
+LOPSIDED_REACH = (1.5, 4.0, 40.0)
+
+
+def lopsided(img: np.ndarray, channel: int | None, u: float, v: float, area: float) -> float:
+    """How far a spot's light is from point-symmetric about its centre: over a disc of
+    :data:`LOPSIDED_REACH` about (u, v), the laser channel's rise E over its 5th percentile there, and
+    sum |E(x) - E(2c - x)| / sum (E(x) + E(2c - x)) (0: the light turned half round lands on itself;
+    1: all of it on one side). Bilinear, the photo's edge replicated.
+
+    Parameters
+    ----------
+    img : (h, w, 3) or (h, w) photo
+    channel : int or None, the laser's channel (None for a grey photo)
+    u, v : px, the spot's centre
+    area : px, its blob's area
+    """
+    ch = (img if img.ndim == 2 or channel is None else img[..., channel]).astype(np.float32)
+    if ch.ndim == 3:
+        ch = ch.mean(axis=2)
+    k, lo, hi = LOPSIDED_REACH
+    r = float(np.clip(k * np.sqrt(area / np.pi), lo, hi))
+    pad = int(np.ceil(r)) + 2
+    x0, y0 = int(round(u)) - pad, int(round(v)) - pad
+    padded = cv2.copyMakeBorder(ch, pad + 2, pad + 2, pad + 2, pad + 2, cv2.BORDER_REPLICATE)
+    patch = padded[y0 + pad + 2 : y0 + 3 * pad + 3, x0 + pad + 2 : x0 + 3 * pad + 3]
+    cu, cv_ = u - x0, v - y0
+    turn = np.float32([[-1, 0, 2 * cu], [0, -1, 2 * cv_]])
+    turned = cv2.warpAffine(
+        patch, turn, patch.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
+    yy, xx = np.mgrid[: patch.shape[0], : patch.shape[1]]
+    disc = np.hypot(xx - cu, yy - cv_) <= r
+    floor = float(np.percentile(patch[disc], 5))
+    e, et = np.maximum(patch[disc] - floor, 0), np.maximum(turned[disc] - floor, 0)
+    return float(np.abs(e - et).sum() / max(float((e + et).sum()), 1e-6))

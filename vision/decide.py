@@ -106,8 +106,17 @@ class DecisionRule:
         spread over thousands of pixels clips; a reddish surface beside a shadow does not
     bare_shift : float, the rim shift a white clipped core alone in the photo needs (rule "bare", issue
         55; see :mod:`vision.bare`): laser-ward at all, where white light measures up to ~1.06
+    bare_neutral : float, how far from neutral (``|ln paper_ratio|``,
+        :attr:`~vision.spot.Evidence.paper_ratio`) the surface under a colourless core's rim may be for rule
+        "bare": on a coloured surface a warm lamp's clipped white core shows as faint a laser-ward rim (the
+        lit papers of :func:`vision.fit.lit_papers`)
     adds_share : float, of several candidates, one whose luma rises by less than this share of the most
         laser-like one's (:func:`vision.detect._adds`) is a coloured object, not light (issue 55)
+    lopsided_max : float, of several candidates, one whose light is further than this from
+        point-symmetric about its centre (:attr:`~vision.spot.Evidence.lopsided`) is refused while one
+        that is not stays: a glow an edge cuts, not a beam (issue 55, :func:`vision.detect._point_symmetric`)
+    lean_min : float, a clipped spot at least this lopsided whose precise fit strays from the rim of its
+        saturation is centred on the rim (:func:`vision.detect._rim_centred`; issue 55)
     offset, slope, clipped : float, the probability
         ``1 / (1 + exp(-(offset + slope * margin + clipped * c)))`` of a candidate whose evidence
         clears its threshold by ``margin`` (see :func:`margin`), with ``c`` = 1 when its laser channel
@@ -123,8 +132,13 @@ class DecisionRule:
     dominance: float = 0.05
     side_max: float = 0.5
     share_max: float = 0.01
+    # Issue 55's, fitted on the same real photos and issue 55's development renders (seeds 0-15 of each
+    # kind) with the thresholds above held (bench_vision_wild_loso.py; its held-out rows score them).
     bare_shift: float = 1.15
-    adds_share: float = 0.6
+    bare_neutral: float = 0.01
+    adds_share: float = 0.85
+    lopsided_max: float = 0.1
+    lean_min: float = 0.12
     offset: float = -1.91
     slope: float = 0.99
     clipped: float = 1.30
@@ -228,9 +242,10 @@ BARE_CONFIDENCE = 0.3
 
 def bare_core(ev: Evidence, rule: DecisionRule = RULE) -> bool:
     """Whether a candidate is a white clipped core with a faint laser-ward rim (rim shift at least
-    ``rule.bare_shift``), counted against the photo's other compact white blobs
-    (:attr:`~vision.spot.Evidence.bare`)."""
-    return ev.bare is not None and has_core(ev) and (ev.rim_shift or 0.0) >= rule.bare_shift
+    ``rule.bare_shift``) on a neutral surface (``rule.bare_neutral``), counted against the photo's other
+    compact white blobs (:attr:`~vision.spot.Evidence.bare`)."""
+    neutral = ev.paper_ratio is not None and abs(np.log(max(ev.paper_ratio, 1e-6))) <= rule.bare_neutral
+    return ev.bare is not None and neutral and has_core(ev) and (ev.rim_shift or 0.0) >= rule.bare_shift
 
 
 def bare_alone(ev: Evidence, rule: DecisionRule = RULE) -> bool:

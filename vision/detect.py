@@ -47,7 +47,7 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
-from lasercal.vision.bare import RIM_MAX_PX, RIM_MIN_PX, RIM_STRAY, counted, rim_centre, white_cores
+from lasercal.vision.bare import RIM_MAX_PX, RIM_MIN_PX, RIM_STRAY, counted, lopsided, rim_centre, white_cores
 from lasercal.vision.candidates import Candidate, _octave, _shrink, find_candidates
 from lasercal.vision.decide import (
     CLOSE,
@@ -255,6 +255,10 @@ def select(
         spots, note = _laser_like(spots, rule.adds_share)
         if note:
             warnings.append(note)
+    if len(spots) > 1:
+        spots, note = _point_symmetric(spots, rule.lopsided_max)
+        if note:
+            warnings.append(note)
     if expect is None:
         spots, note = _dominant(spots, rule.dominance, rank)
         if note:
@@ -299,7 +303,7 @@ def _judged(
         if isinstance(done, Rejection):
             refused.append(done)
         else:
-            kept.append(_rim_centred(replace(done, evidence=judge(done.evidence, rule))))
+            kept.append(_rim_centred(replace(done, evidence=judge(done.evidence, rule)), rule.lean_min))
     # A colourless core is read only where no spot shows the laser's colour (see vision.bare).
     if any(s.evidence is None or s.evidence.rule != "bare" for s in kept):
         refused += [Rejection("white", s.u, s.v, s.evidence) for s in kept if s.evidence.rule == "bare"]
@@ -307,14 +311,16 @@ def _judged(
     return _one_per_light(_dedupe(kept)), refused
 
 
-def _rim_centred(s: Spot) -> Spot:
-    """A clipped spot centred on the rim of its saturation (:func:`vision.bare.rim_centre`) where the
-    precise fit strays from it by over :data:`~vision.bare.RIM_STRAY`: the fit weighs
-    the clipped pixels and the flanks, and both lean towards whatever joins the core on one side (a
-    flare streak, a glint); the round part of the rim does not. Where the two agree the fit is kept (it
-    is the finer one: 0.02 px against the outline's quantisation). The sigma stays the fit's."""
+def _rim_centred(s: Spot, lean_min: float) -> Spot:
+    """A clipped spot centred on the rim of its saturation (:func:`vision.bare.rim_centre`) where its
+    light is at least ``lean_min`` lopsided (:attr:`DecisionRule.lean_min`) and the precise fit strays
+    from the rim by over :data:`~vision.bare.RIM_STRAY`: the fit weighs the clipped pixels and the
+    flanks, and both lean towards whatever joins the core on one side (a flare streak, a glint); the
+    round part of the rim does not. Where the light is point-symmetric, or the two agree, the fit is kept
+    (it is the finer one: 0.02 px against the outline's quantisation, which a clip edge ragged by speckle
+    and a 4:2:0 JPEG's blocky red make coarser). The sigma stays the fit's."""
     ev = s.evidence
-    if ev is None or ev.rim_centre is None or ev.clipped_px <= 0:
+    if ev is None or ev.rim_centre is None or ev.clipped_px <= 0 or (ev.lopsided or 0.0) < lean_min:
         return s
     u, v = ev.rim_centre
     if np.hypot(s.u - u, s.v - v) <= RIM_STRAY:
@@ -348,6 +354,28 @@ def _laser_like(spots: list[Spot], share: float) -> tuple[list[Spot], str | None
     return kept, (
         f"several candidates: refused {len(rest)} that colour the photo more than they light it (a red "
         f"object, not a laser spot; the laser-like ones add {best:.2f}): {where}"
+    )
+
+
+def _point_symmetric(spots: list[Spot], most: float) -> tuple[list[Spot], str | None]:
+    """Of several candidates, those whose light is point-symmetric about their centre as a beam's is
+    (:attr:`~vision.spot.Evidence.lopsided` at most ``most``, :attr:`DecisionRule.lopsided_max`), when
+    any is; and a warning naming the others. A glow along an edge lit red (the laser's scatter, an
+    indicator) is laser light, clipped and compact, but the dark object cuts it on one side (issue 55).
+    A spot the photo's edge cuts is not judged by it."""
+
+    def lop(s: Spot) -> float:
+        ev = s.evidence
+        return 0.0 if ev is None or ev.cut or ev.lopsided is None else ev.lopsided
+
+    kept = [s for s in spots if lop(s) <= most]
+    if not kept or len(kept) == len(spots):
+        return spots, None
+    rest = [s for s in spots if lop(s) > most]
+    where = "; ".join(f"({s.u:.1f}, {s.v:.1f}) px (lopsided {lop(s):.2f})" for s in rest[:3])
+    return kept, (
+        f"several candidates: refused {len(rest)} whose light is cut on one side (a lit edge, not a "
+        f"laser spot; a beam's light is point-symmetric about its centre, under {most:.2f}): {where}"
     )
 
 
@@ -462,7 +490,16 @@ def _find(
         if "white" not in shrunk:
             shrunk["white"] = white_cores(img)
         found = [counted(s, shrunk["white"]) for s in found]
+    found = [_with_lopsided(img, s, colour) for s in found]
     return _ring_first(found), rejected
+
+
+def _with_lopsided(img: np.ndarray, s: Spot, colour: str) -> Spot:
+    """A spot with how lopsided its light is (:func:`vision.bare.lopsided`), in the full photo."""
+    if s.evidence is None:
+        return s
+    ch = None if img.ndim == 2 else CHANNEL[colour]
+    return replace(s, evidence=replace(s.evidence, lopsided=lopsided(img, ch, s.u, s.v, s.evidence.area)))
 
 
 def _ring_first(spots: list[Spot]) -> list[Spot]:

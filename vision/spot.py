@@ -63,6 +63,8 @@ class Evidence:
         :data:`~vision.bare.RIM_MIN_PX` px
     bare : int or None, for a white clipped blob: how many compact white clipped blobs of a laser
         core's size the photo holds (:mod:`vision.bare`; 1: this one alone); None when not counted
+    lopsided : float or None, how far the spot's light is from point-symmetric about its centre
+        (:func:`vision.bare.lopsided`: 0 a beam's, up to 1 a glow an edge cuts); None when not measured
 """
 
     colour: str | None
@@ -89,6 +91,7 @@ class Evidence:
     reach: float = 0.0
     rim_centre: tuple | None = None
     bare: int | None = None
+    lopsided: float | None = None
 
     @property
     def strength(self) -> float:
@@ -128,6 +131,7 @@ class Evidence:
             "share": round(self.share, 6),
             "reach": round(self.reach, 1),
             "bare": self.bare,
+            "lopsided": None if self.lopsided is None else round(self.lopsided, 3),
         }
 
     def describe(self) -> str:
