@@ -8,8 +8,9 @@ Run from the repository root::
 Each rendered photo goes through what ``lasercal spots --json --expect any`` runs on a phone JPEG
 (``measure_photo``, any number of spots, the chroma subsampled): the true spot is found when a reported
 spot lies within max(4 px, 2 x 0.5 px) of it; a reported spot farther than 3 x the core radius + 6 px
-from it is false. The seeds from 100 on are never used to choose anything (the tests use 0-5, the
-fit :func:`vision.fit.wild` 0-7). The last row is the colourless core's counter-case
+from it is false. The seeds from 100 on are never used to choose anything (the tests use 1000-1005, the
+fit of issue 55's thresholds :func:`vision.fit.wild55` 0-15; ``bench_vision_wild_loso.py`` fits them and
+scores 200-239). The last row is the colourless core's counter-case
 (:func:`~vision.render_wild.two_white_cores`): there a refusal is right, and a reported spot at the
 glare is false.
 """
