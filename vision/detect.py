@@ -251,12 +251,14 @@ def select(
         )
     if img is not None and img.ndim == 2:
         warnings.append("grey photo: white reflections cannot be told from laser light")
-    if len(spots) > 1:
-        spots, note = _laser_like(spots, rule.adds_share)
+    # Issue 55's choice among several, with any number of spots expected (--expect any): with a count
+    # expected, the strongest are kept, and the others named with their strength.
+    if len(spots) > 1 and expect is None:
+        spots, note = _laser_like(spots, rule.adds_share, rule.dominance, rank)
         if note:
             warnings.append(note)
-    if len(spots) > 1:
-        spots, note = _point_symmetric(spots, rule.lopsided_max)
+    if len(spots) > 1 and expect is None:
+        spots, note = _point_symmetric(spots, rule.lopsided_max, rule.dominance, rank)
         if note:
             warnings.append(note)
     if expect is None:
@@ -277,7 +279,7 @@ def select(
                 f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
                 "light: its centre may be off by a few tenths of a pixel (aim beside the mark)"
             )
-        if sp.evidence is not None and sp.evidence.rule == "core":
+        if sp.evidence is not None and sp.evidence.rule in ("core", "bare"):
             warnings.append(
                 f"spot at ({sp.u:.1f}, {sp.v:.1f}) px is clipped white with only a faint laser-coloured "
                 f"fringe (probability {sp.evidence.confidence:.2f}): lower the exposure, or take a "
@@ -338,14 +340,21 @@ def _adds(s: Spot) -> float:
     return 1.0 if ev is None or ev.colour is None else float(ev.light / max(ev.excess, 1e-6))
 
 
-def _laser_like(spots: list[Spot], share: float) -> tuple[list[Spot], str | None]:
+def _laser_like(
+    spots: list[Spot], share: float, dominance: float = 0.0, rank=_strength
+) -> tuple[list[Spot], str | None]:
     """Of several candidates, those that add light like the most laser-like one: their luma rise over
     their colour's (:func:`_adds`) at least ``share`` of its (:attr:`DecisionRule.adds_share`); and a
     warning naming the others. A bright red object outshines a small spot in flux, so strength alone
-    chose it (issue 55)."""
-    best = max(_adds(s) for s in spots)
-    kept = [s for s in spots if _adds(s) >= share * best]
-    rest = [s for s in spots if _adds(s) < share * best]
+    chose it (issue 55). One far weaker is left to the dominance (:func:`_refused_among`). Only against a
+    candidate whose clipping whitened its core (a white pixel): laser spots clipped in their own channel
+    alone rise 0.46-0.62 in luma (three lasers in one photo, ``tests/test_vision_plane.py``), as far
+    apart as a spot and a red object."""
+    top = max(spots, key=_adds)
+    if top.evidence is None or not top.evidence.white_px:
+        return spots, None
+    best = _adds(top)
+    kept, rest = _refused_among(spots, lambda s: _adds(s) < share * best, dominance, rank)
     if not rest:
         return spots, None
     where = "; ".join(
@@ -357,21 +366,36 @@ def _laser_like(spots: list[Spot], share: float) -> tuple[list[Spot], str | None
     )
 
 
-def _point_symmetric(spots: list[Spot], most: float) -> tuple[list[Spot], str | None]:
+def _refused_among(spots: list[Spot], bad, dominance: float, rank) -> tuple[list[Spot], list[Spot]]:
+    """The candidates kept and those refused for ``bad`` (a predicate), when any is not bad: a bad one
+    below ``dominance`` of the strongest good one's ``rank`` is kept, for the dominance
+    (:func:`~vision.decide._dominant`) to name it for what it is, far weaker (a faint spot's noise
+    makes it look lopsided, and its luma rises by a third of its red's)."""
+    good = [s for s in spots if not bad(s)]
+    if not good:
+        return spots, []
+    top = max(rank(s) for s in good)
+    rest = [s for s in spots if bad(s) and rank(s) >= dominance * top]
+    return [s for s in spots if s not in rest], rest
+
+
+def _point_symmetric(
+    spots: list[Spot], most: float, dominance: float = 0.0, rank=_strength
+) -> tuple[list[Spot], str | None]:
     """Of several candidates, those whose light is point-symmetric about their centre as a beam's is
     (:attr:`~vision.spot.Evidence.lopsided` at most ``most``, :attr:`DecisionRule.lopsided_max`), when
     any is; and a warning naming the others. A glow along an edge lit red (the laser's scatter, an
     indicator) is laser light, clipped and compact, but the dark object cuts it on one side (issue 55).
-    A spot the photo's edge cuts is not judged by it."""
+    A spot the photo's edge cuts is not judged by it; one far weaker is left to the dominance
+    (:func:`_refused_among`)."""
 
     def lop(s: Spot) -> float:
         ev = s.evidence
         return 0.0 if ev is None or ev.cut or ev.lopsided is None else ev.lopsided
 
-    kept = [s for s in spots if lop(s) <= most]
-    if not kept or len(kept) == len(spots):
+    kept, rest = _refused_among(spots, lambda s: lop(s) > most, dominance, rank)
+    if not rest:
         return spots, None
-    rest = [s for s in spots if lop(s) > most]
     where = "; ".join(f"({s.u:.1f}, {s.v:.1f}) px (lopsided {lop(s):.2f})" for s in rest[:3])
     return kept, (
         f"several candidates: refused {len(rest)} whose light is cut on one side (a lit edge, not a "
