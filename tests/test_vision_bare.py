@@ -162,11 +162,15 @@ def test_of_several_candidates_a_red_object_is_refused_by_its_light():
     # surface's), the spots' 0.95-0.99 beside it, the shared photos' 0.81-1.47: under RULE.adds_share
     # (0.85) of the most laser-like, refused with the reason.
     def spot(u, light):
-        ev = Evidence("red", 0.5, 60, 1.0, light, None, 50, 0, 400, 0.8, 1.0, 1.0, 10.0)
+        ev = Evidence("red", 0.5, 60, 1.0, light, None, 50, 10, 400, 0.8, 1.0, 1.0, 10.0)  # whitened cores
         return Spot(u, 50.0, 0.1, 0.1, 255.0, True, 400, evidence=ev)
 
     kept, note = _laser_like([spot(10, 0.49), spot(90, 0.40)], RULE.adds_share)
     assert [s.u for s in kept] == [10] and "colour the photo more than they light it" in note
+    # Against spots clipped in their own channel alone (no white pixel) nothing is refused: such lasers
+    # rise 0.46-0.62 (tests/test_vision_plane.py's three in one photo).
+    plain = [replace(s, evidence=replace(s.evidence, white_px=0)) for s in (spot(10, 0.49), spot(90, 0.40))]
+    assert _laser_like(plain, RULE.adds_share) == (plain, None)
 
 
 def test_a_beams_light_is_point_symmetric_and_a_cut_glow_is_not():
