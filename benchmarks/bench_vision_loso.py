@@ -39,7 +39,8 @@ def row(name: str, s: fit.Score, rule=None) -> None:
         if rule is None
         else (
             f"  shift {rule.shift_min:.2f} core {rule.core_shift_min:.2f} dominance {rule.dominance:.2f} "
-            f"side {rule.side_max:.2f} share {rule.share_max:.2g} "
+            f"side {rule.side_max:.2f} share {rule.share_max:.2g} bare {rule.bare_shift:.2f} "
+            f"adds {rule.adds_share:.2f} "
             f"p = 1/(1+exp(-({rule.offset:.2f} + {rule.slope:.2f} margin + {rule.clipped:.2f} clipped)))"
         )
     )
@@ -64,6 +65,8 @@ def pooled_rows(real, synth, rule) -> None:
     )
     for kind in ("disc in halo", "glint beside", "lamp at an edge", "reddish surface"):
         row(f"wild: {kind}", fit.score([p for p in synth if p.name.startswith(kind)], rule))
+    for kind in ("colourless core", "leaning core", "red object", "red-lit edge", "two white cores"):
+        row(f"wild: {kind}", fit.score([p for p in synth if p.name.startswith(kind)], rule))
 
 
 def main():
@@ -74,7 +77,7 @@ def main():
     a = ap.parse_args()
     t = time.perf_counter()
     real = fit.measure_labelled(a.photos)
-    synth = fit.rendered(a.rendered) + fit.lit_papers(60) + fit.wild(a.wild)
+    synth = fit.rendered(a.rendered) + fit.lit_papers(60) + fit.wild(a.wild) + fit.wild55(a.wild)
     print(f"measured {len(real)} real and {len(synth)} rendered photos in {time.perf_counter() - t:.0f} s")
 
     header("Leave one source out: fitted without the source, scored on it")

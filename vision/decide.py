@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from lasercal.vision.bare import rim_centre
 from lasercal.vision.candidates import Candidate
 from lasercal.vision.errors import SpotCountError
 from lasercal.vision.features import (
@@ -103,6 +104,19 @@ class DecisionRule:
     share_max : float, the largest share of the photo a spot clipped over less than
         :data:`SIZE_CLIPPED` of its blob may cover (:attr:`~vision.spot.Evidence.share`): a laser's light
         spread over thousands of pixels clips; a reddish surface beside a shadow does not
+    bare_shift : float, the rim shift a white clipped core alone in the photo needs (rule "bare", issue
+        55; see :mod:`vision.bare`): laser-ward at all, where white light measures up to ~1.06
+    bare_neutral : float, how far from neutral (``|ln paper_ratio|``,
+        :attr:`~vision.spot.Evidence.paper_ratio`) the surface under a colourless core's rim may be for rule
+        "bare": on a coloured surface a warm lamp's clipped white core shows as faint a laser-ward rim (the
+        lit papers of :func:`vision.fit.lit_papers`)
+    adds_share : float, of several candidates, one whose luma rises by less than this share of the most
+        laser-like one's (:func:`vision.detect._adds`) is a coloured object, not light (issue 55)
+    lopsided_max : float, of several candidates, one whose light is further than this from
+        point-symmetric about its centre (:attr:`~vision.spot.Evidence.lopsided`) is refused while one
+        that is not stays: a glow an edge cuts, not a beam (issue 55, :func:`vision.detect._point_symmetric`)
+    lean_min : float, a clipped spot at least this lopsided whose precise fit strays from the rim of its
+        saturation is centred on the rim (:func:`vision.detect._rim_centred`; issue 55)
     offset, slope, clipped : float, the probability
         ``1 / (1 + exp(-(offset + slope * margin + clipped * c)))`` of a candidate whose evidence
         clears its threshold by ``margin`` (see :func:`margin`), with ``c`` = 1 when its laser channel
@@ -118,6 +132,13 @@ class DecisionRule:
     dominance: float = 0.05
     side_max: float = 0.5
     share_max: float = 0.01
+    # Issue 55's, fitted on the same real photos and issue 55's development renders (seeds 0-15 of each
+    # kind) with the thresholds above held (bench_vision_wild_loso.py; its held-out rows score them).
+    bare_shift: float = 1.15
+    bare_neutral: float = 0.01
+    adds_share: float = 0.85
+    lopsided_max: float = 0.1
+    lean_min: float = 0.12
     offset: float = -1.91
     slope: float = 0.99
     clipped: float = 1.30
@@ -147,10 +168,10 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
 
     Returns
     -------
-    Evidence with ``rule`` ("rim", "core", "ring", "view", "grey" or None) and ``confidence``
+    Evidence with ``rule`` ("rim", "core", "ring", "view", "bare", "grey" or None) and ``confidence``
     (probability)
     """
-    if refusal(ev, rule) != "white":  # its light's shape says it is no beam, whatever its colour
+    if refusal(ev, rule) in ("side", "large"):  # its light's shape says it is no beam, whatever its colour
         return replace(ev, rule=None, confidence=0.0)
     if ev.colour is None:  # a grey photo: brightness is all there is
         return replace(ev, rule="grey", confidence=rule.probability(ev.lit, ev.clipped_px > 0))
@@ -164,6 +185,9 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
         return replace(ev, rule="ring", confidence=rule.probability(np.log(ev.ring / RING_MIN), True))
     elif ev.white_px and (ev.surround or 0.0) >= MONO:
         return replace(ev, rule="view", confidence=0.75)
+    elif bare_alone(ev, rule):
+        # A core so far past clipping that only a faint laser-ward rim is left, alone in the frame.
+        return replace(ev, rule="bare", confidence=BARE_CONFIDENCE)
     else:
         name = None
     return replace(ev, rule=name, confidence=rule.probability(margin(ev, rule), ev.clipped_px > 0))
@@ -172,12 +196,15 @@ def judge(ev: Evidence, rule: DecisionRule = RULE) -> Evidence:
 def refusal(ev: Evidence, rule: DecisionRule = RULE) -> str:
     """Why ``rule`` would refuse a candidate, a key of :data:`REASONS`: its laser-coloured light is
     one-sided ("side"), it is a large unclipped region ("large"), or else its colour is not the laser's
-    ("white"). A spot the photo's edge cuts shows its light on one side only, whatever made it: its
+    ("white"; "several" where it is a colourless white core among several alike, see :func:`bare_core`).
+    A spot the photo's edge cuts shows its light on one side only, whatever made it: its
     one-sidedness says nothing (LiamAG ``laser4.png``: 0.99), and its strength counts a quarter."""
     if (ev.side or 0.0) > rule.side_max and not ev.cut:
         return "side"
     if ev.share > rule.share_max and ev.clipped_fraction < SIZE_CLIPPED:
         return "large"
+    if bare_core(ev, rule) and (ev.bare or 0) > 1:
+        return "several"
     return "white"
 
 
@@ -200,7 +227,30 @@ REASONS = {
     "stray": "its centre falls off its own laser-coloured light (ink beside a spot?)",
     "side": "laser-coloured on one side only (lit by another spot's halo, or a lamp beside an edge?)",
     "large": "a large region that does not clip (a lit surface beside a shadow?)",
+    "several": (
+        "a white clipped blob with a faint laser-coloured rim, but the photo holds several alike: which "
+        "is the laser it cannot say (lower the exposure, or take a laser-off photo: --reference)"
+    ),
 }
+
+
+# Issue 55: a spot so far past clipping that its colour is gone (a white core, a thin rim a person still
+# sees as coloured) is read when it is the only compact white clipped blob of its kind in the photo
+# (DecisionRule.bare_shift), reported with a low probability and the advice to lower the exposure.
+BARE_CONFIDENCE = 0.3
+
+
+def bare_core(ev: Evidence, rule: DecisionRule = RULE) -> bool:
+    """Whether a candidate is a white clipped core with a faint laser-ward rim (rim shift at least
+    ``rule.bare_shift``) on a neutral surface (``rule.bare_neutral``), counted against the photo's other
+    compact white blobs (:attr:`~vision.spot.Evidence.bare`)."""
+    neutral = ev.paper_ratio is not None and abs(np.log(max(ev.paper_ratio, 1e-6))) <= rule.bare_neutral
+    return ev.bare is not None and neutral and has_core(ev) and (ev.rim_shift or 0.0) >= rule.bare_shift
+
+
+def bare_alone(ev: Evidence, rule: DecisionRule = RULE) -> bool:
+    """Whether such a core is the photo's only compact white clipped blob of its size (rule "bare")."""
+    return bare_core(ev, rule) and ev.bare == 1
 
 
 @dataclass(frozen=True)
@@ -535,6 +585,11 @@ def _measure_blob(
 
     # A blob cut by the photo's edge shows only part of its light, and its centre is extrapolated.
     cut = _cut_by_edge(blob, x0, y0, w, h)
+    # The centre of its clipped core from the rim of the saturation (issue 55): kept beside the fit,
+    # which leans when something joins the core on one side (vision.detect._rim_centred).
+    rim = rim_centre(clipped & near.astype(bool), (u, v)) if clipped[blob].any() else None
+    if rim is not None:
+        ev = replace(ev, rim_centre=(rim[0] + x0, rim[1] + y0))
     return Spot(
         u + x0,
         v + y0,

@@ -47,6 +47,7 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
+from lasercal.vision.bare import RIM_MAX_PX, RIM_MIN_PX, RIM_STRAY, counted, lopsided, rim_centre, white_cores
 from lasercal.vision.candidates import Candidate, _octave, _shrink, find_candidates
 from lasercal.vision.decide import (
     CLOSE,
@@ -66,7 +67,7 @@ from lasercal.vision.decide import (
     refusal,
 )
 from lasercal.vision.errors import NoSpotError, VisionError
-from lasercal.vision.features import LUMA_CLIP
+from lasercal.vision.features import CLIP, LUMA_CLIP
 from lasercal.vision.imagej import measure as imagej_measure
 from lasercal.vision.images import full_scale
 from lasercal.vision.ring import RING_MIN
@@ -250,6 +251,16 @@ def select(
         )
     if img is not None and img.ndim == 2:
         warnings.append("grey photo: white reflections cannot be told from laser light")
+    # Issue 55's choice among several, with any number of spots expected (--expect any): with a count
+    # expected, the strongest are kept, and the others named with their strength.
+    if len(spots) > 1 and expect is None:
+        spots, note = _laser_like(spots, rule.adds_share, rule.dominance, rank)
+        if note:
+            warnings.append(note)
+    if len(spots) > 1 and expect is None:
+        spots, note = _point_symmetric(spots, rule.lopsided_max, rule.dominance, rank)
+        if note:
+            warnings.append(note)
     if expect is None:
         spots, note = _dominant(spots, rule.dominance, rank)
         if note:
@@ -268,7 +279,7 @@ def select(
                 f"spot at ({sp.u:.1f}, {sp.v:.1f}) px lies on printed ink, which swallows part of its "
                 "light: its centre may be off by a few tenths of a pixel (aim beside the mark)"
             )
-        if sp.evidence is not None and sp.evidence.rule == "core":
+        if sp.evidence is not None and sp.evidence.rule in ("core", "bare"):
             warnings.append(
                 f"spot at ({sp.u:.1f}, {sp.v:.1f}) px is clipped white with only a faint laser-coloured "
                 f"fringe (probability {sp.evidence.confidence:.2f}): lower the exposure, or take a "
@@ -294,8 +305,102 @@ def _judged(
         if isinstance(done, Rejection):
             refused.append(done)
         else:
-            kept.append(replace(done, evidence=judge(done.evidence, rule)))
+            kept.append(_rim_centred(replace(done, evidence=judge(done.evidence, rule)), rule.lean_min))
+    # A colourless core is read only where no spot shows the laser's colour (see vision.bare).
+    if any(s.evidence is None or s.evidence.rule != "bare" for s in kept):
+        refused += [Rejection("white", s.u, s.v, s.evidence) for s in kept if s.evidence.rule == "bare"]
+        kept = [s for s in kept if s.evidence is None or s.evidence.rule != "bare"]
     return _one_per_light(_dedupe(kept)), refused
+
+
+def _rim_centred(s: Spot, lean_min: float) -> Spot:
+    """A clipped spot centred on the rim of its saturation (:func:`vision.bare.rim_centre`) where its
+    light is at least ``lean_min`` lopsided (:attr:`DecisionRule.lean_min`) and the precise fit strays
+    from the rim by over :data:`~vision.bare.RIM_STRAY`: the fit weighs the clipped pixels and the
+    flanks, and both lean towards whatever joins the core on one side (a flare streak, a glint); the
+    round part of the rim does not. Where the light is point-symmetric, or the two agree, the fit is kept
+    (it is the finer one: 0.02 px against the outline's quantisation, which a clip edge ragged by speckle
+    and a 4:2:0 JPEG's blocky red make coarser). The sigma stays the fit's."""
+    ev = s.evidence
+    if ev is None or ev.rim_centre is None or ev.clipped_px <= 0 or (ev.lopsided or 0.0) < lean_min:
+        return s
+    u, v = ev.rim_centre
+    if np.hypot(s.u - u, s.v - v) <= RIM_STRAY:
+        return s
+    return replace(s, u=float(u), v=float(v))
+
+
+def _adds(s: Spot) -> float:
+    """How much a spot's light is light added, not a surface's colour: its luma's rise over its laser
+    channel's (:attr:`~vision.spot.Evidence.light` / :attr:`~vision.spot.Evidence.excess`). A laser adds
+    light, and its cross-talk, blooming and clipping whiten its core: 0.7-1.5 on the shared photos and
+    the renders. A red object (a box, a red-lit screen patch) is red because its other channels fall
+    below the surface's: its luma barely rises, 0.3-0.45 on the renders."""
+    ev = s.evidence
+    return 1.0 if ev is None or ev.colour is None else float(ev.light / max(ev.excess, 1e-6))
+
+
+def _laser_like(
+    spots: list[Spot], share: float, dominance: float = 0.0, rank=_strength
+) -> tuple[list[Spot], str | None]:
+    """Of several candidates, those that add light like the most laser-like one: their luma rise over
+    their colour's (:func:`_adds`) at least ``share`` of its (:attr:`DecisionRule.adds_share`); and a
+    warning naming the others. A bright red object outshines a small spot in flux, so strength alone
+    chose it (issue 55). One far weaker is left to the dominance (:func:`_refused_among`). Only against a
+    candidate whose clipping whitened its core (a white pixel): laser spots clipped in their own channel
+    alone rise 0.46-0.62 in luma (three lasers in one photo, ``tests/test_vision_plane.py``), as far
+    apart as a spot and a red object."""
+    top = max(spots, key=_adds)
+    if top.evidence is None or not top.evidence.white_px:
+        return spots, None
+    best = _adds(top)
+    kept, rest = _refused_among(spots, lambda s: _adds(s) < share * best, dominance, rank)
+    if not rest:
+        return spots, None
+    where = "; ".join(
+        f"({s.u:.1f}, {s.v:.1f}) px (luma rise {_adds(s):.2f} of its colour's)" for s in rest[:3]
+    )
+    return kept, (
+        f"several candidates: refused {len(rest)} that colour the photo more than they light it (a red "
+        f"object, not a laser spot; the laser-like ones add {best:.2f}): {where}"
+    )
+
+
+def _refused_among(spots: list[Spot], bad, dominance: float, rank) -> tuple[list[Spot], list[Spot]]:
+    """The candidates kept and those refused for ``bad`` (a predicate), when any is not bad: a bad one
+    below ``dominance`` of the strongest good one's ``rank`` is kept, for the dominance
+    (:func:`~vision.decide._dominant`) to name it for what it is, far weaker (a faint spot's noise
+    makes it look lopsided, and its luma rises by a third of its red's)."""
+    good = [s for s in spots if not bad(s)]
+    if not good:
+        return spots, []
+    top = max(rank(s) for s in good)
+    rest = [s for s in spots if bad(s) and rank(s) >= dominance * top]
+    return [s for s in spots if s not in rest], rest
+
+
+def _point_symmetric(
+    spots: list[Spot], most: float, dominance: float = 0.0, rank=_strength
+) -> tuple[list[Spot], str | None]:
+    """Of several candidates, those whose light is point-symmetric about their centre as a beam's is
+    (:attr:`~vision.spot.Evidence.lopsided` at most ``most``, :attr:`DecisionRule.lopsided_max`), when
+    any is; and a warning naming the others. A glow along an edge lit red (the laser's scatter, an
+    indicator) is laser light, clipped and compact, but the dark object cuts it on one side (issue 55).
+    A spot the photo's edge cuts is not judged by it; one far weaker is left to the dominance
+    (:func:`_refused_among`)."""
+
+    def lop(s: Spot) -> float:
+        ev = s.evidence
+        return 0.0 if ev is None or ev.cut or ev.lopsided is None else ev.lopsided
+
+    kept, rest = _refused_among(spots, lambda s: lop(s) > most, dominance, rank)
+    if not rest:
+        return spots, None
+    where = "; ".join(f"({s.u:.1f}, {s.v:.1f}) px (lopsided {lop(s):.2f})" for s in rest[:3])
+    return kept, (
+        f"several candidates: refused {len(rest)} whose light is cut on one side (a lit edge, not a "
+        f"laser spot; a beam's light is point-symmetric about its centre, under {most:.2f}): {where}"
+    )
 
 
 def _one_per_light(spots: list[Spot]) -> list[Spot]:
@@ -324,6 +429,8 @@ def _colour_margin(s: Spot, rule: DecisionRule) -> float:
         return 0.0
     if ev.rule == "ring":
         return float(np.log(ev.ring / RING_MIN))
+    if ev.rule == "bare":
+        return float(np.log(max(ev.rim_shift or 0.0, 1e-9) / rule.bare_shift))
     thr = rule.core_shift_min if ev.rule == "core" else rule.shift_min
     return float(np.log(max(ev.rim_shift or 0.0, 1e-9) / max(thr, 1e-9)))
 
@@ -398,12 +505,25 @@ def _find(
             ref = refs.get(k)
             near = [_shrunk(o, k) for o in others]
             rs = [
-                _grown(r, k)
+                _full_rim(img, _grown(r, k), colour)
                 for r in measure_spot(small, _shrunk(c, k), colour, ref, near, gamma, True, False)
             ]
         for r in rs:
             (rejected if isinstance(r, Rejection) else found).append(r)
+    if img.ndim == 3 and found:
+        if "white" not in shrunk:
+            shrunk["white"] = white_cores(img)
+        found = [counted(s, shrunk["white"]) for s in found]
+    found = [_with_lopsided(img, s, colour) for s in found]
     return _ring_first(found), rejected
+
+
+def _with_lopsided(img: np.ndarray, s: Spot, colour: str) -> Spot:
+    """A spot with how lopsided its light is (:func:`vision.bare.lopsided`), in the full photo."""
+    if s.evidence is None:
+        return s
+    ch = None if img.ndim == 2 else CHANNEL[colour]
+    return replace(s, evidence=replace(s.evidence, lopsided=lopsided(img, ch, s.u, s.v, s.evidence.area)))
 
 
 def _ring_first(spots: list[Spot]) -> list[Spot]:
@@ -425,6 +545,26 @@ def _ring_first(spots: list[Spot]) -> list[Spot]:
         flux = max([c.evidence.flux] + [s.evidence.flux for s in spots if s not in rings and own(s, c)])
         out.append(replace(c, evidence=replace(c.evidence, flux=flux)))
     return out + [s for s in spots if s not in rings and not any(own(s, c) for c in rings)]
+
+
+def _full_rim(img: np.ndarray, r: Spot | Rejection, colour: str) -> Spot | Rejection:
+    """A spot measured on a shrunk copy, with the rim centre of its clipped core
+    (:func:`vision.bare.rim_centre`) measured in the full photo: a core of tens of px whose blob (its
+    halo, a streak beside it) needs the shrunk copy is still centred to a pixel's fraction by its rim.
+    Not for cores over :data:`~vision.bare.RIM_MAX_PX` (a spot hundreds of px wide, its plateau ragged
+    with speckle)."""
+    ev = r.evidence if isinstance(r, Spot) else None
+    if ev is None or not RIM_MIN_PX <= ev.clipped_px <= RIM_MAX_PX or img.ndim != 3:
+        return r
+    half = int(2 * np.sqrt(ev.clipped_px / np.pi) + 10)
+    h, w = img.shape[:2]
+    x0, y0 = max(int(r.u) - half, 0), max(int(r.v) - half, 0)
+    x1, y1 = min(int(r.u) + half + 1, w), min(int(r.v) + half + 1, h)
+    clipped = img[y0:y1, x0:x1, CHANNEL[colour]] >= CLIP * full_scale(img)
+    rim = rim_centre(clipped, (r.u - x0, r.v - y0))
+    if rim is None:
+        return r
+    return replace(r, evidence=replace(ev, rim_centre=(rim[0] + x0, rim[1] + y0)))
 
 
 def _shrunk(c: Candidate, k: int) -> Candidate:
@@ -452,6 +592,7 @@ def _grown(r: Spot | Rejection, k: int) -> Spot | Rejection:
             area=ev.area * k2,
             flux=ev.flux * k2,
             reach=ev.reach * k,
+            rim_centre=None,  # a core's rim on a shrunk copy: too coarse
         )
     return replace(r, u=u, v=v, sigma_u=su, sigma_v=sv, area=r.area * k * k, evidence=ev, pending=p)
 

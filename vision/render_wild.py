@@ -192,3 +192,148 @@ SCENES = {
     "lamp at an edge": lamp_at_an_edge,
     "reddish surface": reddish_surface,
 }
+
+
+# Issue 55: what the outside check still missed or took for a spot on photos from other cameras.
+
+
+def colourless_core(seed: int) -> WildScene:
+    """A spot far past clipping whose colour is gone: a white clipped core (the camera's highlight
+    desaturation and blooming whiten the laser's neighbours), a thin coloured rim, on a grey surface
+    under room light, with a grey printed dot and a faint white glare elsewhere (neither clipped):
+    the brightest compact blob of the frame."""
+    return _colourless(seed, False)
+
+
+def two_white_cores(seed: int) -> WildScene:
+    """:func:`colourless_core`'s scene with the faint glare made a second white clipped blob of about the
+    spot's size (a glare off a glossy object): which of the two is the laser the photo cannot say. The
+    truth is the spot's, but a refusal is the right answer; the distractor is the glare."""
+    return _colourless(seed, True)
+
+
+def _colourless(seed: int, second: bool) -> WildScene:
+    rng = np.random.default_rng([seed, 5])
+    view = _view()
+    uv = np.array([320.0, 240.0]) + rng.uniform(-120, 120, 2) * (1, 0.7)
+    core = rng.uniform(5, 14)
+    spot = _clipped_spot(rng, uv, core, rng.uniform(100, 600), rng.uniform(0.003, 0.02), rng.uniform(2, 3))
+    away = uv + rng.choice([-1, 1], 2) * rng.uniform(90, 150, 2)
+    away = np.clip(away, 40, np.array(SIZE) - 40)
+    dot = ink_dot(view.unproject(away[None])[0], rng.uniform(2, 5), (0.35,) * 3)
+    glare_at = np.clip(uv - (away - uv), 40, np.array(SIZE) - 40)
+    glare = Glare(*glare_at, sigma=rng.uniform(6, 14), peak=rng.uniform(0.1, 0.3))
+    if second:  # as bright as the spot: clipped white out to about the spot's core
+        glare = Glare(*glare_at, sigma=core / 2.5, peak=float(np.exp(rng.uniform(np.log(30), np.log(200)))))
+    photo = Photo(
+        view,
+        prints=(dot,),
+        spots=(spot,),
+        glares=(glare,),
+        paper=rng.uniform(0.25, 0.6),
+        tint=_room(rng),
+        camera=PhoneCamera(
+            bloom=rng.uniform(0.5, 0.9),
+            jpeg=int(rng.integers(85, 96)),
+            ae_target=None,
+            ae_stops=0.0,
+            highlight=rng.uniform(0.8, 1.0),
+            chroma_blur=rng.uniform(1.0, 2.5),
+        ),
+        response=(rng.uniform(0.4, 0.8), rng.uniform(0.5, 0.9), 1.0),
+    )
+    return WildScene(render(photo, seed), uv, core, glare_at)
+
+
+def leaning_core(seed: int) -> WildScene:
+    """A clipped core whose clipped pixels lean to one side: a flare streak (a weaker, elongated lobe
+    of the beam, as a lens or a dirty window makes) joins the core on one side and clips over part of
+    its length. The truth is the beam's centre, the centre of the core's round rim."""
+    rng = np.random.default_rng([seed, 7])
+    view = _view()
+    uv = np.array([320.0, 240.0]) + rng.uniform(-60, 60, 2)
+    core = rng.uniform(6, 14)
+    spot = _clipped_spot(rng, uv, core, rng.uniform(5, 30), rng.uniform(0.02, 0.08), rng.uniform(3, 5))
+    ang = rng.uniform(0, 360)
+    d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
+    length = rng.uniform(1.0, 1.6) * core
+    at = uv + d * (core + 0.6 * length)
+    peak, aspect = rng.uniform(1.5, 4.0), rng.uniform(0.25, 0.45)
+    streak = LaserSpot(*at, sigma=length / 2, peak=peak, aspect=aspect, angle_deg=ang)
+    photo = Photo(
+        view,
+        spots=(spot, streak),
+        paper=rng.uniform(0.2, 0.6),
+        tint=_room(rng),
+        camera=_camera(rng),
+        response=(rng.uniform(0.03, 0.2), rng.uniform(0.04, 0.15), 1.0),
+    )
+    return WildScene(render(photo, seed), uv, core, at)
+
+
+def red_object(seed: int) -> WildScene:
+    """A cluttered indoor scene: a bright red object (a glossy red box or a red-lit screen patch, its red
+    clipped over a flat top with sharp edges, larger than the spot) and a small clipped laser spot with
+    a pink halo elsewhere, among grey and coloured prints."""
+    rng = np.random.default_rng([seed, 8])
+    view = _view()
+    uv = np.array([200.0, 240.0]) + rng.uniform(-60, 60, 2)
+    core = rng.uniform(3, 7)
+    spot = _clipped_spot(rng, uv, core, rng.uniform(5, 40), rng.uniform(0.03, 0.1), rng.uniform(3, 6))
+    at = np.array([470.0, 240.0]) + rng.uniform(-60, 60, 2)
+    half = rng.uniform(12, 35, 2)
+    red = np.array([rng.uniform(0.02, 0.12), rng.uniform(0.02, 0.15), rng.uniform(1.2, 3.0)])  # BGR, lit
+    px = np.array([at - half, at + (half[0], -half[1]), at + half, at - (half[0], -half[1])])
+    obj = Print(np.ones((4, 4, 3), np.float32) * np.float32(red), view.unproject(px))
+    clutter = []
+    for _ in range(4):
+        c = rng.uniform([40, 40], [600, 440])
+        if min(np.hypot(*(c - uv)), np.hypot(*(c - at))) < 60:
+            continue
+        colour = tuple(rng.uniform(0.1, 0.9, 3))
+        clutter.append(ink_dot(view.unproject(c[None])[0], rng.uniform(3, 8), colour))
+    photo = Photo(
+        view,
+        prints=(obj, *clutter),
+        spots=(spot,),
+        paper=rng.uniform(0.3, 0.7),
+        tint=_room(rng),
+        gradient=rng.uniform(-0.2, 0.2),
+        camera=_camera(rng),
+        response=(rng.uniform(0.05, 0.3), rng.uniform(0.05, 0.2), 1.0),
+    )
+    return WildScene(render(photo, seed), uv, core, at)
+
+
+def red_lit_edge(seed: int) -> WildScene:
+    """A dark room: a clipped spot, and beside it (40-90 px off) an object's edge lit by red light (the
+    laser's scatter or a red indicator): a short red streak along the edge, dark on one side."""
+    rng = np.random.default_rng([seed, 9])
+    view = _view()
+    uv = np.array([300.0, 240.0]) + rng.uniform(-50, 50, 2)
+    core = rng.uniform(4, 9)
+    spot = _clipped_spot(rng, uv, core, rng.uniform(5, 30), rng.uniform(0.03, 0.1), rng.uniform(3, 6))
+    ang = rng.uniform(0, 2 * np.pi)
+    n = np.array([np.cos(ang), np.sin(ang)])
+    at = uv + n * rng.uniform(40, 90)
+    t = np.array([-n[1], n[0]])
+    sigma, aspect = rng.uniform(4, 9), rng.uniform(0.4, 0.7)
+    glow = LaserSpot(
+        *at, sigma=sigma, peak=rng.uniform(0.6, 3.0), aspect=aspect,
+        angle_deg=float(np.degrees(np.arctan2(t[1], t[0]))),
+    )  # fmt: skip
+    c0 = at + rng.uniform(0.5, 2.0) * sigma * aspect * n  # the dark object starts past the streak's middle
+    edge = np.array([c0 + 300 * t, c0 + 300 * t + 300 * n, c0 - 300 * t + 300 * n, c0 - 300 * t])
+    dark = Print(np.full((4, 4, 3), rng.uniform(0.002, 0.02), np.float32), view.unproject(edge))
+    photo = _dark_room(rng, view, (spot, glow), (), (dark,), (0.03, 0.12))
+    return WildScene(render(photo, seed), uv, core, at)
+
+
+SCENES_55 = {
+    "colourless core": colourless_core,
+    "leaning core": leaning_core,
+    "red object": red_object,
+    "red-lit edge": red_lit_edge,
+}
+"""Issue 55's four kinds (the outside check's last misses and false spots); :func:`two_white_cores` is
+the colourless core's counter-case (two such blobs: refused)."""

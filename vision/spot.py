@@ -58,7 +58,14 @@ class Evidence:
         another spot's halo, a lamp whose red light an edge cuts); see ``features._laser_light``
     share : float, the share of the photo the spot's blob covers
     reach : float, px, how far the spot's laser-coloured light (its halo) reaches from its centre
-    """
+    rim_centre : (u, v) px or None, the centre of the spot's clipped core from the rim of its
+        saturation (:func:`vision.bare.rim_centre`), in the photo; None when it has no clipped core of
+        :data:`~vision.bare.RIM_MIN_PX` px
+    bare : int or None, for a white clipped blob: how many compact white clipped blobs of a laser
+        core's size the photo holds (:mod:`vision.bare`; 1: this one alone); None when not counted
+    lopsided : float or None, how far the spot's light is from point-symmetric about its centre
+        (:func:`vision.bare.lopsided`: 0 a beam's, up to 1 a glow an edge cuts); None when not measured
+"""
 
     colour: str | None
     excess: float
@@ -82,6 +89,9 @@ class Evidence:
     side: float | None = None
     share: float = 0.0
     reach: float = 0.0
+    rim_centre: tuple | None = None
+    bare: int | None = None
+    lopsided: float | None = None
 
     @property
     def strength(self) -> float:
@@ -120,6 +130,8 @@ class Evidence:
             "side": None if self.side is None else round(self.side, 3),
             "share": round(self.share, 6),
             "reach": round(self.reach, 1),
+            "bare": self.bare,
+            "lopsided": None if self.lopsided is None else round(self.lopsided, 3),
         }
 
     def describe(self) -> str:
