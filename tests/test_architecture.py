@@ -16,7 +16,7 @@
   files that need each other share a name that belongs in a third, or in one of them.
 - every command in the table imports and declares its arguments and handler.
 - no function is longer than a page: at most :data:`MAX_FUNCTION_LINES` lines from its ``def`` to its last
-  line, docstring included (the ones still being split are listed in :data:`BEING_SPLIT`).
+  line, docstring included.
 - the simulated worlds live in one room, ``collector.worlds``: everything else reaches a world only through
   the backend factory (``collector.hardware``; the demo, which stages its own bench, is the one listed
   exception, :data:`WORLD_GATES`); a world imports no session, command line, view or report; parsing a
@@ -72,11 +72,6 @@ WORLD_REACHES = ("lasercal.collector.hardware", "lasercal.collector.errors", WOR
 
 # a function's longest: its ``def`` line to its last line, docstring included
 MAX_FUNCTION_LINES = 100
-# the functions still over MAX_FUNCTION_LINES that others are splitting (file, function); each must really
-# still be too long, so the list shrinks as the splits land
-BEING_SPLIT = {
-    ("vision/decide.py", "_measure_blob"),  # issue 55's branch changes it: split once that has landed
-}
 
 
 def module_name(f: Path) -> str:
@@ -315,13 +310,7 @@ def every_long_function() -> dict[tuple[str, str], int]:
 
 
 def test_no_function_is_longer_than_a_page():
-    too_long = every_long_function()
-    assert sorted(set(too_long) - BEING_SPLIT) == []
-
-
-def test_the_functions_being_split_are_still_too_long():
-    """Once a listed function is split, its line in BEING_SPLIT goes."""
-    assert sorted(BEING_SPLIT - set(every_long_function())) == []
+    assert every_long_function() == {}
 
 
 def test_a_function_over_a_page_is_seen():

@@ -485,21 +485,19 @@ def _lobes(smooth: np.ndarray, blob: np.ndarray, clipped: np.ndarray) -> list[np
     return [(basins == k) & blob for k in range(1, len(seeds) + 1)]
 
 
-def _measure_blob(
-    box: _Box,
-    blob: np.ndarray,
-    exclude: np.ndarray,
-    contrast: float,
-    colour: str,
-    gamma: float,
-    luma: bool,
-) -> Spot | Rejection:
-    """Measure one light of a candidate's box (its ``blob``; ``exclude``: other lights' pixels, kept out
-    of its window), through the physical gates (see :func:`measure_spot`)."""
+def _light_gates(box: _Box, blob: np.ndarray, contrast: float, colour: str, gamma: float):
+    """The gates a light passes before its shape is weighed: bright enough over the paper's noise (a
+    clipped one over the headroom left), its luma rising with its colour, no JPEG fringe beside ink.
+
+    Returns
+    -------
+    Rejection, or (Evidence, faint): the light's evidence and whether it is faint (unclipped, under twice
+    the light a spot needs)
+    """
     cand, ch, full, noise = box.cand, box.ch, box.full, box.noise
     delta, plain, base = box.delta, box.plain, box.base
-    x0, y0, w, h = box.where
-    sig, smooth, ink = delta[..., ch], box.smooth, box.ink
+    _, _, w, h = box.where
+    sig, ink = delta[..., ch], box.ink
     peak_d = float(sig[blob].max())
     need = max(8 * noise[ch], contrast)
     raw = plain[..., ch]
@@ -531,6 +529,30 @@ def _measure_blob(
         around = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
         if np.max(np.delete(delta, ch, axis=2), axis=2)[around].min() < -0.15 * full:
             return Rejection("fringe", cand.u, cand.v, ev)
+    return ev, faint
+
+
+def _measure_blob(
+    box: _Box,
+    blob: np.ndarray,
+    exclude: np.ndarray,
+    contrast: float,
+    colour: str,
+    gamma: float,
+    luma: bool,
+) -> Spot | Rejection:
+    """Measure one light of a candidate's box (its ``blob``; ``exclude``: other lights' pixels, kept out
+    of its window), through the physical gates (see :func:`measure_spot`)."""
+    gated = _light_gates(box, blob, contrast, colour, gamma)
+    if isinstance(gated, Rejection):
+        return gated
+    ev, faint = gated
+    cand, ch, full, noise = box.cand, box.ch, box.full, box.noise
+    delta, plain, base = box.delta, box.plain, box.base
+    x0, y0, w, h = box.where
+    sig, smooth, ink = delta[..., ch], box.smooth, box.ink
+    raw = plain[..., ch]
+    clipped = raw >= CLIP * full
     # Whether its colour says laser light (a white reflection's does not) is judged later (judge).
     # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
     # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.

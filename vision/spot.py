@@ -65,7 +65,7 @@ class Evidence:
         core's size the photo holds (:mod:`vision.bare`; 1: this one alone); None when not counted
     lopsided : float or None, how far the spot's light is from point-symmetric about its centre
         (:func:`vision.bare.lopsided`: 0 a beam's, up to 1 a glow an edge cuts); None when not measured
-"""
+    """
 
     colour: str | None
     excess: float
