@@ -114,9 +114,8 @@ PEER_SHARE = 0.25
 def white_cores(img: np.ndarray) -> list[tuple[int, np.ndarray, tuple]]:
     """The photo's compact white clipped blobs of a laser core's size: (area px, centre (u, v) px, box
     (x0, y0, x1, y1)) each (white: every channel >= LUMA_CLIP of full scale; compact: see
-    :func:`vision.decide._compact`)."""
-    from lasercal.vision.decide import _compact
-    from lasercal.vision.features import LUMA_CLIP
+    :func:`vision.features.compact_blob`)."""
+    from lasercal.vision.features import LUMA_CLIP, compact_blob
     from lasercal.vision.images import full_scale
 
     white = (img >= LUMA_CLIP * full_scale(img)).all(axis=2).astype(np.uint8)
@@ -124,7 +123,7 @@ def white_cores(img: np.ndarray) -> list[tuple[int, np.ndarray, tuple]]:
     out = []
     for i in range(1, n):
         x, y, w, h, a = stats[i]
-        if BARE_MIN_PX <= a <= BARE_MAX_PX and _compact(lab[y : y + h, x : x + w] == i):
+        if BARE_MIN_PX <= a <= BARE_MAX_PX and compact_blob(lab[y : y + h, x : x + w] == i):
             out.append((int(a), cents[i], (int(x), int(y), int(x + w), int(y + h))))
     return out
 

@@ -24,7 +24,6 @@ from lasercal.vision.features import (
     CLIP,
     LUMA,
     LUMA_CLIP,
-    _ellipse_fit,
     _evidence,
     _ink,
     _label_at,
@@ -33,6 +32,7 @@ from lasercal.vision.features import (
     _plane_background,
     _surround,
     _touches_border,
+    compact_blob,
 )
 from lasercal.vision.images import full_scale
 from lasercal.vision.refine import (
@@ -58,12 +58,6 @@ LIGHT_SHARE = 0.25
 # A lens and demosaicing blur any spot by sigma >= 1 px: its blob (>= 15 % of its peak after the
 # sigma-1 smoothing) covers >= 24 px. A hot photosite (one red 2x2 block) covers ~12.
 MIN_BLOB = 20
-
-
-MIN_FILL = 0.8  # area over the moment ellipse: 1 for an ellipse, ~0.95 cut, >= 0.91 for real spots
-
-
-MAX_ASPECT = 2.5  # a beam 66 deg off the normal: far past any pose that aims a laser at a sheet
 
 
 # A surround whose laser channel outshines the others this much (linear) is no paper under room
@@ -556,7 +550,7 @@ def _measure_blob(
     # Whether its colour says laser light (a white reflection's does not) is judged later (judge).
     # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
     # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.
-    if not _compact(blob):
+    if not compact_blob(blob):
         return Rejection("shape", cand.u, cand.v, ev)
     r_eq = np.sqrt(blob.sum() / np.pi)
     m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
@@ -684,7 +678,7 @@ def _ringed_spot(
     its sigma the outline's quantisation (:func:`~vision.ring.core_centre`).
     """
     # A beam on a plane makes an elliptical core; a glare between wires or an object's lit face does not.
-    ringed = [(c, dn) for c, dn in ringed_cores(plain, base, ch, full) if _compact(c)]
+    ringed = [(c, dn) for c, dn in ringed_cores(plain, base, ch, full) if compact_blob(c)]
     if not ringed:
         return None
     x0, y0, w, h = where
@@ -711,12 +705,6 @@ def _ringed_spot(
         int(core.sum()),
         evidence=replace(ev, cut=bool(cut)),
     )
-
-
-def _compact(blob: np.ndarray) -> bool:
-    """Whether a blob is a compact ellipse (see :data:`MIN_FILL` and :data:`MAX_ASPECT`)."""
-    fill, aspect = _ellipse_fit(blob)
-    return fill >= MIN_FILL and aspect <= MAX_ASPECT
 
 
 def _strength(s: Spot) -> float:

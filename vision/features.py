@@ -14,6 +14,9 @@ import numpy as np
 
 from lasercal.vision.spot import Evidence
 
+MIN_FILL = 0.8  # area over the moment ellipse: 1 for an ellipse, ~0.95 cut, >= 0.91 for real spots
+MAX_ASPECT = 2.5  # a beam 66 deg off the normal: far past any pose that aims a laser at a sheet
+
 LUMA = np.array([0.114, 0.587, 0.299])  # BGR weights of JPEG's luma (ITU-R BT.601)
 
 
@@ -417,3 +420,10 @@ def _light_need(noise: np.ndarray, full: float) -> float:
     """The rise of the luma a spot needs, DN: 4 sigma of the paper's luma noise, at least 1.5 % of
     full scale (colour correction leaves a dim red spot only ~1/3 of its red rise in the luma)."""
     return max(4 * float(noise @ LUMA) if noise.size == 3 else 4 * float(noise[0]), 0.015 * full)
+
+
+def compact_blob(blob: np.ndarray) -> bool:
+    """Whether a blob is a compact ellipse (see :data:`MIN_FILL` and :data:`MAX_ASPECT`): what a beam on a
+    plane makes, where a wire, a frame or an edge does not."""
+    fill, aspect = _ellipse_fit(blob)
+    return fill >= MIN_FILL and aspect <= MAX_ASPECT
