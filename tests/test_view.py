@@ -159,6 +159,11 @@ def _true_spot_on_sheet(started) -> np.ndarray:
 @needs_browser
 def test_the_page_shows_a_hands_free_session_as_it_is(sheet, tmp_path, monkeypatch):
     monkeypatch.setattr(start_module, "SessionState", Gated)
+    # the page's view of a spot the camera could not measure ('hidden') needs one: since issue 53 the coach
+    # plans for the camera's view and this session (seed 0) meets none, so its planning is left out here
+    from lasercal.solver.analysis.design import Coach
+
+    monkeypatch.setattr(Coach, "see_from", lambda self, *a, **k: 0)
     Gated.want = {"setup", "outside", "inside", "hidden", "last", "end"}
     given = {"backend": "fake", "per_point": 2, "camera": "fake", "aim_noise": 3.0, "seed": 0}
     started = start_capture(
