@@ -87,13 +87,14 @@ def spot_cells(
     try:
         m = measure(img, name)
     except VisionError as e:
-        m = None
+        eye = None
         why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
         cells, said = (
             {"photo": name, "camera_note": why},
             f"  ! camera: the spot could not be measured ({why})",
         )
     else:
+        eye = m.eye
         cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
         cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
         layout = session_layout(meta, folder)
@@ -110,7 +111,7 @@ def spot_cells(
         write_atomic_bytes(folder / name, data)  # before the row: a row never names a missing photo
     else:
         cells["photo"] = ""
-    return Seen(cells, said, len(data), img, None if m is None else getattr(m, "eye", None))
+    return Seen(cells, said, len(data), img, eye)
 
 
 class PhotoStep:

@@ -96,7 +96,7 @@ def make_camera(
     layout_path : the layout file, whose ``markers`` section (if any) maps real photos to mm
     sheet : SheetPose or None, the pose of a sheet layout's sheet (its markers' mm go through it)
     paper : collector.worlds.truesheet.PaperSheet or None, where the simulated table holds that sheet: the
-        fake camera looks down at the point on it (:class:`~collector.sessions.spotcam.PaperTopCamera`), its
+        fake camera looks down at the point on it (:class:`~collector.worlds.cameras.PaperTopCamera`), its
         spots read in the sheet's printed mm and go to the model's frame through ``sheet``
     world : collector.worlds.fakeworld.World or None, the simulated world's effects on the spot
 

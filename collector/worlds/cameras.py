@@ -150,7 +150,7 @@ class SheetCamera(FakeExposure):
     world : World, the effects on
     seed : int, seed of the image noise
     exposure : float or None, a gain on all the light, set through OpenCV's properties
-        (:class:`~collector.sessions.exposure.FakeExposure`); None: fixed at 1, as a device that refuses
+        (:class:`FakeExposure`); None: fixed at 1, as a device that refuses
 
     Attributes
     ----------
@@ -285,7 +285,7 @@ class FakeCamera(CountedPhotos):
     seed : int, seed of the image noise
     look : SpotLook
     exposure : float or None, a gain on all the light, set through OpenCV's properties
-        (:class:`~collector.sessions.exposure.FakeExposure`); None: fixed at 1, as a device that refuses
+        (:class:`FakeExposure`); None: fixed at 1, as a device that refuses
     """
 
     name = "fake"
