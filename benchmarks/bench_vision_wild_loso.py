@@ -63,19 +63,31 @@ def kind_rows(fresh: list, rule) -> None:
     )
 
 
+def cached(path: Path | None, build):
+    """``build()``, kept in ``path`` (or read from it if it exists): the measured spots hold their deferred
+    precise fits, closures, which cloudpickle keeps and pickle cannot. The file is not checked against the
+    options: delete it when they change."""
+    if path is None:
+        return build()
+    import cloudpickle as pickle
+
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    out = build()
+    path.write_bytes(pickle.dumps(out))
+    return out
+
+
 def measured(a) -> tuple[list, list, list]:
-    """The shared, development and fresh photos, measured (or read from ``--cache``: the measured spots
-    hold their deferred precise fits, closures, which cloudpickle keeps and pickle cannot)."""
-    if a.cache:
-        import cloudpickle as pickle
-    if a.cache and a.cache.exists():
-        return pickle.loads(a.cache.read_bytes())
-    real = fit.measure_labelled(a.photos)
-    dev = fit.wild55(a.dev) + fit.rendered(40) + fit.lit_papers(30) + fit.wild(4)
-    fresh = fit.wild55(a.fresh, first=a.first)
-    if a.cache:
-        a.cache.write_bytes(pickle.dumps((real, dev, fresh)))
-    return real, dev, fresh
+    """The shared, development and fresh photos, measured (or read from ``--cache``)."""
+    return cached(
+        a.cache,
+        lambda: (
+            fit.measure_labelled(a.photos),
+            fit.wild55(a.dev) + fit.rendered(40) + fit.lit_papers(30) + fit.wild(4),
+            fit.wild55(a.fresh, first=a.first),
+        ),
+    )
 
 
 def main():
