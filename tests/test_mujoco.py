@@ -146,6 +146,26 @@ def test_a_curled_sheet_is_the_parabola_the_beam_meets_and_the_flat_page_the_cam
     assert np.abs(flat - mesh).mean() < 0.1
 
 
+def test_eq_s8_explains_what_the_camera_sees_of_a_curled_page(tmp_path, renders):
+    """MuJoCo's photos of a page curled by 2 mm (eq. M1), measured as a capture measures them: the spots lie
+    0.4-0.7 mm RMS from where MuJoCo's ray meets the paper, and eq. S8 (from the eye the photo's markers
+    gave, with M1's curl) leaves at most 0.15 of it. benchmarks/bench_parallax_mujoco.py measured the ratio
+    over 20 draws: median 0.071; over the 9 draws with 5-6 photos measured (as this one: seed 1, 6) at most
+    0.115. A field 25 % too large leaves 0.2 here, the raw view 1. What remains (0.03-0.05 mm along the
+    camera's side, 7 % of the field) is not in the exact ray geometry with ideal corners
+    (tests/test_parallax.py): see docs/diagnosis.md."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_parallax_mujoco import curled_scene, seen_and_true
+
+    scene = curled_scene(tmp_path, 2.0)
+    e = seen_and_true(scene, tmp_path / "sheet" / "layout.yaml", 2.0, 6, seed=1)
+    rms = np.sqrt(np.mean(e**2, axis=0))  # (as measured, after eq. S8, the field) x (x, y)
+    print("RMS as measured, after eq. S8, of the field (x, y):", rms)
+    assert len(e) >= 5
+    assert np.linalg.norm(rms[0]) > 0.3, rms  # the curl's view is there to explain
+    assert np.linalg.norm(rms[1]) < 0.15 * np.linalg.norm(rms[0]), rms
+
+
 def test_the_arm_holds_a_commanded_pose_and_reports_its_gravity_torques(scenes):
     """Position servos with gravity compensation: after a move and standstill the encoders read the command
     (to 1e-5 rad), the speeds are still, and the torques are MuJoCo's gravity torques of the arm there."""

@@ -215,11 +215,8 @@ def sheet_shape_line(d: dict) -> str:
     sizes = f"curl {d['curl_mm']:.2f} mm over the sheet, shear {abs(d['shear_mm_per_m']):.2f} mm per m"
     if d["kept"]:
         cam = d.get("camera_warp_mm") or 0.0
-        seen = (
-            f"; the camera saw the raised paper {cam:.2f} mm RMS askew, this session's (eq. S7)"
-            if cam
-            else ""
-        )
+        how = "from where it stood (eq. S8)" if d.get("camera_view") == "S8" else "this session's (eq. S7)"
+        seen = f"; the camera saw the raised paper {cam:.2f} mm RMS askew, {how}" if cam else ""
         return f"finding (the sheet): not flat -- {sizes}; modelled ({test}){seen}"
     reg = d.get("regions") or {}
     line = f"finding (the sheet): flat and square within what the data see ({test}; {d['reason']})"

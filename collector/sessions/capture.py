@@ -42,7 +42,7 @@ from lasercal.collector.sessions.standstill import wait_still
 from lasercal.collector.sessions.state import ACTIONS, SessionState
 from lasercal.collector.sessions.store import CaptureStore
 from lasercal.solver.analysis.design import APART_RAD
-from lasercal.solver.formats.captures import AIM_XY
+from lasercal.solver.formats.captures import AIM_XY, EYE_XYZ
 from lasercal.solver.formats.data import reference
 from lasercal.solver.formats.session import Layout, check_aperture, session_layout, session_meta
 from lasercal.solver.kinematics.model import RobotModel
@@ -120,7 +120,8 @@ def new_session(
     CaptureStore, open for appending
     """
     columns = list(robot.extra_columns) + (["laser_length_measured"] if rangefinder is not None else [])
-    columns += list(SPOT_COLUMNS) if camera is not None else []
+    # and where each photo's markers put the camera: a curled sheet's view (eq. S8)
+    columns += [*SPOT_COLUMNS, *EYE_XYZ] if camera is not None else []
     columns += list(AIM_XY) if cfg.get("aim") == "anywhere" else []
     fake = cfg["backend"] == "fake"
     aperture = cfg.get("aperture_z", float(robot.truth.aperture[2]) if fake else None)

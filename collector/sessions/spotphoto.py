@@ -12,9 +12,10 @@ import numpy as np
 from lasercal.collector.sessions.exposure import readable_by, settle_exposure
 from lasercal.collector.sessions.photos import ALL_PNG, PhotoPolicy, estimate_line
 from lasercal.collector.sessions.standstill import PHOTO_MOVED_MM, PHOTO_TRIES, moved_during_photo
+from lasercal.solver.formats.captures import EYE_XYZ
 from lasercal.solver.formats.session import session_layout
 
-# a camera session's columns (docs/formats.md)
+# a camera session's columns (docs/formats.md; an outside script's too); lasercal's own capture adds EYE_XYZ
 SPOT_COLUMNS = ("photo", "camera_x", "camera_y", "camera_sx", "camera_sy", "camera_note")
 
 
@@ -97,6 +98,8 @@ def spot_cells(
         eye = m.eye
         cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
         cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
+        if m.eye is not None:  # where the camera stood: the fit's view of a curled paper (eq. S8)
+            cells.update(zip(EYE_XYZ, np.round(np.asarray(m.eye, dtype=float), 3)))
         layout = session_layout(meta, folder)
         said = f"  camera: spot at ({m.xy[0]:.3f}, {m.xy[1]:.3f}) mm +- ({m.sigma[0]:.3f}, {m.sigma[1]:.3f})"
         if (

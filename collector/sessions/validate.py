@@ -69,8 +69,24 @@ def measure_with_markers(img: np.ndarray, name: str, markers, sheet=None) -> tup
     s = res.spots[0]
     xy = np.array([s.x_mm, s.y_mm])
     if sheet is not None:
-        xy = sheet.to_base(xy[None], 0.0)[0, :2]
+        xy = sheet.to_base(on_curled_paper(xy, res.plane.H, img.shape, markers, sheet)[None], 0.0)[0, :2]
     return xy, res.exposure and res.exposure.advice
+
+
+def on_curled_paper(xy: np.ndarray, H: np.ndarray, shape: tuple, markers, sheet) -> np.ndarray:
+    """Where on a curled sheet (the model's eq. S6) the spot lies whose photo, mapped through the markers'
+    homography ``H``, reads ``xy`` (2,) mm in the layout's frame: eq. S8 undone from where the photo's
+    markers put the camera (eq. V2). ``xy`` itself on a flat sheet, or where the markers cannot tell where
+    the camera stands (a square-on view, whose parallax at the sheet's middle is small)."""
+    from lasercal.solver.kinematics.parallax import unparallaxed
+    from lasercal.vision.plane import camera_eye
+
+    curl = sheet.curl
+    eye = camera_eye(H, (shape[1], shape[0])) if np.any(curl) else None
+    if eye is None:
+        return xy
+    corners = np.concatenate([np.asarray(c, dtype=float) for c in markers.corners.values()])
+    return unparallaxed(xy, eye, curl, corners)
 
 
 def make_camera(

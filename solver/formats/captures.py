@@ -73,6 +73,8 @@ class Session:
     robot_source : (str, Path or None) or None, how the robot was named and the folder a relative path is
         relative to: ``(meta['robot'], path)``, or a ``load_session(robot=...)`` override's ``(robot, None)``
         (relative to the working folder); a calibrated model names its nominal from it
+    camera_eye : (m, 3) array or None, a camera session's (``camera_eye_x`` .. columns): where the camera
+        stood for each measured photo, mm in the layout's frame (z above the sheet; NaN: not told)
     """
 
     path: Path
@@ -99,6 +101,7 @@ class Session:
     sheet: SheetPose | None = None
     robot_source: tuple | None = None
     spot_sigma: np.ndarray | None = None
+    camera_eye: np.ndarray | None = None
 
     @property
     def measured(self) -> np.ndarray:
@@ -152,6 +155,7 @@ class Session:
             self.sheet,
             self.robot_source,
             pick(self.spot_sigma),
+            pick(self.camera_eye),
         )
 
 
@@ -213,41 +217,67 @@ def measured_spots(path, rows, header) -> tuple[np.ndarray, np.ndarray] | None:
 
 # where a camera session's operator aimed, off the point when its coach planned the spot anywhere, mm
 AIM_XY = ("aim_x", "aim_y")
+# where the camera stood for each measured photo, from its markers (eq. V2), mm in the layout's frame
+EYE_XYZ = ("camera_eye_x", "camera_eye_y", "camera_eye_z")
+
+
+def optional_columns(path, rows, header, names: tuple, what: str) -> np.ndarray | None:
+    """Optional numeric columns that a row fills all or none of: (m, len(names)) floats, NaN where a row
+    leaves them all empty; None when the first is not in the header.
+
+    Raises
+    ------
+    FormatError
+        Naming line and column: a later column missing from the header, some of a row's cells empty, a
+        value not a finite number (``what`` says what the columns hold).
+    """
+    if names[0] not in header:
+        return None
+    missing = [c for c in names[1:] if c not in header]
+    if missing:
+        raise FormatError(
+            path, f"{names[0]} without {', '.join(missing)} in the header", line=1, field=missing[0]
+        )
+    idx = [header.index(c) for c in names]
+    out = np.full((len(rows), len(names)), np.nan)
+    for r, (ln, row) in enumerate(rows):
+        cells = [row[j].strip() if j < len(row) else "" for j in idx]
+        if not any(cells):
+            continue
+        for k, (c, text) in enumerate(zip(names, cells)):
+            try:
+                out[r, k] = float(text)
+            except ValueError:
+                out[r, k] = math.nan
+            if not math.isfinite(out[r, k]):
+                said = f"missing value ({what} fills all of {', '.join(names)})" if not text else ""
+                raise FormatError(path, said or f"not a finite number: {text!r}", line=ln, field=c)
+    return out
 
 
 def aimed_spots(path, rows, header) -> np.ndarray | None:
     """Where a camera session's captures were aimed when the coach planned the spot off its point
     (``--aim anywhere``): (m, 2) mm in the layout's frame, NaN where a row leaves both cells empty (aimed
-    at its point); None without the columns.
+    at its point); None without the columns (:func:`optional_columns`)."""
+    return optional_columns(path, rows, header, AIM_XY, "an aim off the point")
+
+
+def camera_eyes(path, rows, header) -> np.ndarray | None:
+    """Where the camera stood for each measured photo (``camera_eye_x`` .. ``_z``): (m, 3) mm in the layout's
+    frame, z above the sheet, NaN where the photo's markers could not tell; None without the columns.
 
     Raises
     ------
     FormatError
-        Naming line and column: one of the two cells empty, a value not a finite number.
+        As :func:`optional_columns`; and a camera not above the sheet (z <= 0).
     """
-    if "aim_x" not in header:
-        return None
-    if "aim_y" not in header:
-        raise FormatError(path, "aim_x without aim_y in the header", line=1, field="aim_y")
-    idx = [header.index(c) for c in AIM_XY]
-    xy = np.full((len(rows), 2), np.nan)
-    for r, (ln, row) in enumerate(rows):
-        cells = [row[j].strip() for j in idx]
-        if not any(cells):
-            continue
-        for k, (c, text) in enumerate(zip(AIM_XY, cells)):
-            try:
-                xy[r, k] = float(text)
-            except ValueError:
-                xy[r, k] = math.nan
-            if not math.isfinite(xy[r, k]):
-                what = (
-                    "missing value (an aim off the point fills both aim_x and aim_y)"
-                    if not text
-                    else (f"not a finite number: {text!r}")
-                )
-                raise FormatError(path, what, line=ln, field=c)
-    return xy
+    eye = optional_columns(path, rows, header, EYE_XYZ, "a camera's position")
+    if eye is not None and np.any(eye[:, 2] <= 0):
+        r = int(np.flatnonzero(eye[:, 2] <= 0)[0])
+        raise FormatError(
+            path, f"camera below the sheet: {eye[r, 2]:g} mm", line=rows[r][0], field=EYE_XYZ[2]
+        )
+    return eye
 
 
 def _joint_columns(prefix: str, n: int) -> list[str]:

@@ -26,6 +26,7 @@ import numpy as np
 
 from lasercal.solver.errors import AimingError, FormatError
 from lasercal.solver.formats.captures import (
+    EYE_XYZ,
     SESSION_FORMAT,
     SPOT_XY,
     UNITS,
@@ -33,6 +34,7 @@ from lasercal.solver.formats.captures import (
     _joint_columns,
     _numeric_block,
     aimed_spots,
+    camera_eyes,
     captures_repair,
     check_limits,
     check_repeats,
@@ -476,6 +478,8 @@ class CaptureRows:
     lines : (m,) int array, each capture's line in the file
     spots : ((m, 2), (m, 2)) arrays or None, measured spots and their sigma (mm, layout frame; NaN: aimed)
     aims : (m, 2) array or None, where the spot was aimed off its point (mm, layout frame; NaN: at it)
+    eyes : (m, 3) array or None, where the camera stood for each measured photo (mm, layout frame; NaN: not
+        told)
     extra : dict column -> (m,) object array, the columns lasercal does not read
     """
 
@@ -487,6 +491,7 @@ class CaptureRows:
     lines: np.ndarray
     spots: tuple | None
     aims: np.ndarray | None
+    eyes: np.ndarray | None
     extra: dict
 
 
@@ -522,12 +527,16 @@ def capture_rows(folder: Path, meta: dict, cpath, robot: RobotModel, points: dic
     check_repeats(cpath, names, q, lines)
     spots = measured_spots(cpath, rows, header)
     aims = aimed_spots(cpath, rows, header)
+    eyes = camera_eyes(cpath, rows, header) if spots is not None else None
+    if eyes is not None:
+        eyes[~np.isfinite(spots[1])] = np.nan  # an eye without a measured spot says nothing a fit uses
     known = set(["point", "t"] + qcols + _joint_columns("dq", n) + _joint_columns("tau", n))
     known |= set(SPOT_XY) if spots is not None else set()
+    known |= set(EYE_XYZ) if eyes is not None else set()
     extra = {
         h: np.array([row[j] for _, row in rows], dtype=object) for j, h in enumerate(header) if h not in known
     }
-    return CaptureRows(q, t, dq, tau, np.array(names, dtype=object), lines, spots, aims, extra)
+    return CaptureRows(q, t, dq, tau, np.array(names, dtype=object), lines, spots, aims, eyes, extra)
 
 
 def aim_offset(meta: dict, ypath) -> np.ndarray | None:
@@ -634,6 +643,7 @@ def _load_session(folder: Path, robot, base_link, tip_link) -> Session:
         frame=frame,
         sheet=sheet,
         spot_sigma=spot_sigma,
+        camera_eye=c.eyes,
     )
 
 

@@ -17,11 +17,13 @@ kyy):
 2. held out (``folds`` >= 2): the captures split into K folds, both models fitted on the rest and
    predicting each fold, in the same units; the gain is 1 - RSS1_ho / RSS0_ho (eq. H2).
 
-On a session a camera measured, the shaped fit also holds the camera's view of the raised paper (eq. S7
-of :func:`solver.identify.spot.camera_warp_rows`: a camera that maps the paper through its markers'
-homography sees a raised spot displaced, 0.3-0.5 mm on a paper curled by 1.5 mm); the test is then of the
-ten terms together (the sheet's four, the camera's six; q is their rank), and only the sheet's are
-written to the model (the camera's are this session's).
+On a session a camera measured, the shaped fit also holds the camera's view of the raised paper: a camera
+that maps the paper through its markers' homography sees a raised spot displaced (0.3-0.5 mm on a paper
+curled by 1.5 mm). Where the photos' markers told where the camera stood (captures.csv's ``camera_eye_x``
+.. columns), that view is eq. S8 of :mod:`solver.kinematics.parallax`: fixed by the curl's own three terms
+and the camera's place, no new term. Where they did not (an older session), it is eq. S7 of
+:func:`solver.identify.spot.camera_warp_rows`, a free second-order field of six terms, the session's: the
+test is then of the ten terms together (q is their rank), and only the sheet's are written to the model.
 
 The terms are kept when p < alpha AND the gain is positive (with ``folds`` < 2 the F test decides alone,
 and says so). Kept, the session is marked (:func:`modelled`) so that every later fit of it -- the
@@ -76,8 +78,9 @@ class SheetShape:
     curl_mm : float, the height field's range (max - min of h, eq. S6) over the captured area, mm
     shear_mm_per_m : float, 1000 g
     extent_mm : (2,) array, the captured area's size along the sheet's x, y, mm
-    camera_warp_mm : float, RMS over the measured spots of the camera's view of the raised paper (eq. S7 of
-        :func:`solver.identify.spot.camera_warp_rows`), mm: a session effect, reported, never applied
+    camera_warp_mm : float, RMS over the measured spots of the camera's view of the raised paper, mm (eq. S8
+        of :mod:`solver.kinematics.parallax` from where each photo's camera stood; eq. S7 of
+        :func:`solver.identify.spot.camera_warp_rows`, a free field, where no photo told it)
     regions : dict, eq. H3 on the flat fit's residuals: ``rms_mm`` {cell: RMS per axis of the cell's mean
         residual}, ``F``, ``p``, ``structure_mm`` (RMS of the cell means beyond their noise), ``worst``
     shaped : Identification or None, the shaped fit of the whole session
@@ -95,6 +98,7 @@ class SheetShape:
     shear_mm_per_m: float = 0.0
     extent_mm: tuple = (0.0, 0.0)
     camera_warp_mm: float = 0.0
+    camera_view: str = ""  # "S8", "S7" or "" (no camera): which equation made camera_warp_mm
     regions: dict = field(default_factory=dict)
     shaped: object = None
 
@@ -119,6 +123,7 @@ class SheetShape:
             "shear_mm_per_m": round(float(self.shear_mm_per_m), 6),
             "extent_mm": [round(float(e), 3) for e in self.extent_mm],
             "camera_warp_mm": round(float(self.camera_warp_mm), 6),
+            "camera_view": self.camera_view,
             "regions": dict(self.regions),
         }
 
@@ -193,32 +198,38 @@ def _folds(m: int, k: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).permutation(m) % k
 
 
-def shape_sizes(shaped, uv: np.ndarray, meas: np.ndarray, anchors) -> tuple[dict, dict]:
+def shape_sizes(session: Session, shaped, anchors) -> tuple[dict, dict]:
     """The shaped fit's terms and their sizes.
 
     Parameters
     ----------
-    shaped : Identification, the fit with eqs. S5, S6 (and S7's camera warp on a camera session)
-    uv : (m, 2) array, the captures' points on the sheet, mm
-    meas : (m,) bool array, the captures a camera measured
+    session : Session, the sheet session
+    shaped : Identification, the fit with eqs. S5, S6 (and on a camera session the camera's view of the
+        raised paper: eq. S8 from where it stood, else eq. S7's free warp)
     anchors : (k, 2) array or None, the markers' centres (eq. S7), mm
 
     Returns
     -------
     values : dict key -> (value, standard error), the shape's terms (SHAPE_KEYS)
     sizes : dict, 'curl_mm' (:func:`curl_range`), 'shear_mm_per_m', and on a camera session
-        'camera_warp_mm' (eq. S7's field's RMS over the measured spots, mm)
+        'camera_warp_mm' (the camera's view's RMS over the measured spots, mm) and 'camera_view' ('S7' or
+        'S8': which equation made it)
     """
-    from lasercal.solver.identify.spot import camera_warp_rows
+    from lasercal.solver.identify.spot import camera_view, camera_warp_rows
+
+    uv, meas = np.asarray(session.target[:, :2], dtype=float), session.measured
 
     pose = shaped.model.sheet
     sd = shaped.model.sheet_std or {}
     values = {k: (getattr(pose, k), sd.get(k, float("nan"))) for k in SHAPE_KEYS}
     sizes = {"curl_mm": curl_range(pose, uv), "shear_mm_per_m": 1000 * pose.shear}
     warp = shaped.extra.get("camera_warp")
-    if warp is not None:  # eq. S7's field's RMS over the measured spots, mm
-        field_mm = camera_warp_rows(uv, meas, anchors) @ warp
+    # the camera's view of the raised paper over the measured spots: eq. S7's free field, or eq. S8's from
+    # where the camera stood
+    field_mm = camera_warp_rows(uv, meas, anchors) @ warp if warp is not None else camera_view(session, pose)
+    if meas.any() and np.ndim(field_mm):
         sizes["camera_warp_mm"] = float(np.sqrt(np.mean(np.sum(field_mm[meas] ** 2, axis=1))))
+        sizes["camera_view"] = "S7" if warp is not None else "S8"
     return values, sizes
 
 
@@ -322,7 +333,7 @@ def decide_sheet_shape(
     rss0, rss1 = float(np.sum(r0**2)), float(np.sum(r1**2))
     q = shaped.identifiability.rank - flat.identifiability.rank
     dof = 2 * int(used.sum()) - shaped.identifiability.rank
-    values, sizes = shape_sizes(shaped, uv, meas, anchors)
+    values, sizes = shape_sizes(session, shaped, anchors)
     if q <= 0 or dof <= 0:
         return SheetShape(
             True,

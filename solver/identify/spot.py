@@ -45,6 +45,7 @@ from lasercal.solver.kinematics.effects import Extension, require
 from lasercal.solver.kinematics.laser import LaserParams, plane_hit, spot_joint_jacobian
 from lasercal.solver.kinematics.minimal import anchor_heights
 from lasercal.solver.kinematics.model import RobotModel
+from lasercal.solver.kinematics.parallax import parallax_rows, relative_height_basis
 from lasercal.solver.kinematics.sheet import KEYS as SHEET_KEYS
 from lasercal.solver.kinematics.sheet import (
     NFULL,
@@ -244,22 +245,16 @@ def camera_warp_rows(uv: np.ndarray, measured: np.ndarray, anchors: np.ndarray |
     with the sheet's shape, reported, never applied to where the arm aims (``validate`` has its own camera).
     """
     meas = np.asarray(measured, dtype=bool)
-
-    def quad(p):
-        return np.column_stack([0.5 * p[:, 0] ** 2, p[:, 0] * p[:, 1], 0.5 * p[:, 1] ** 2])
-
-    anchors = uv[meas] if anchors is None or len(anchors) < 3 else np.asarray(anchors, dtype=float)
-    A = np.column_stack([np.ones(len(anchors)), anchors])
-    coef = np.linalg.lstsq(A, quad(anchors), rcond=None)[0]  # (3, 3): the affine part at the anchors
-    q = (quad(uv) - np.column_stack([np.ones(len(uv)), uv]) @ coef) * meas[:, None]
+    anchors = uv[meas] if anchors is None or len(anchors) < 3 else anchors
+    q = relative_height_basis(uv, anchors) * meas[:, None]  # the quadratic less its affine part (eq. S8)
     W = np.zeros((len(uv), 2, 6))
     W[:, 0, :3], W[:, 1, 3:] = q, q
     return W
 
 
-def marker_centres(session: Session) -> np.ndarray | None:
-    """The centres (k, 2) mm, layout frame, of the markers of the layout a sheet session names (None: not
-    found): where a camera's homography is fitted (eq. S7)."""
+def marker_corners(session: Session) -> np.ndarray | None:
+    """The corners (k, 4, 2) mm, layout frame, of the markers of the layout a sheet session names (None: not
+    found): where a camera's homography is fitted (eqs. S7, S8)."""
     from pathlib import Path
 
     import yaml
@@ -271,10 +266,51 @@ def marker_centres(session: Session) -> np.ndarray | None:
     path = Path(session.path) / name
     try:
         ids = (yaml.safe_load(path.read_text()) or {}).get("markers", {}).get("ids", {})
-        out = np.array([np.mean(np.asarray(c, dtype=float), axis=0) for c in ids.values()])
+        out = np.array([np.asarray(c, dtype=float) for c in ids.values()])
     except (OSError, yaml.YAMLError, AttributeError, TypeError, ValueError):
         return None
-    return out if out.ndim == 2 and out.shape[1] == 2 and len(out) >= 3 and np.isfinite(out).all() else None
+    ok = out.ndim == 3 and out.shape[1:] == (4, 2) and len(out) >= 3 and np.isfinite(out).all()
+    return out if ok else None
+
+
+def marker_centres(session: Session) -> np.ndarray | None:
+    """The centres (k, 2) mm of :func:`marker_corners` (eq. S7's anchors), or None."""
+    corners = marker_corners(session)
+    return None if corners is None else corners.mean(axis=1)
+
+
+CURL = slice(8, 11)  # kxx, kxy, kyy in a sheet's full vector (eq. S6; SheetPose.curl)
+
+
+def session_eyes(session: Session) -> np.ndarray | None:
+    """Where the camera stood for each capture (m, 3) mm, layout frame (eq. S8), or None when no measured
+    photo told it (an older session, the solver's own simulations). A measured photo whose markers could
+    not tell (a square-on view) takes the median of those that did: the session's camera, which a
+    hands-free or a tripod's camera does not move."""
+    eye, meas = session.camera_eye, session.measured
+    told = meas & np.all(np.isfinite(eye), axis=1) if eye is not None else np.zeros(session.m, bool)
+    if not told.any():
+        return None
+    out = np.where(np.isfinite(eye), eye, np.median(eye[told], axis=0))
+    return out
+
+
+def camera_view_rows(session: Session) -> np.ndarray | None:
+    """Eq. S8's rows (m, 2, 3) of a sheet session's measured spots (zero for aimed captures): d(seen -
+    true)/d(kxx, kxy, kyy) from where each photo's camera stood; None without an eye or the markers."""
+    eye = session_eyes(session) if session.frame == "sheet" else None
+    corners = marker_corners(session) if eye is not None else None
+    if eye is None or corners is None:
+        return None
+    return parallax_rows(session.target[:, :2], eye, corners.reshape(-1, 2)) * session.measured[:, None, None]
+
+
+def camera_view(session: Session, pose: SheetPose | None) -> np.ndarray | float:
+    """The measured spots' parallax (m, 2) mm under ``pose``'s curl (eq. S8: :func:`camera_view_rows`), or
+    0.0 where nothing makes one (a flat sheet, no camera's eye, a base-frame session)."""
+    curl = pose.curl if pose is not None else np.zeros(3)
+    rows = camera_view_rows(session) if np.any(curl) else None
+    return 0.0 if rows is None else rows @ curl
 
 
 def placed_targets(session: Session, pose: SheetPose) -> np.ndarray:
@@ -298,7 +334,8 @@ def plane_residuals(model: RobotModel, q: np.ndarray, session: Session) -> np.nd
     if session.frame != "sheet":
         return spot_residuals(model, q, session.target)
     pose = model.sheet or sheet_start(session, model)
-    return sheet_residual(pose.vector, spot_residuals(model, q, placed_targets(session, pose)))[0]
+    r = sheet_residual(pose.vector, spot_residuals(model, q, placed_targets(session, pose)))[0]
+    return r + camera_view(session, pose)  # the measured spot is where the camera saw it (eq. S8)
 
 
 def in_base_frame(session: Session, pose: SheetPose) -> Session:
@@ -403,6 +440,8 @@ class SpotProblem:
     shape : bool, the sheet's shear and height field fitted (a sheet session)
     nsh, nw : int, the sheet's and the camera warp's parameter counts (0: none)
     W : (m, 2, nw) array, eq. S7's rows (None without the warp)
+    V : (m, 2, 3) array, eq. S8's rows on the curl's terms, the camera's view from where each photo's
+        markers put it (None: no shape, or no eye told; then eq. S7's free warp where a camera measured)
     pose0 : SheetPose, the sheet's start (None: a base-frame session)
     base0 : (m, 3) array, the reference points in the base frame with the sheet at ``pose0``, mm
     u0 : (len(counted.names),) array, the start (mm, rad-like)
@@ -422,6 +461,7 @@ class SpotProblem:
     u0: np.ndarray
     counted: CountedParameters
     kinds: list
+    V: np.ndarray | None = None
 
     @property
     def p(self) -> int:
@@ -483,6 +523,8 @@ class SpotProblem:
         spot, _ = self.P.spots(u[:p], qt, z)
         r = spot[:, :2] - tg
         warp = self.W @ u[p + nsh : self.pe] if self.nw else 0.0  # eq. S7: the measured spot's offset
+        if self.V is not None:  # eq. S8: the camera's view of the curl, from where it stood
+            warp = self.V @ u[p : p + nsh][CURL]
         return (sheet_residual(u[p : p + nsh], r)[0] if self.sheet else r) - self.offset(u) + warp
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
@@ -505,6 +547,8 @@ class SpotProblem:
             _, M, dM = sheet_residual(u[p : p + nsh], spot[:, :2] - tg)
             J = np.einsum("ij,mjk->mik", M, J)
             J[:, :, p : p + nsh] += dM
+        if self.V is not None:
+            J[:, :, p + CURL.start : p + CURL.stop] += self.V
         if self.nw:
             J = np.concatenate([J[:, :, : p + nsh], self.W, J[:, :, p + nsh :]], axis=2)
         if ext and ext.effect == "reference_point_offset":
@@ -534,7 +578,9 @@ def spot_problem(
         shape = bool(isinstance(session.meta, dict) and session.meta.get("_sheet_shape_modelled", False))
     shape = shape and sheet
     nsh = (NFULL if shape else NSHEET) if sheet else 0
-    nw = NWARP if shape and session.measured.any() else 0  # the camera's view of a raised paper (eq. S7)
+    V = camera_view_rows(session) if shape and session.measured.any() else None
+    # the camera's view of a raised paper: eq. S8 from where it stood, else eq. S7's free field
+    nw = NWARP if shape and session.measured.any() and V is None else 0
     W = camera_warp_rows(target[:, :2], session.measured, marker_centres(session)) if nw else None
     if 2 * m <= 8:
         raise IdentificationError(f"{m} captures are far too few to identify {p + nsh + k} parameters")
@@ -545,7 +591,7 @@ def spot_problem(
     kinds += WARP_KINDS if nw else []
     kinds += extension.kinds if extension else []
     base0 = placed_targets(session, pose0) if sheet else target
-    return SpotProblem(session, P, extension, shape, nsh, nw, W, pose0, base0, u0, counted, kinds)
+    return SpotProblem(session, P, extension, shape, nsh, nw, W, pose0, base0, u0, counted, kinds, V)
 
 
 def beam_distance_stage(

@@ -83,6 +83,11 @@ class SheetPose:
         return any(getattr(self, k) != 0.0 for k in SHAPE_KEYS)
 
     @property
+    def curl(self) -> np.ndarray:
+        """(3,) array [kxx, kxy, kyy] 1/mm: the height field's curvatures (eq. S6)."""
+        return np.array([self.curl_xx_per_mm, self.curl_xy_per_mm, self.curl_yy_per_mm])
+
+    @property
     def full_vector(self) -> np.ndarray:
         """(11,) array: :attr:`vector` then [g, kxx 1/mm, kxy 1/mm, kyy 1/mm] (eqs. S5, S6)."""
         return np.r_[self.vector, [getattr(self, k) for k in SHAPE_KEYS]]
