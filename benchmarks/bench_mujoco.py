@@ -63,6 +63,24 @@ def vision_error(session: Path, world_file: Path) -> np.ndarray:
     return np.array(out)
 
 
+def true_error(val: Path, world_file: Path, layout: Path, point: str = "P6") -> float:
+    """The validated model's true error at ``point``, mm: each configuration of validation.csv replayed in
+    MuJoCo, the ray's hit on the paper (printed mm) against the point's printed place, the mean |error|."""
+    import yaml
+
+    from lasercal.collector.worlds.mujoco import MujocoWorld
+
+    scale = np.array(yaml.safe_load((world_file.parent / "scene.yaml").read_text())["sheet"]["print_scale"])
+    at = np.array(yaml.safe_load(layout.read_text())["points"][point][:2], dtype=float)
+    world, err = MujocoWorld(world_file), []
+    with open(val / "validation.csv") as f:
+        for row in csv.DictReader(x for x in f if not x.startswith("#")):
+            world.command(np.array([float(row[f"q{j}"]) for j in range(1, 8)]))
+            world.step(world._path[1] + 1.5)
+            err.append(np.linalg.norm(world.on_sheet(world.ray()[0])[:2] / scale - at))
+    return float(np.mean(err))
+
+
 def error_mean(text: str) -> float:
     """validate's 'error mean' (NaN when it measured fewer than two spots)."""
     return float(text.split("error mean ")[1].split(" mm")[0]) if "error mean " in text else float("nan")
@@ -121,6 +139,8 @@ def main() -> None:
     )
     promise = [x for x in open(d / "capture.log") if "predicted error at" in x][-1].strip()
     print(f"the coach's last promise: {promise}")
+    true = true_error(d / "val_calibrated", world, layout)
+    print(f"true error at P6 (validate's configurations replayed, the ray's hit): {true:.3f} mm")
     if a.eye is not None:
         return
     e = vision_error(d / "session", world)
