@@ -100,6 +100,14 @@ def args_mujoco_scene(p: argparse.ArgumentParser) -> None:
         metavar="MM",
         help="the paper curls up toward the page's top and bottom edges, MM there (a parabola; 0: flat)",
     )
+    p.add_argument(
+        "--camera-at",
+        type=number(-3000, 3000),
+        nargs=3,
+        metavar=("DX", "DY", "DZ"),
+        help="where the camera stands from the sheet's centre, mm, along the sheet's x and y and up (default "
+        "350 0 600: beyond the sheet, away from the robot); it looks at the centre",
+    )
 
 
 def passives(args):
@@ -147,6 +155,13 @@ def cmd_mujoco_scene(args) -> int:
     from lasercal.solver.whole import dump_yaml
 
     passive = passives(args)  # the options' own mistakes first
+    if args.camera_at is not None and args.camera_at[2] < 100:
+        from lasercal.solver.errors import LasercalError
+
+        raise LasercalError(
+            f"argument --camera-at: DZ {args.camera_at[2]:g} mm: the camera looks down at the sheet from "
+            "at least 100 mm above it"
+        )
     layout = load_layout(args.layout)
     if layout.frame != "sheet":
         raise FormatError(
@@ -159,7 +174,9 @@ def cmd_mujoco_scene(args) -> int:
         raise FormatError(layout.path, f"no sheet.pdf beside it (expected {pdf}: lasercal sheet writes both)")
     with atomic_output(args.output, folder=True) as tmp:
         seed = None if args.exact else args.seed
-        info = write_mujoco_scene(tmp, layout, pdf, seed, passive, args.light, args.shadows, args.curl)
+        info = write_mujoco_scene(
+            tmp, layout, pdf, seed, passive, args.light, args.shadows, args.curl, args.camera_at
+        )
         head = (
             "# What lasercal mujoco-scene drew: lengths mm, angles rad (yaw deg), compliance rad/Nm, "
             "friction Nm.\n"

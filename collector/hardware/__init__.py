@@ -254,12 +254,16 @@ def simulated_arm(robot) -> bool:
     return isinstance(robot, FakeRobot)
 
 
-def write_mujoco_scene(folder, layout, pdf, seed, passive=(), light=1.0, shadows=False, curl=0.0) -> dict:
+def write_mujoco_scene(
+    folder, layout, pdf, seed, passive=(), light=1.0, shadows=False, curl=0.0, camera_at=None
+) -> dict:
     """``lasercal mujoco-scene``: a MuJoCo world for a printed sheet written into ``folder``
     (:func:`collector.worlds.mujoco_scene.write_scene`); ``passive``: dicts of
-    :class:`collector.worlds.mujoco_scene.Passive`'s fields. Returns what it drew (scene.yaml's content)."""
-    from lasercal.collector.worlds.mujoco_scene import Passive, SceneOptions, write_scene
+    :class:`collector.worlds.mujoco_scene.Passive`'s fields; ``camera_at``: (3,) mm from the sheet's centre
+    (None: the default). Returns what it drew (scene.yaml's content)."""
+    from lasercal.collector.worlds.mujoco_scene import CAMERA_OFFSET_MM, Passive, SceneOptions, write_scene
 
     passive = tuple(Passive(**p) for p in passive)
-    options = SceneOptions(seed, passive=passive, light=light, shadows=shadows, curl=curl)
+    at = CAMERA_OFFSET_MM if camera_at is None else tuple(camera_at)
+    options = SceneOptions(seed, passive=passive, light=light, shadows=shadows, curl=curl, camera_at=at)
     return write_scene(folder, layout, pdf, options)

@@ -98,6 +98,8 @@ class SceneOptions:
     shadows : bool, the lamp casts the arm's shadow on the table
     curl : float, mm: the paper curls up toward the page's top and bottom edges (:func:`curled_sheet`);
         0: flat
+    camera_at : (3,) tuple, mm: where the camera stands from the sheet's centre, in the sheet's frame turned
+        to the base's z (x along the sheet's x, z up); it looks at the centre, at 0.25 mm per pixel there
     """
 
     seed: int | None = 0
@@ -106,6 +108,7 @@ class SceneOptions:
     light: float = 1.0
     shadows: bool = False
     curl: float = 0.0
+    camera_at: tuple = CAMERA_OFFSET_MM
 
 
 def arm_description() -> Path:
@@ -248,6 +251,7 @@ def write_scene(out: Path, layout, pdf: Path, options: SceneOptions) -> dict:
         "light": options.light,
         "shadows": options.shadows,
         "curl_mm": options.curl,
+        "camera_at_mm": [float(v) for v in options.camera_at],
     }
 
 
@@ -358,7 +362,7 @@ def _world(spec, layout, drawn: dict, width: float, height: float, options: Scen
             material="lasercal_sheet",
         )
     centre = np.r_[xy, z]
-    off = np.asarray(CAMERA_OFFSET_MM) * 1e-3
+    off = np.asarray(options.camera_at, dtype=float) * 1e-3
     eye = centre + _rotation([0, 0, yaw]) @ np.r_[off[:2], 0] + np.r_[0, 0, off[2]]
     fwd = (centre - eye) / np.linalg.norm(centre - eye)
     right = np.cross(fwd, [0, 0, 1.0])
