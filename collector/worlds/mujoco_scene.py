@@ -99,7 +99,7 @@ class SceneOptions:
     curl : float, mm: the paper curls up toward the page's top and bottom edges (:func:`curled_sheet`);
         0: flat
     camera_at : (3,) tuple, mm: where the camera stands from the sheet's centre, in the sheet's frame turned
-        to the base's z (x along the sheet's x, z up); it looks at the centre, at 0.25 mm per pixel there
+        to the base's z (x along the sheet's x, z up); it looks at the centre, at 0.33 mm per pixel there
     """
 
     seed: int | None = 0
