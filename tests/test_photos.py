@@ -4,7 +4,9 @@ measurement: the spots and sigmas in the CSV are those of the session that keeps
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import re
 
 import cv2
@@ -33,19 +35,22 @@ def _capture(sheet, folder, capsys, *extra):
 
 @pytest.fixture(scope="module")
 def every_png(sheet, tmp_path_factory):
+    """The session that keeps every photo as a PNG (the default): its folder and what it printed."""
     folder = tmp_path_factory.mktemp("photos") / "all"
     argv = ["capture", "--layout", str(sheet), "--robot", "panda", "--backend", "fake", "--camera", "fake",
             "--auto", "--per-point", "2", "--aim-noise", "3", "--seed", "3", "-o", str(folder)]  # fmt: skip
-    assert main(argv) == 0
-    return folder
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(argv) == 0
+    return folder, out.getvalue()
 
 
-def test_a_session_says_what_its_photos_take(every_png, sheet, tmp_path, capsys):
-    out = _capture(sheet, tmp_path / "s", capsys)
+def test_a_session_says_what_its_photos_take(every_png):
+    folder, out = every_png  # the session _capture runs, with every photo kept
     each, n, total = re.search(
         r"photos: ([\d.]+) MB each \(PNG\): about ([\d.]+) MB for (\d+) photos", out
     ).groups()
-    files = sorted((tmp_path / "s" / "photos").iterdir())
+    files = sorted((folder / "photos").iterdir())
     assert int(total) == len(files) == 10
     real = sum(f.stat().st_size for f in files) / 1e6
     assert abs(float(n) - real) < 0.1 * real  # the estimate from the first photo, within 10 %
@@ -55,7 +60,8 @@ def test_a_session_says_what_its_photos_take(every_png, sheet, tmp_path, capsys)
 
 
 def test_fewer_or_smaller_photos_lose_no_measurement(every_png, sheet, tmp_path, capsys):
-    ref = _rows(every_png / "captures.csv")
+    kept_all, _ = every_png
+    ref = _rows(kept_all / "captures.csv")
     for keep, fmt in (("none", "png"), ("first", "jpg")):
         folder = tmp_path / f"{keep}-{fmt}"
         # --photos none keeps no photo in any format: --photo-format with it is refused (issue 53)
@@ -84,7 +90,7 @@ def test_fewer_or_smaller_photos_lose_no_measurement(every_png, sheet, tmp_path,
         # a JPEG is a tenth of a PNG, and re-measured (as lasercal spots would: without the lens's
         # calibration, the same for both) its spot is the PNG's within 0.07 mm: 3 x the RMS shift that
         # benchmarks/bench_photos.py measured on another seed's photos (0.023 mm)
-        png = {r["photo"]: every_png / r0["photo"] for r, r0 in zip(rows, ref) if r["photo"]}
+        png = {r["photo"]: kept_all / r0["photo"] for r, r0 in zip(rows, ref) if r["photo"]}
         markers = load_markers(sheet)
         for r in rows:
             if r["photo"] and r["camera_x"]:
