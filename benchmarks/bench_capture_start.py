@@ -7,8 +7,8 @@ Each repeat is a fresh Python process (imports count: a capture starts from the 
 sheet's layout.yaml (``lasercal sheet``), then ``start_capture`` of a fake camera session with the coach
 (``--backend fake --camera fake``, aim anywhere by default) up to its first capture, timed; then the blank
 cells alone (:func:`lasercal.collector.sessions.anywhere.cells`) in a second fresh process. Each twice: with
-the cells found on the drawing (``vision.sheet.blank_spots``, what a capture uses today) and with the cells
-from the sheet's geometry (``vision.sheet.geometric_blank_spots`` in its place).
+the cells found on the drawing (``vision.sheet.drawn_blank_spots``, what a capture used before issue 54)
+and with the cells from the sheet's geometry (``vision.sheet.blank_spots``, what it uses now).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import subprocess
 import sys
 import tempfile
 
-# the geometric cells in the drawn ones' place (sessions.anywhere.cells imports blank_spots when called)
-GEOMETRIC = "import lasercal.vision.sheet as S; S.blank_spots = S.geometric_blank_spots\n"
+# the drawn cells in the geometric ones' place (sessions.anywhere.cells imports blank_spots when called)
+DRAWN = "import lasercal.vision.sheet as S; S.blank_spots = S.drawn_blank_spots\n"
 
 START = """
 import sys, time
@@ -60,7 +60,7 @@ def seconds(code: str) -> float:
 
 def main() -> None:
     repeats = int(sys.argv[1]) if len(sys.argv) > 1 else 3
-    for how, head in (("drawn", ""), ("geometric", GEOMETRIC)):
+    for how, head in (("drawn", DRAWN), ("geometric", "")):
         start = sorted(seconds(head + START) for _ in range(repeats))
         blank = sorted(seconds(head + CELLS) for _ in range(repeats))
         print(f"{how} cells: camera capture start-up {median(start):.2f} s, ", end="")

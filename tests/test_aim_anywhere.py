@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import io
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -24,7 +26,7 @@ from lasercal.vision.sheet import (
     blank_spots,
     box_distances,
     design_sheet,
-    geometric_blank_spots,
+    drawn_blank_spots,
     ink_boxes,
     page_to_sheet,
     sheet_to_page,
@@ -37,14 +39,14 @@ PRINTS += [("A4", 5.0, 25.0), ("A3", 15.0, 40.0), ("letter", 0.0, 20.0), ("400x3
 
 @pytest.mark.parametrize("paper, margin, marker", PRINTS)
 def test_the_blank_cells_from_the_geometry_agree_with_the_drawing(paper, margin, marker):
-    """The blank cells computed from the sheet's geometry (:func:`geometric_blank_spots`) against the
-    drawing's (:func:`blank_spots`, rasterised: what a camera session's coach plans in): every cell the
+    """The blank cells computed from the sheet's geometry (:func:`blank_spots`: what a camera session's
+    coach plans in) against the drawing's (:func:`drawn_blank_spots`, rasterised): every cell the
     geometry finds blank is blank on the drawing; the drawing's blank cells the geometry leaves out are few
     (at most 6 %): beside a text or an arrow, whose boxes are generous, or a raster's pixel (0.25 mm) from
     the clearance to a mark (markers, scale bars, crosses), where both agree to that pixel."""
     d = design_sheet(paper, margin, marker)
-    geometric = {tuple(p) for p in geometric_blank_spots(d, STEP_MM, CLEAR_MM)}
-    drawn = {tuple(p) for p in blank_spots(d, STEP_MM, CLEAR_MM)}
+    geometric = {tuple(p) for p in blank_spots(d, STEP_MM, CLEAR_MM)}
+    drawn = {tuple(p) for p in drawn_blank_spots(d, STEP_MM, CLEAR_MM)}
     assert geometric <= drawn, sorted(geometric - drawn)
     assert len(geometric) >= 0.94 * len(drawn), (len(geometric), len(drawn))
     left_out = np.array(sorted(drawn - geometric)).reshape(-1, 2)
@@ -56,21 +58,21 @@ def test_the_blank_cells_from_the_geometry_agree_with_the_drawing(paper, margin,
 
 @pytest.mark.parametrize("paper", ["A4", "A3", "letter"])
 def test_blank_spots_keep_clear_of_every_mark_the_sheet_prints(paper):
-    """Against the design's own geometry, independent of the raster: no spot nearer than CLEAR_MM (less a
-    raster pixel) to a marker's square or a cross's arms, the scale bars or the instructions' box; all
+    """Against the design's own geometry, written here apart from :func:`ink_boxes`: no spot nearer than
+    CLEAR_MM to a marker's square or a cross's arms (their centre lines), nor inside the instructions' box
+    but at the blank end of its last line; all
     inside the markers' span; and they cover the paper (at least a third of the span's 10 mm grid)."""
     d = design_sheet(paper)
     xy = blank_spots(d, 10.0, CLEAR_MM)
-    tol = 0.25 + LINE  # a raster pixel and a line's width
     corners = np.array(list(d.markers.values()))
     squares = np.c_[corners.min(axis=1), corners.max(axis=1)]
-    assert box_distances(xy, squares).min() >= CLEAR_MM - tol
+    assert box_distances(xy, squares).min() >= CLEAR_MM
     centres = np.array(list(d.points.values()))
     arm = np.array([[-ARM[1], 0, ARM[1], 0], [0, -ARM[1], 0, ARM[1]]], dtype=float)  # both arms, sheet frame
     crosses = (np.repeat(centres, 2, axis=0)[:, [0, 1, 0, 1]] + np.tile(arm, (len(centres), 1))).reshape(
         -1, 4
     )
-    assert box_distances(xy, crosses).min() >= CLEAR_MM - tol
+    assert box_distances(xy, crosses).min() >= CLEAR_MM + LINE / 2  # the arms' ink is LINE wide
     u0, v0, u1, v1 = d.text_box
     text = page_to_sheet([[u0, v0], [u1, v1]], d.width, d.height)
     inside_text = np.all((xy >= text.min(axis=0)) & (xy <= text.max(axis=0)), axis=1)
@@ -187,3 +189,14 @@ def test_plan_on_a_camera_session_fits_the_camera_noise_and_plans_spots_anywhere
     spots = cells(load_layout(sheet), sheet)
     for nm, xy in zip(p.plan.point, p.aims):
         assert np.linalg.norm(spots[nm][:, :2] - xy, axis=1).min() < 1e-6  # one of its cell's spots
+
+
+def test_the_blank_cells_draw_nothing():
+    """The blank cells come from the sheet's geometry: computing them imports no matplotlib (a fresh
+    process; drawing the sheet would)."""
+    code = (
+        "import sys; from lasercal.vision.sheet import design_sheet, blank_spots; "
+        "blank_spots(design_sheet('A4')); print('matplotlib' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False"]

@@ -420,15 +420,22 @@ def write_sheet(folder, design: SheetDesign, plane_z: float, placement: dict | N
     return out
 
 
-def blank_spots(
+def span_grid(design: SheetDesign, step: float) -> np.ndarray:
+    """The grid of points ``step`` mm apart, on multiples of ``step`` in the sheet frame, inside the
+    markers' span: (k, 2) array, sheet frame, mm (x outer, y inner)."""
+    corners = np.concatenate(list(design.markers.values()))
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    gx = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
+    gy = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
+    return np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2)
+
+
+def drawn_blank_spots(
     design: SheetDesign, step: float = 10.0, clear: float = 8.0, px_mm: float = 4.0
 ) -> np.ndarray:
-    """Where on a sheet a laser spot lands on white paper inside the markers' span: a grid of points at
-    least ``clear`` mm from every ink (markers, crosses, labels, scale bars, arrows, instructions), found
-    on the sheet as :func:`draw_sheet` prints it, so whatever it prints is avoided.
-
-    A camera measures a spot's centre there without ink swallowing part of it; ``clear`` leaves room for
-    the spot itself (a few mm across) and a rough aim.
+    """:func:`blank_spots` found on the sheet as :func:`draw_sheet` rasterises it (a distance transform of
+    its ink): the check of the geometry's cells against whatever the drawing prints (tests, and
+    benchmarks/bench_capture_start.py's before and after). Draws the whole sheet: ~0.2-1.4 s.
 
     Parameters
     ----------
@@ -453,11 +460,7 @@ def blank_spots(
     page = np.asarray(canvas.buffer_rgba())[..., :3].min(axis=2)  # row 0 at the page's top
     white = (page > 200).astype(np.uint8)  # anti-aliased edges count as ink
     reach = cv2.distanceTransform(white, cv2.DIST_L2, 5) / px_mm  # mm to the nearest ink
-    corners = np.concatenate(list(design.markers.values()))
-    lo, hi = corners.min(axis=0), corners.max(axis=0)  # the markers' span, sheet frame
-    gx = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
-    gy = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
-    xy = np.array([(x, y) for x in gx for y in gy])
+    xy = span_grid(design, step)
     uv = sheet_to_page(xy, W, H)
     col = np.clip(np.round(uv[:, 0] * px_mm - 0.5).astype(int), 0, reach.shape[1] - 1)
     row = np.clip(np.round((H - uv[:, 1]) * px_mm - 0.5).astype(int), 0, reach.shape[0] - 1)
@@ -682,18 +685,26 @@ def box_distances(xy: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.hypot(dx, dy)
 
 
-def geometric_blank_spots(design: SheetDesign, step: float = 10.0, clear: float = 8.0) -> np.ndarray:
-    """:func:`blank_spots` from the sheet's geometry as :func:`draw_sheet` lays it (:func:`ink_boxes`;
-    nothing is drawn): the grid points inside the markers' span at least ``clear`` mm from every ink, the
-    drawing's or a few fewer (the texts' boxes are generous).
+def blank_spots(design: SheetDesign, step: float = 10.0, clear: float = 8.0) -> np.ndarray:
+    """Where on a sheet a laser spot lands on white paper inside the markers' span: the grid points at
+    least ``clear`` mm from every ink (markers, crosses, labels, scale bars, arrows, instructions), from the
+    sheet's geometry as :func:`draw_sheet` lays it (:func:`ink_boxes`; nothing is drawn). The drawing's
+    blank cells (:func:`drawn_blank_spots`) or a few fewer: the texts' boxes are generous.
 
-    Parameters and Returns as :func:`blank_spots`'s (nothing rasterised: no ``px_mm``).
+    A camera measures a spot's centre there without ink swallowing part of it; ``clear`` leaves room for
+    the spot itself (a few mm across) and a rough aim.
+
+    Parameters
+    ----------
+    design : SheetDesign
+    step : float, grid spacing, mm
+    clear : float, least distance from any ink, mm
+
+    Returns
+    -------
+    (k, 2) array, sheet frame, mm
     """
-    corners = np.concatenate(list(design.markers.values()))
-    lo, hi = corners.min(axis=0), corners.max(axis=0)  # the markers' span, sheet frame
-    gx = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
-    gy = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
-    xy = np.array([(x, y) for x in gx for y in gy])
+    xy = span_grid(design, step)
     uv = sheet_to_page(xy, design.width, design.height)
     ink = np.concatenate(list(ink_boxes(design).values()))
     return xy[box_distances(uv, ink).min(axis=1) >= clear]
