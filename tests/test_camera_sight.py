@@ -112,3 +112,36 @@ def test_a_spot_outside_the_markers_the_photo_shows_is_not_planned():
     spots = np.array([[5, 5], [11, 5], [5, 5], [2, 8]])
     shown = np.array([[1, 1, 1, 1], [1, 1, 1, 1], [1, 0, 1, 0], [1, 1, 1, 0]], bool)
     assert inside_shown(spots, square, shown).tolist() == [True, False, False, False]
+
+
+def test_a_marker_the_arm_hides_in_part_is_not_shown():
+    """Given its corners, a marker counts as in sight only when every corner is: one whose corner lies
+    behind the arm while its centre is clear is not found in the photo. Given its centre alone, the same
+    marker counts (and with it the spot is planned)."""
+    from lasercal.solver.analysis.sight import sight_clear
+
+    layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
+    q = layout.aim_at(PANDA, "P1", 1, np.random.default_rng(0))
+    axes, z = arm_axes(PANDA, q), layout.plane_z
+    b = beam(np.asarray(PANDA.screws), PANDA.laser_dir, PANDA.aperture, q)
+    spot = plane_hit(b.aperture, b.direction, z)[0][0]
+    eye = spot + np.array([0.0, 0.0, 3000.0])  # far above: the arm hides what lies under it
+
+    def clear(p):
+        return sight_clear(axes, eye, np.asarray(p, dtype=float).reshape(1, -1, 3))[0]
+
+    square = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0.0]])
+    around = [spot + d for d in ([250.0, 250, 0], [-250.0, 250, 0], [-250.0, -250, 0], [250.0, -250, 0])]
+    rng, corners = np.random.default_rng(0), []
+    for c in around:  # the first of each corner's sampled markers (80 mm wide): clear, or half hidden
+        for _ in range(2000):
+            m = c + rng.uniform(-120, 120, 3) * [1, 1, 0] + 40 * square
+            ok = clear(m).all() if len(corners) < 3 else (clear(m.mean(0)).all() and not clear(m).all())
+            if ok:
+                corners.append(m)
+                break
+    corners = np.array(corners)
+    assert len(corners) == 4 and clear(spot).all()
+    assert camera_sees(PANDA, q, z, eye, corners.mean(axis=1), 4)[0]  # by the centres: 4 markers, the spot
+    assert not camera_sees(PANDA, q, z, eye, corners, 4)[0]  # by the corners: 3
+    assert camera_sees(PANDA, q, z, eye, corners, 3)[0]

@@ -170,10 +170,10 @@ class CoachSteps:
         if markers is None:
             return
         lay = self.layout
-        centres = np.array([np.mean(np.asarray(c, dtype=float), axis=0) for c in markers.corners.values()])
-        base = lay.sheet.to_base(centres, lay.plane_z)
+        corners = np.array([np.asarray(c, dtype=float) for c in markers.corners.values()])  # (k, 4, 2)
+        base = lay.sheet.to_base(corners.reshape(-1, 2), lay.plane_z).reshape(*corners.shape[:2], 3)
         at = lay.sheet.to_base(np.asarray(eye, dtype=float)[None, :2], lay.plane_z)[0] + np.r_[0, 0, eye[2]]
-        need = min(markers.min_markers + 1, len(centres))
+        need = min(markers.min_markers + 1, len(corners))
         aside = self.coach.see_from(at, base, need)
         self.sighted = True
         self.say(

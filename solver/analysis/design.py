@@ -920,7 +920,8 @@ class Coach:
 
     def see_from(self, eye: np.ndarray, markers: np.ndarray, need: int) -> int:
         """Plan only poses the session's camera can measure: its spot and at least ``need`` of the sheet's
-        ``markers`` (k, 3) mm in clear sight of the camera's ``eye`` (3,) mm past the arm, both in the base
+        ``markers`` ((k, 3) mm centres or (k, c, 3) corners) in clear sight of the camera's ``eye`` (3,) mm
+        past the arm, both in the base
         frame, under the current estimate (:func:`solver.analysis.sight.camera_sees`). A point none of whose
         candidates the camera would see keeps them all (the coach cannot help there). Returns how many
         candidates are set aside."""

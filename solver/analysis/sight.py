@@ -72,16 +72,19 @@ def camera_sees(
 ) -> np.ndarray:
     """Whether a camera at ``eye`` (3,) mm measures the spot of each configuration q (m, n) rad on the plane
     of height z mm (a float or (m,)): the spot in clear sight (eq. V1), at least ``need`` of the ``markers``
-    (k, 3) mm, base frame (their centres), in clear sight too, and the spot inside their hull. Returns (m,)
-    bool."""
+    in clear sight too, and the spot inside the hull of their centres. ``markers``: (k, 3) mm, base frame,
+    their centres, or (k, c, 3) their corners: a marker is in sight when every corner is (one the arm hides
+    in part is not found in the photo). Returns (m,) bool."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     axes = arm_axes(model, q)
     b = beam(np.asarray(model.screws, dtype=float), model.laser_dir, model.aperture, q)
     spot, _ = plane_hit(b.aperture, b.direction, z)
     seen = sight_clear(axes, eye, spot[:, None, :], radius)[:, 0]
-    marks = np.broadcast_to(np.asarray(markers, dtype=float), (len(q), *np.shape(markers)))
-    shown = sight_clear(axes, eye, marks, radius)  # (m, k)
-    return seen & (shown.sum(1) >= need) & inside_shown(spot[:, :2], np.asarray(markers)[:, :2], shown)
+    corners = np.asarray(markers, dtype=float).reshape(len(markers), -1, 3)  # (k, c, 3)
+    marks = np.broadcast_to(corners.reshape(-1, 3), (len(q), corners.shape[0] * corners.shape[1], 3))
+    shown = sight_clear(axes, eye, marks, radius).reshape(len(q), *corners.shape[:2]).all(-1)  # (m, k)
+    centres = corners.mean(axis=1)[:, :2]
+    return seen & (shown.sum(1) >= need) & inside_shown(spot[:, :2], centres, shown)
 
 
 def inside_shown(spots: np.ndarray, markers: np.ndarray, shown: np.ndarray) -> np.ndarray:
