@@ -145,3 +145,17 @@ def test_a_marker_the_arm_hides_in_part_is_not_shown():
     assert camera_sees(PANDA, q, z, eye, corners.mean(axis=1), 4)[0]  # by the centres: 4 markers, the spot
     assert not camera_sees(PANDA, q, z, eye, corners, 4)[0]  # by the corners: 3
     assert camera_sees(PANDA, q, z, eye, corners, 3)[0]
+
+
+def test_the_markers_in_view_are_recorded_and_a_resume_reads_them(tmp_path):
+    """camera_eye.yaml keeps the first measured photo's eye and the markers it found: a resumed session
+    plans with the same, and a file from before the key holds every marker in view (an empty tuple)."""
+    from lasercal.collector.sessions.coaching import EYE_FILE, recorded_view
+
+    eye = np.array([350.0, -1.25, 600.5])
+    got = recorded_view(tmp_path, eye, (0, 2, 5))
+    again = recorded_view(tmp_path, None)  # as a resume: nothing measured yet
+    assert np.allclose(got[0], eye) and got[1] == (0, 2, 5)
+    assert np.allclose(again[0], eye) and again[1] == (0, 2, 5)
+    (tmp_path / EYE_FILE).write_text("eye_mm: [350.0, -1.25, 600.5]\n")
+    assert recorded_view(tmp_path, None)[1] == ()

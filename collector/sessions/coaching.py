@@ -109,23 +109,28 @@ def session_coach(
 EYE_FILE = "camera_eye.yaml"  # where the camera stands, as the first measured photo's markers said
 
 
-def recorded_eye(folder, eye) -> np.ndarray | None:
-    """The camera's eye a session recorded (:data:`EYE_FILE`), else ``eye`` (layout frame, mm), recorded
-    now: a resumed session plans for the camera its first photo found, as the uninterrupted one did."""
+def recorded_view(folder, eye, in_view=()) -> tuple[np.ndarray | None, tuple]:
+    """The camera's eye and the markers in its view a session recorded (:data:`EYE_FILE`), else ``eye``
+    (layout frame, mm) and ``in_view`` (marker ids), recorded now: a resumed session plans for the camera
+    its first photo found, as the uninterrupted one did. A file without ``markers_in_view`` (an older
+    session) holds every marker in view."""
     from lasercal.collector.sessions.store import write_atomic
     from lasercal.solver.formats.robots import load_yaml
 
     path = Path(folder) / EYE_FILE
     if path.is_file():
-        return np.asarray(load_yaml(path)["eye_mm"], dtype=float)
+        got = load_yaml(path)
+        return np.asarray(got["eye_mm"], dtype=float), tuple(int(i) for i in got.get("markers_in_view") or ())
     if eye is None:
-        return None
+        return None, ()
     write_atomic(
         path,
-        "# where the camera stands, mm, in the layout's frame: from the first measured photo's markers\n"
-        f"eye_mm: [{eye[0]:.3f}, {eye[1]:.3f}, {eye[2]:.3f}]\n",
+        "# where the camera stands, mm, in the layout's frame, and the markers in its view (ids): from the\n"
+        "# first measured photo's markers\n"
+        f"eye_mm: [{eye[0]:.3f}, {eye[1]:.3f}, {eye[2]:.3f}]\n"
+        f"markers_in_view: [{', '.join(str(int(i)) for i in in_view)}]\n",
     )
-    return np.asarray(eye, dtype=float)
+    return np.asarray(eye, dtype=float), tuple(int(i) for i in in_view)
 
 
 class CoachSteps:
@@ -154,13 +159,14 @@ class CoachSteps:
             spots[spent] = predict_spots(self.coach.post.model, q[spent], spots[spent, 2])[0]
         return q, spots
 
-    def sight_from(self, eye) -> None:
+    def sight_from(self, eye, in_view=()) -> None:
         """Once a photo's markers tell where the camera stands (``eye``, layout frame, mm: eq. V2), the
         coach plans only poses whose spot and enough markers that camera sees past the arm (eq. V1,
-        :meth:`solver.analysis.design.Coach.see_from`), and says so once."""
+        :meth:`solver.analysis.design.Coach.see_from`), and says so once. Only the markers that photo
+        found (``in_view``, ids; empty: all) count: a marker out of the camera's frame is never seen."""
         if self.coach is None or self.sighted or self.layout.frame != "sheet":
             return
-        eye = recorded_eye(self.store.folder, eye)
+        eye, in_view = recorded_view(self.store.folder, eye, in_view)
         if eye is None:
             return
         from lasercal.collector.sessions.anywhere import session_layout_file
@@ -170,7 +176,8 @@ class CoachSteps:
         if markers is None:
             return
         lay = self.layout
-        corners = np.array([np.asarray(c, dtype=float) for c in markers.corners.values()])  # (k, 4, 2)
+        ids = [i for i in markers.corners if not in_view or int(i) in in_view]
+        corners = np.array([np.asarray(markers.corners[i], dtype=float) for i in ids])  # (k, 4, 2)
         base = lay.sheet.to_base(corners.reshape(-1, 2), lay.plane_z).reshape(*corners.shape[:2], 3)
         at = lay.sheet.to_base(np.asarray(eye, dtype=float)[None, :2], lay.plane_z)[0] + np.r_[0, 0, eye[2]]
         need = min(markers.min_markers + 1, len(corners))

@@ -38,12 +38,14 @@ class SpotMeasure:
     note : str, warnings of the measurement ('' when none)
     eye : (3,) array or None, where the camera stands in the layout's frame, mm, from the photo's markers
         (:func:`vision.plane.camera_eye`, eq. V2; None when they cannot tell)
+    in_view : tuple of int, the ids of the markers the photo found (the others hidden or out of its frame)
     """
 
     xy: np.ndarray
     sigma: np.ndarray
     note: str = ""
     eye: np.ndarray | None = None
+    in_view: tuple = ()
 
 
 def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
@@ -69,7 +71,8 @@ def measure_spot(img: np.ndarray, name: str, markers, lens=None) -> SpotMeasure:
     cam = res.plane.camera
     calibrated = cam is not None and np.isfinite(getattr(cam, "rms_px", np.nan))
     eye = camera_eye(res.plane.H, (img.shape[1], img.shape[0]), cam.K if calibrated else None)
-    return SpotMeasure(np.array([s.x_mm, s.y_mm]), sigma, "; ".join(res.warnings), eye)
+    found = tuple(int(i) for i in res.plane.fiducials.marker_ids)
+    return SpotMeasure(np.array([s.x_mm, s.y_mm]), sigma, "; ".join(res.warnings), eye, found)
 
 
 def capture_camera(spec: str | None, cfg: dict, robot, layout: Layout, layout_file, world):

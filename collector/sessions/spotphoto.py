@@ -31,6 +31,7 @@ class Seen:
     nbytes : int, the photo's size as encoded for its file, bytes (0 with ``--photos none``)
     img : (h, w, 3) uint8 array, the photo
     eye : (3,) array or None, where the camera stands, layout frame, mm (:class:`spotcam.SpotMeasure`)
+    in_view : tuple of int, the markers the photo found (:class:`spotcam.SpotMeasure`)
     """
 
     cells: dict
@@ -38,6 +39,7 @@ class Seen:
     nbytes: int
     img: np.ndarray
     eye: np.ndarray | None = None
+    in_view: tuple = ()
 
     @property
     def measured(self) -> bool:
@@ -88,14 +90,14 @@ def spot_cells(
     try:
         m = measure(img, name)
     except VisionError as e:
-        eye = None
+        eye, in_view = None, ()
         why = (str(e).split(": ", 1)[-1] if str(e).startswith(name) else str(e)).replace("\n", " ")
         cells, said = (
             {"photo": name, "camera_note": why},
             f"  ! camera: the spot could not be measured ({why})",
         )
     else:
-        eye = m.eye
+        eye, in_view = m.eye, m.in_view
         cells = {"photo": name, "camera_x": m.xy[0], "camera_y": m.xy[1], "camera_sx": m.sigma[0]}
         cells.update(camera_sy=m.sigma[1], camera_note=m.note.replace("\n", " "))
         if m.eye is not None:  # where the camera stood: the fit's view of a curled paper (eq. S8)
@@ -114,7 +116,7 @@ def spot_cells(
         write_atomic_bytes(folder / name, data)  # before the row: a row never names a missing photo
     else:
         cells["photo"] = ""
-    return Seen(cells, said, len(data), img, eye)
+    return Seen(cells, said, len(data), img, eye, in_view)
 
 
 class PhotoStep:
@@ -159,7 +161,7 @@ class PhotoStep:
             counts[name] == 0,
         )
         self.settled = self.settled or read_unclipped(got)
-        self.sight_from(got.eye)
+        self.sight_from(got.eye, got.in_view)
         if first is not None and not self.estimated:  # the run's first photo: what the photos will take
             self.estimated = True
             left = sum(max(opts.per_point - k, 0) for k in counts.values())
