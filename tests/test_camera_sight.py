@@ -103,6 +103,30 @@ def test_the_coach_plans_no_pose_its_camera_cannot_measure():
     assert plan_seen.all()
 
 
+def test_a_point_the_camera_cannot_measure_borrows_the_seen_candidates_nearest_it():
+    """A point whose every candidate lies past the markers the photo shows (the over-the-arm placement's P5,
+    a marker out of frame) is planned where the camera measures: its share of the seen candidates nearest
+    it, relabelled to it; the others keep theirs. (Before: it kept its own, none measurable.)"""
+    layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
+    coach = Coach(PANDA, layout, seed=1, per_point=40)
+    before = coach.cand
+    eye = np.array([450.0, 0.0, 2000.0])
+    z = layout.plane_z
+    markers = np.array([[x, y, z] for x in (300.0, 650.0) for y in (-100.0, 300.0)])  # P3 (y -200) outside
+    coach.see_from(eye, markers, 3)
+    c = coach.cand
+    seen = camera_sees(PANDA, c.q, c.target[:, 2], eye, markers, 3)
+    assert not seen[before.point == "P3"].any()
+    lent = c.available(["P3"])
+    assert lent.sum() == int(seen.sum()) // 3 and seen[lent].all()
+    assert np.allclose(c.anchor[lent], layout.points["P3"])
+    assert np.allclose(c.target[lent, :2], layout.points["P2"][:2], atol=1.0)  # the nearest seen: P2's
+    for name in ("P1", "P2"):
+        assert c.available([name]).sum() > 0
+    st = coach.status(np.empty((0, PANDA.n)), k=10, allowed=["P3"])
+    assert camera_sees(PANDA, st.plan.q, st.plan.target[:, 2], eye, markers, 3).all()
+
+
 def test_a_spot_outside_the_markers_the_photo_shows_is_not_planned():
     """The photo maps to mm only inside the hull of the markers it shows: a spot outside it, or with fewer
     than three shown, is not measurable."""

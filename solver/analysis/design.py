@@ -208,6 +208,26 @@ def use_region(
     return UseRegion(q, target, label)
 
 
+def lend_seen(cand: Candidates, seen: np.ndarray) -> Candidates:
+    """The candidates with each point none of whose own the camera sees given its share of the seen ones
+    nearest it (``seen`` (N,) bool): the seen count over the points, relabelled to it (point and anchor).
+    A camera session's measured spot is where the beam was, whichever point's cell it lies in; the point
+    only counts the captures (``--per-point``), so its captures are planned where the camera measures them.
+    """
+    point, anchor = cand.point.copy(), cand.anchor.copy()
+    names = sorted(set(point.tolist()))
+    share = max(int(seen.sum()) // len(names), 1)
+    for name in names:
+        here = point == name
+        if seen[here].any():
+            continue
+        at = anchor[here][0]
+        donors = np.flatnonzero(seen & (point != name))
+        near = donors[np.argsort(np.linalg.norm(cand.target[donors, :2] - at[:2], axis=1), kind="stable")]
+        point[near[:share]], anchor[near[:share]] = name, at
+    return replace(cand, point=point, anchor=anchor)
+
+
 @dataclass(frozen=True)
 class Candidates:
     """Candidate next captures: aiming-IK configurations at the calibration points, or at spots anywhere
@@ -923,17 +943,16 @@ class Coach:
         ``markers`` ((k, 3) mm centres or (k, c, 3) corners) in clear sight of the camera's ``eye`` (3,) mm
         past the arm, both in the base
         frame, under the current estimate (:func:`solver.analysis.sight.camera_sees`). A point none of whose
-        candidates the camera would see keeps them all (the coach cannot help there). Returns how many
-        candidates are set aside."""
+        candidates the camera would see (its cell out of the photo's frame, or past the markers it shows)
+        takes its share of the seen ones nearest it (:func:`lend_seen`); where the camera sees none at all,
+        every candidate stays (the coach cannot help there). Returns how many candidates are set aside."""
         from lasercal.solver.analysis.sight import camera_sees
 
         c = self.cand
         seen = camera_sees(self.post.model, c.q, c.target[:, 2], eye, markers, need)
-        for name in set(c.point.tolist()):
-            here = c.point == name
-            if not seen[here].any():
-                seen[here] = True
-        self.cand = replace(c, hidden=~seen)
+        if not seen.any():
+            seen[:] = True
+        self.cand = replace(lend_seen(c, seen), hidden=~seen)
         return int((~seen).sum())
 
     def update(self, q: np.ndarray, target: np.ndarray) -> Posterior:
