@@ -36,7 +36,7 @@ from lasercal.vision.features import (
     _touches_border,
     compact_blob,
 )
-from lasercal.vision.images import full_scale
+from lasercal.vision.images import all_at_least, full_scale
 from lasercal.vision.refine import (
     FIT_STRAY,
     _border_noise,
@@ -644,7 +644,7 @@ def _core_in_halo(
     is in or out (variance 1/12) at a lever r cos(theta), so var = pi r**3 / (12 N**2) = 1 / (12 pi r)
     for N = pi r**2 pixels; speckle on the core's edge adds to it.
     """
-    white = (plain >= LUMA_CLIP * full).all(axis=2).astype(np.uint8)
+    white = all_at_least(plain, LUMA_CLIP * full).astype(np.uint8)
     n, labels, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
     if n <= 1 or stats[1:, 4].max() < 4:
         return Rejection("dim", cand.u, cand.v, None)

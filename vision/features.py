@@ -12,6 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from lasercal.vision.images import all_at_least
 from lasercal.vision.spot import Evidence
 
 MIN_FILL = 0.8  # area over the moment ellipse: 1 for an ellipse, ~0.95 cut, >= 0.91 for real spots
@@ -228,7 +229,7 @@ def _evidence(
     level = 0.0 if blob is None else float(plain[..., ch][blob].max()) / full
     if blob is not None:
         clipped = int((plain[..., ch][blob] >= CLIP * full).sum())
-        white_px = _box_array(memo, "white", lambda: (plain >= LUMA_CLIP * full).all(axis=2))
+        white_px = _box_array(memo, "white", lambda: all_at_least(plain, LUMA_CLIP * full))
         white = int(white_px[blob].sum())
         if not grey:
             rise = _box_array(memo, "luma", lambda: delta @ LUMA)  # the luma's rise over the paper
