@@ -68,7 +68,8 @@ def test_a_yaml_file_is_read_as_it_is_now_and_its_document_is_the_callers(tmp_pa
 
     path = tmp_path / "a.yaml"
     path.write_text("a: [1, 2]\n")
-    load_yaml(path)["a"].append(3)
+    load_yaml(path)["a"].append(3)  # a document parsed
+    load_yaml(path)["a"].append(4)  # one remembered
     assert load_yaml(path) == {"a": [1, 2]}
     path.write_text("a: [1, 5]\n")
     assert load_yaml(path) == {"a": [1, 5]}
