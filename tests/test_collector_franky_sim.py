@@ -29,13 +29,16 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # The fake camera in a clean world (``capture --camera fake`` off the fake backend), from
 # benchmarks/bench_camera_sigma.py both 200 7 3 (1,000 photos beside the five crosses): sessions of the
-# tests' sizes resampled 200,000 times (``--bounds``), the 0.1 % and 99.9 % quantiles of the z-score RMS
-# (error / stated sigma, both axes) and the 99.9 % quantile of the largest error, mm.
+# tests' sizes resampled 200,000 times (``--bounds 40 10``), the 0.1 % and 99.9 % quantiles of the z-score
+# RMS (error / stated sigma, both axes), the 99.9 % quantile of the largest error, mm, and the bound on the
+# larger axis's mean error, mm, above the 99.99 % quantile of 10-photo sessions' (0.0377; 15 photos' 0.0306,
+# for which it was set).
 PHOTOS_PER_POINT = 8
 CLEAN_Z_RMS_40 = (0.816, 1.483)
 CLEAN_LARGEST_ERROR_40 = 0.1180
-CLEAN_Z_RMS_15 = (0.654, 1.704)
-CLEAN_LARGEST_ERROR_15 = 0.1180
+CLEAN_Z_RMS_10 = (0.562, 1.844)
+CLEAN_LARGEST_ERROR_10 = 0.1180
+CLEAN_MEAN_ERROR_10 = 0.04
 
 
 # ----------------------------------------------------------------------------- simulator side
@@ -334,7 +337,7 @@ def capture_scenario(workdir: str, host: str) -> dict:
     return report
 
 
-def camera_scenario(workdir: str, host: str, per_point: int = 3) -> dict:
+def camera_scenario(workdir: str, host: str, per_point: int = 2) -> dict:
     """A hands-free camera session on franky-sim: ``lasercal sheet --place``, then ``capture --guide move
     --camera fake --yes`` with nobody at the keyboard (stdin at EOF), then ``solve --json`` on it.
 
@@ -553,9 +556,10 @@ def test_a_fake_camera_off_the_fake_backend_photographs_the_stated_nominal_beam(
 
 
 def test_hands_free_camera_session_on_franky_sim_measures_the_nominal_fr3s_beam(tmp_path):
-    """capture --guide move --camera fake on franky-sim: 15 captures with nobody at the keyboard, each
-    measured by the fake camera where the nominal FR3's beam (franky-sim's arm) meets the sheet at the
-    logged joint angles; then solve."""
+    """capture --guide move --camera fake on franky-sim: 10 captures (2 per point) with nobody at the
+    keyboard, each measured by the fake camera where the nominal FR3's beam (franky-sim's arm) meets the
+    sheet at the logged joint angles; then solve. (15 until issue 51: the franky-sim session moves the arm in
+    real time, ~8 s a capture; the bounds below are those of 10-photo sessions.)"""
     from lasercal.solver.formats.robots import load_model
     from lasercal.solver.formats.session import load_layout
     from lasercal.solver.identify.spot import predict_spots
@@ -569,11 +573,11 @@ def test_hands_free_camera_session_on_franky_sim_measures_the_nominal_fr3s_beam(
     notice = [ln for ln in r["stderr"] if ln.startswith("--camera fake on --backend franky")]
     assert len(notice) == 1 and "nominal fr3's laser beam" in notice[0]
     # hands-free: every capture taken at the coach's pose without a trigger, none handed to the operator
-    assert len(rows) == 15 and r["hands_free"] == 15 and r["by_hand"] == 0
-    assert sorted(row["point"] for row in rows) == sorted(["P1", "P2", "P3", "P4", "P5"] * 3)
+    assert len(rows) == 10 and r["hands_free"] == 10 and r["by_hand"] == 0
+    assert sorted(row["point"] for row in rows) == sorted(["P1", "P2", "P3", "P4", "P5"] * 2)
     assert all(r["photos_exist"]) and all(row["camera_x"] and row["camera_y"] for row in rows)
     # every commanded move within --max-step (first steps start from a read of the still arm)
-    assert len(r["plans"]) == 15 and r["moves"] == sum(r["plans"]) > 15
+    assert len(r["plans"]) == 10 and r["moves"] == sum(r["plans"]) > 10
     assert r["largest_step"] <= 0.4 + 1e-3
     # the truth, independently: where the nominal FR3's beam at the logged q meets the sheet, in its frame
     layout = load_layout(tmp_path / "sheet" / "layout.yaml")
@@ -591,22 +595,24 @@ def test_hands_free_camera_session_on_franky_sim_measures_the_nominal_fr3s_beam(
     sigma = np.array([[float(row["camera_sx"]), float(row["camera_sy"])] for row in rows])
     assert sigma.min() > 0 and sigma.max() < 0.1  # the fake camera's 0.02-0.05 mm per axis
     # each spot where the beam met the sheet, as well as the fake camera measures in this clean world and
-    # as well as its stated sigma says: within the bands 15-photo sessions resampled from the benchmark's
-    # 1,000 photos stay inside at their 0.1 % and 99.9 % quantiles (CLEAN_Z_RMS_15, CLEAN_LARGEST_ERROR_15;
-    # benchmarks/bench_camera_sigma.py --bounds, 200,000 draws). A spot misplaced (the wrong pose
-    # photographed, a frame off) moves the largest error; a sigma 1.5x too small moves the z-score RMS out
-    # (15 photos cannot tell one 1.5x too large from chance at this rate: the 40 photos of
-    # test_a_fake_camera_off_the_fake_backend_photographs_the_stated_nominal_beam do).
+    # as well as its stated sigma says: within the bands 10-photo sessions resampled from the benchmark's
+    # 1,000 photos stay inside at their 0.1 % and 99.9 % quantiles (CLEAN_Z_RMS_10, CLEAN_LARGEST_ERROR_10;
+    # the mean's CLEAN_MEAN_ERROR_10 above their 99.99 %; benchmarks/bench_camera_sigma.py --bounds,
+    # 200,000 draws). A spot misplaced (the wrong pose photographed, a frame off) moves the mean or the
+    # largest error; a sigma 1.5x too small moves the z-score RMS out of the band in 28 % of such sessions
+    # (44 % at 15 photos): the stated sigma is judged by the 40 photos of
+    # test_a_fake_camera_off_the_fake_backend_photographs_the_stated_nominal_beam (90 %, 82 % at 1/1.5, 1.5),
+    # this session's photos by where franky-sim's arm put the beam.
     err = measured - true
-    assert np.abs(err.mean(axis=0)).max() < 0.04, err.mean(axis=0)
-    assert np.abs(err).max() < CLEAN_LARGEST_ERROR_15, err
+    assert np.abs(err.mean(axis=0)).max() < CLEAN_MEAN_ERROR_10, err.mean(axis=0)
+    assert np.abs(err).max() < CLEAN_LARGEST_ERROR_10, err
     z_rms = float(np.sqrt(np.mean((err / sigma) ** 2)))
-    assert CLEAN_Z_RMS_15[0] < z_rms < CLEAN_Z_RMS_15[1], (z_rms, err / sigma)
+    assert CLEAN_Z_RMS_10[0] < z_rms < CLEAN_Z_RMS_10[1], (z_rms, err / sigma)
     # solve on it: every capture fitted as measured, the sheet found where it was placed (the arm is the
     # nominal FR3, so the robot's own base frame is the nominal's)
     assert r["solve_rc"] == 0
     kinds = r["solve"]["noise_by_kind"]
-    assert kinds["measured"] == 15 and kinds["aimed"] == 0
+    assert kinds["measured"] == 10 and kinds["aimed"] == 0
     pose, std = r["solve"]["sheet"]["pose"], r["solve"]["sheet"]["std"]
     assert abs(pose["x_mm"] - 450) < 4 * std["x_mm"] and abs(pose["y_mm"]) < 4 * std["y_mm"]
     assert abs(pose["yaw_deg"]) < 4 * std["yaw_deg"]
@@ -620,7 +626,7 @@ if __name__ == "__main__":
             _loopback_up()
         if sys.argv[1] == "camera":  # --per-point N: the benchmark's longer session
             k = sys.argv.index("--per-point") + 1 if "--per-point" in sys.argv else None
-            result = camera_scenario(sys.argv[2], sys.argv[3], int(sys.argv[k]) if k else 3)
+            result = camera_scenario(sys.argv[2], sys.argv[3], int(sys.argv[k]) if k else 2)
         else:
             fn = {"validate": validate_scenario, "capture": capture_scenario}.get(sys.argv[1], scenario)
             result = fn(sys.argv[2], sys.argv[3])

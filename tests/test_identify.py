@@ -186,3 +186,32 @@ def test_no_beam_lands_beyond_the_reach_bound_and_a_far_point_is_refused_at_once
     far = p1 + np.array([bound + 1.0, 0.0, 0.0])
     with pytest.raises(AimingError, match="beyond what the arm and a beam of 600 mm can reach"):
         aim(model, far, 3, 0)
+
+
+def test_an_aim_made_again_is_the_first_one_bit_for_bit_and_the_callers_own():
+    """aim remembers the aims made in the process (a coach, a resumed session and a simulation's rerun aim
+    again at what they aimed at): asked again it gives what a new aim gives, bit for bit, as an array of the
+    caller's own; a Generator handed over advances as much either way; another seed, another model or
+    another point is another aim; a point no configuration reaches is refused again with its reason."""
+    from lasercal.solver.errors import AimingError
+    from lasercal.solver.kinematics import aim as aiming
+
+    model, p = load_model("panda"), np.array([450.0, 100.0, 0.0])
+    aiming._AIMED.clear()
+    fresh = aiming.aim(model, p, 4, 3)
+    again = aiming.aim(model, p, 4, 3)
+    assert again.tobytes() == fresh.tobytes() and again is not fresh
+    again[:] = 0.0
+    assert aiming.aim(model, p, 4, 3).tobytes() == fresh.tobytes()
+    assert aiming.aim(model, p, 4, 4).tobytes() != fresh.tobytes()
+    assert aiming.aim(load_model("fr3"), p, 4, 3).tobytes() != fresh.tobytes()
+    assert aiming.aim(model, p + [0.0, 1.0, 0.0], 4, 3).tobytes() != fresh.tobytes()
+    drawn = []
+    for _ in range(2):  # the second aim is remembered
+        rng = np.random.default_rng(5)
+        drawn.append((aiming.aim(model, p, 4, rng).tobytes(), rng.integers(0, 2**62)))
+    assert drawn[0] == drawn[1]
+    above = np.array([0.0, 0.0, 900.0])  # within the reach bound, but no beam pointing down meets it
+    for _ in range(2):
+        with pytest.raises(AimingError, match="only 0 of 4 in-limit configurations aim at"):
+            aiming.aim(model, above, 4, 0)

@@ -59,3 +59,20 @@ def test_bad_model_names_the_field(patch, field):
     with pytest.raises(FormatError) as e:
         model_from_dict(d, "bad.yaml")
     assert e.value.field == field and "bad.yaml" in str(e.value)
+
+
+def test_a_yaml_file_is_read_as_it_is_now_and_its_document_is_the_callers(tmp_path):
+    """load_yaml remembers what it parsed, by the file's text: a file rewritten is read as it is now (a
+    NaN written into it refused as before), and a document its caller changed leaves the next read alone."""
+    from lasercal.solver.formats.checks import load_yaml
+
+    path = tmp_path / "a.yaml"
+    path.write_text("a: [1, 2]\n")
+    load_yaml(path)["a"].append(3)  # a document parsed
+    load_yaml(path)["a"].append(4)  # one remembered
+    assert load_yaml(path) == {"a": [1, 2]}
+    path.write_text("a: [1, 5]\n")
+    assert load_yaml(path) == {"a": [1, 5]}
+    path.write_text("a: [1, .nan]\n")
+    with pytest.raises(FormatError, match="expected a finite number"):
+        load_yaml(path)

@@ -116,9 +116,9 @@ def white_cores(img: np.ndarray) -> list[tuple[int, np.ndarray, tuple]]:
     (x0, y0, x1, y1)) each (white: every channel >= LUMA_CLIP of full scale; compact: see
     :func:`vision.features.compact_blob`)."""
     from lasercal.vision.features import LUMA_CLIP, compact_blob
-    from lasercal.vision.images import full_scale
+    from lasercal.vision.images import all_at_least, full_scale
 
-    white = (img >= LUMA_CLIP * full_scale(img)).all(axis=2).astype(np.uint8)
+    white = all_at_least(img, LUMA_CLIP * full_scale(img)).astype(np.uint8)
     n, lab, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
     out = []
     for i in range(1, n):

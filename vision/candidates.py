@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from lasercal.vision.features import LUMA_CLIP, _robust_sigma
-from lasercal.vision.images import full_scale
+from lasercal.vision.images import all_at_least, full_scale
 from lasercal.vision.spot import CHANNEL
 
 MAX_CANDIDATES = 50
@@ -215,7 +215,7 @@ def _candidates_at(
 def _white_candidates(small: np.ndarray, f: int, shape: tuple[int, int]) -> list[Candidate]:
     """Clipped white blobs: the core of a spot exposed far past clipping, whose halo may be too
     wide or too faint to stand out from the paper (its rim decides, in :func:`measure_spot`)."""
-    white = (small >= LUMA_CLIP * full_scale(small)).all(axis=2)
+    white = all_at_least(small, LUMA_CLIP * full_scale(small))
     return _boxes(white, white.astype(np.float32), f, shape, 2)
 
 
@@ -224,7 +224,7 @@ def _core_candidates(small: np.ndarray, f: int, shape: tuple[int, int], ch: int)
     whose blue the laser hardly lifts. Judged by their ring only (:mod:`vision.ring`)."""
     top = LUMA_CLIP * full_scale(small)
     nb = small[..., 1] if ch == 2 else np.maximum(small[..., 0], small[..., 2])
-    core = (small[..., ch] >= top) & (nb >= top) & ~(small >= top).all(axis=2)
+    core = (small[..., ch] >= top) & (nb >= top) & ~all_at_least(small, top)
     found = _boxes(core, core.astype(np.float32), f, shape, 2)
     return [Candidate(c.box, c.u, c.v, ring_only=True) for c in found]
 

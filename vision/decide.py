@@ -11,7 +11,7 @@ left are ranked by the light they add (:attr:`~vision.spot.Evidence.strength`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -24,17 +24,19 @@ from lasercal.vision.features import (
     CLIP,
     LUMA,
     LUMA_CLIP,
+    _box_array,
     _evidence,
     _ink,
     _label_at,
     _light_need,
     _linear,
+    _others_max,
     _plane_background,
     _surround,
     _touches_border,
     compact_blob,
 )
-from lasercal.vision.images import full_scale
+from lasercal.vision.images import all_at_least, full_scale
 from lasercal.vision.refine import (
     FIT_STRAY,
     _border_noise,
@@ -359,7 +361,7 @@ def _measure_spot(
         whole = (x0, y0, x1, y1) == (0, 0, w, h) or max(x1 - x0, y1 - y0) >= GROW_MAX
         # The spot's own light is laser-coloured: a white surface lit brighter than the paper the
         # border found (a white arm before a grey wall) is no reason to grow.
-        lase = sig if roi.shape[2] == 1 else sig - np.delete(delta, ch, axis=2).max(axis=2)
+        lase = sig if roi.shape[2] == 1 else sig - _others_max(delta, ch)
         if whole or attempt == 3 or not _touches_border(lase, noise[ch], float(lase.max())):
             break
         gx, gy = (x1 - x0) // 2, (y1 - y0) // 2
@@ -442,6 +444,8 @@ class _Box:
     smooth: np.ndarray
     ink: np.ndarray | None
     reference: np.ndarray | None
+    # the arrays every light in the box makes alike, made for the first (features._box_array)
+    memo: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 # Two lights in one blob (a spot and a glare or a lit disc in its halo): parts of it that stand apart in
@@ -495,19 +499,18 @@ def _light_gates(box: _Box, blob: np.ndarray, contrast: float, colour: str, gamm
     peak_d = float(sig[blob].max())
     need = max(8 * noise[ch], contrast)
     raw = plain[..., ch]
-    clipped = raw >= CLIP * full
+    clipped = _box_array(box.memo, "clipped", lambda: raw >= CLIP * full)
     if clipped[blob].any():
         # A clipped spot on bright paper exceeds it by no more than the headroom left: clipped and
         # half the headroom (or 8 sigma) brighter than the paper is bright enough, where the paper
         # is textured (a large spot's box holds the scene) at least 3 sigma.
-        headroom = 0.5 * (full - float(np.median(base[..., ch])))
+        headroom = 0.5 * (full - _box_array(box.memo, "paper", lambda: float(np.median(base[..., ch]))))
         need = max(3 * noise[ch], min(8 * noise[ch], contrast, headroom))
     if peak_d < need or blob.sum() < MIN_BLOB:  # dim or tiny: no need to weigh its colour
-        return Rejection(
-            "dim", cand.u, cand.v, _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour)
-        )
+        ev = _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, memo=box.memo)
+        return Rejection("dim", cand.u, cand.v, ev)
     ev = replace(
-        _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma, ink),
+        _evidence(plain, delta, blob, ch, full, noise, peak_d, need, colour, gamma, ink, box.memo),
         share=blob.sum() / w / h,
     )
     # Laser light adds light: the luma rises too (a lone bright pixel is JPEG ringing or noise).
@@ -521,7 +524,7 @@ def _light_gates(box: _Box, blob: np.ndarray, contrast: float, colour: str, gamm
         # JPEG's coarse colour planes leave a faint laser-coloured fringe beside ink: a
         # weak blob next to pixels darker than the paper in the other channels is one.
         around = cv2.dilate(blob.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool)
-        if np.max(np.delete(delta, ch, axis=2), axis=2)[around].min() < -0.15 * full:
+        if _box_array(box.memo, "other", lambda: _others_max(delta, ch))[around].min() < -0.15 * full:
             return Rejection("fringe", cand.u, cand.v, ev)
     return ev, faint
 
@@ -546,7 +549,7 @@ def _measure_blob(
     x0, y0, w, h = box.where
     sig, smooth, ink = delta[..., ch], box.smooth, box.ink
     raw = plain[..., ch]
-    clipped = raw >= CLIP * full
+    clipped = _box_array(box.memo, "clipped", lambda: raw >= CLIP * full)
     # Whether its colour says laser light (a white reflection's does not) is judged later (judge).
     # A beam on a plane makes an ellipse (aspect 1/cos(tilt)): a blob that fills its own moment
     # ellipse poorly, or is longer than a beam at 66 deg makes, is a wire, a frame or an edge.
@@ -556,12 +559,12 @@ def _measure_blob(
     m = cv2.moments(blob.astype(np.uint8), binaryImage=True)
     start = (m["m10"] / m["m00"], m["m01"] / m["m00"])
     use_luma = luma and box.ndim == 3
-    cen = delta @ LUMA if use_luma else sig
+    cen = _box_array(box.memo, "luma", lambda: delta @ LUMA) if use_luma else sig
     u, v, wgt = _weighted_centroid(cen, start, 1.1 * r_eq + 1, exclude)
     # A spot is brightest near its centre; a ring (JPEG fringe around ink) is dark there.
     if smooth[int(round(v)), int(round(u))] < 0.3 * smooth[blob].max() and ink is None and faint:
         return Rejection("fringe", cand.u, cand.v, ev)
-    Y, X = np.mgrid[: sig.shape[0], : sig.shape[1]]
+    Y, X = _box_array(box.memo, "pixels", lambda: np.mgrid[: sig.shape[0], : sig.shape[1]])
     on_ink = ink is not None and bool(((np.hypot(X - u, Y - v) <= 1.5 * r_eq + 2) & ink).any())
     # Laser light lies where its colour is. Red ink on bright paper can clip in red and pass for a
     # clipped spot, but its luma is darker than the paper's: the luma centroid over it runs off to
@@ -641,7 +644,7 @@ def _core_in_halo(
     is in or out (variance 1/12) at a lever r cos(theta), so var = pi r**3 / (12 N**2) = 1 / (12 pi r)
     for N = pi r**2 pixels; speckle on the core's edge adds to it.
     """
-    white = (plain >= LUMA_CLIP * full).all(axis=2).astype(np.uint8)
+    white = all_at_least(plain, LUMA_CLIP * full).astype(np.uint8)
     n, labels, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
     if n <= 1 or stats[1:, 4].max() < 4:
         return Rejection("dim", cand.u, cand.v, None)

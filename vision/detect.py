@@ -69,7 +69,7 @@ from lasercal.vision.decide import (
 from lasercal.vision.errors import NoSpotError, VisionError
 from lasercal.vision.features import CLIP, LUMA_CLIP
 from lasercal.vision.imagej import measure as imagej_measure
-from lasercal.vision.images import full_scale
+from lasercal.vision.images import all_at_least, full_scale
 from lasercal.vision.ring import RING_MIN
 from lasercal.vision.spot import CHANNEL, Evidence, Pending, Spot
 
@@ -461,7 +461,7 @@ def _white_blobs(img: np.ndarray, min_px: int = 20) -> str:
     clipping can lose the last of its colour and look like a reflection."""
     if img.ndim == 2:
         return ""
-    white = (img >= LUMA_CLIP * full_scale(img)).all(axis=2).astype(np.uint8)
+    white = all_at_least(img, LUMA_CLIP * full_scale(img)).astype(np.uint8)
     n, _, stats, cents = cv2.connectedComponentsWithStats(white, connectivity=8)
     big = [i for i in range(1, n) if stats[i, 4] >= min_px]
     if not big:

@@ -126,6 +126,16 @@ def full_scale(img: np.ndarray) -> float:
     return float(np.iinfo(img.dtype).max)
 
 
+def all_at_least(img: np.ndarray, level: float) -> np.ndarray:
+    """(h, w) bool: pixels whose every channel is at least ``level`` -- ``(img >= level).all(axis=2)``,
+    channel by channel: numpy's reduction over a last axis of three is 7x slower (29 ms of a full-HD
+    photo; a photo's measurement asks it of the whole photo three times)."""
+    out = img[..., 0] >= level
+    for k in range(1, img.shape[2]):
+        out &= img[..., k] >= level
+    return out
+
+
 def to_gray(img: np.ndarray) -> np.ndarray:
     """Grey uint8 copy for marker and pattern detection."""
     g = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)

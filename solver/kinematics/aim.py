@@ -13,6 +13,8 @@ are farthest apart in joint space (greedy farthest-point selection).
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from lasercal.solver.errors import AimingError
@@ -226,6 +228,61 @@ def aim(
             f"beyond what the arm and a beam of {length[1]:g} mm can reach ({far[1]:.0f} mm)"
         )
     seed = root(rng)
+    key = _aim_key(model, point, n, seed, tilt, length, seed_spread, margin, pool)
+    with _AIMED_LOCK:
+        found = _AIMED.get(key)
+    if found is None:
+        try:
+            found = _aim(model, point, n, seed, tilt, length, seed_spread, margin, pool)
+        except AimingError as e:
+            found = str(e)
+        with _AIMED_LOCK:
+            _AIMED[key] = found
+            while len(_AIMED) > _AIMED_MAX:
+                del _AIMED[next(iter(_AIMED))]  # the oldest
+    if isinstance(found, str):
+        raise AimingError(found)
+    return found.copy()  # the caller's to change
+
+
+# The aims made so far in this process (their configurations, or why none was found), by everything an
+# aim is a function of (:func:`_aim_key`): a session's coach, the same session resumed, a simulation and
+# its reruns aim at what they aimed at before, 0.1-1 s each time. What they get is what a new aim would
+# give, bit for bit.
+_AIMED: dict = {}
+_AIMED_MAX = 4096
+_AIMED_LOCK = threading.Lock()
+
+
+def _aim_key(model: RobotModel, point, n, seed, tilt, length, seed_spread, margin, pool) -> tuple:
+    """What :func:`aim` reads: the arm's screws, laser, limits and home, the point, the root seed and the
+    options, as bytes, numbers and the seed's repr."""
+    arrays = (model.screws, model.laser_dir, model.aperture, model.limits, point, tilt, length)
+    home = None if model.home is None else np.asarray(model.home, dtype=float).tobytes()
+    seed_words = repr((seed.entropy, seed.spawn_key, seed.pool_size))
+    return (
+        tuple(np.asarray(a, dtype=float).tobytes() for a in arrays),
+        home,
+        int(n),
+        seed_words,
+        float(seed_spread),
+        float(margin),
+        pool,
+    )
+
+
+def _aim(
+    model: RobotModel,
+    point: np.ndarray,
+    n: int,
+    seed: np.random.SeedSequence,
+    tilt: tuple[float, float],
+    length: tuple[float, float],
+    seed_spread: float,
+    margin: float,
+    pool: int | None,
+) -> np.ndarray:
+    """:func:`aim` from its root seed, not remembered."""
     nj = model.n
     pool = pool or max(8 * n, 64)
     lo, hi = model.limits[:, 0] + margin, model.limits[:, 1] - margin
