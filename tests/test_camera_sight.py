@@ -127,6 +127,19 @@ def test_a_point_the_camera_cannot_measure_borrows_the_seen_candidates_nearest_i
     assert camera_sees(PANDA, st.plan.q, st.plan.target[:, 2], eye, markers, 3).all()
 
 
+def test_two_points_the_camera_cannot_measure_each_keep_their_own_share():
+    """P1 and P3 both past the markers' hull: each borrows its full share of P2's seen candidates, and the
+    second does not take back what the first borrowed."""
+    layout = load_layout(builtin_dir("layouts") / "thesis.yaml")
+    coach = Coach(PANDA, layout, seed=1, per_point=40)
+    z = layout.plane_z
+    markers = np.array([[x, y, z] for x in (300.0, 650.0) for y in (-100.0, 100.0)])
+    coach.see_from(np.array([450.0, 0.0, 2000.0]), markers, 3)
+    c = coach.cand
+    share = int((~c.hidden).sum()) // 3
+    assert c.available(["P1"]).sum() == share == c.available(["P3"]).sum() > 0
+
+
 def test_a_spot_outside_the_markers_the_photo_shows_is_not_planned():
     """The photo maps to mm only inside the hull of the markers it shows: a spot outside it, or with fewer
     than three shown, is not measurable."""

@@ -217,14 +217,15 @@ def lend_seen(cand: Candidates, seen: np.ndarray) -> Candidates:
     point, anchor = cand.point.copy(), cand.anchor.copy()
     names = sorted(set(point.tolist()))
     share = max(int(seen.sum()) // len(names), 1)
+    lent = np.zeros(len(point), bool)  # a candidate lent once stays with its borrower
     for name in names:
         here = point == name
         if seen[here].any():
             continue
         at = anchor[here][0]
-        donors = np.flatnonzero(seen & (point != name))
+        donors = np.flatnonzero(seen & ~here & ~lent)
         near = donors[np.argsort(np.linalg.norm(cand.target[donors, :2] - at[:2], axis=1), kind="stable")]
-        point[near[:share]], anchor[near[:share]] = name, at
+        point[near[:share]], anchor[near[:share]], lent[near[:share]] = name, at, True
     return replace(cand, point=point, anchor=anchor)
 
 
