@@ -496,6 +496,41 @@ def _removed(data_dir: Path, robot: str) -> list:
     return sorted(set(positions(data_dir / robot)) - set(positions(data_dir / f"{robot}_clean")))
 
 
+def study_work(data_dir: Path, sessions_dir: Path, robots, opts: StudyOptions) -> tuple[dict, tuple]:
+    """Each robot's :func:`study_robot` arguments, and the joints whose compliance is compared.
+
+    Parameters
+    ----------
+    data_dir : folder holding ``panda_k`` (and ``panda_k_clean``) MUKCa folders
+    sessions_dir : where the imported sessions are written
+    robots : robot folder names
+    opts : StudyOptions
+
+    Returns
+    -------
+    work : {robot: (session, common, opts, clean session or None, removed positions)}
+    common : 1-based joints loaded in every robot's session (the compliance compared across robots)
+    """
+    sessions = {r: load_robot(data_dir, r, sessions_dir, opts.prior) for r in robots}
+    cleans = {
+        r: load_robot(data_dir, f"{r}_clean", sessions_dir, opts.prior)
+        for r in robots
+        if (data_dir / f"{r}_clean").is_dir()
+    }
+    common = tuple(
+        sorted(
+            set.intersection(
+                *(set(loaded_joints(session_torques(s, opts.payload)[0])) for s in sessions.values())
+            )
+        )
+    )
+    work = {
+        r: (s, common, opts, cleans.get(r), _removed(data_dir, r) if r in cleans else [])
+        for r, s in sessions.items()
+    }
+    return work, common
+
+
 def run_study(data_dir, out, robots=ROBOTS, opts: StudyOptions | None = None) -> dict:
     """The whole study: every robot, the agreement test, report files and plots.
 
@@ -514,23 +549,7 @@ def run_study(data_dir, out, robots=ROBOTS, opts: StudyOptions | None = None) ->
     t0 = time.perf_counter()
     data_dir, out = Path(data_dir), Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    sessions = {r: load_robot(data_dir, r, out / "sessions", opts.prior) for r in robots}
-    cleans = {
-        r: load_robot(data_dir, f"{r}_clean", out / "sessions", opts.prior)
-        for r in robots
-        if (data_dir / f"{r}_clean").is_dir()
-    }
-    common = tuple(
-        sorted(
-            set.intersection(
-                *(set(loaded_joints(session_torques(s, opts.payload)[0])) for s in sessions.values())
-            )
-        )
-    )
-    work = {
-        r: (s, common, opts, cleans.get(r), _removed(data_dir, r) if r in cleans else [])
-        for r, s in sessions.items()
-    }
+    work, common = study_work(data_dir, out / "sessions", robots, opts)
     jobs = min(opts.jobs or os.cpu_count() or 1, len(work))
     if jobs > 1:  # the robots are independent: one process each, up to ``jobs`` at once
         with ProcessPoolExecutor(jobs) as pool:
