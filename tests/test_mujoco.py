@@ -266,6 +266,30 @@ def test_a_backlash_is_a_passive_joint_gravity_takes_to_an_end(tmp_path, scenes)
         assert 0.001 - 1e-5 < bend < 0.001 + 2e-4 * abs(tau2)
 
 
+def test_a_friction_holds_the_spring_where_the_motion_stopped(tmp_path, scenes):
+    """--spring 2:1e-4 --friction 2:3: the hinge rests within +-friction x compliance (3e-4 rad) of the
+    spring's rest, where the motion left it, so one pose reached from two sides rests at two bends; and it
+    stays there (MuJoCo's default soft friction crept to the spring's rest: the two bends agreed to 1e-9)."""
+    code, _, err = lasercal(
+        "mujoco-scene", "--layout", scenes / "sheet" / "layout.yaml", "-o", tmp_path / "fr", "--exact",
+        "--spring", "2:1e-4", "--friction", "2:3",
+    )  # fmt: skip
+    assert code == 0, err
+    world = MujocoWorld(tmp_path / "fr" / "scene.xml")
+    j = world.m.joint("passive_joint2").qposadr[0]
+    q = np.array([0, -0.3, 0, -2.2, 0, 1.9, 0.8])
+    off = []
+    for before in ([0, -0.9, 0, -2.2, 0, 1.9, 0.8], [0, 0.3, 0, -2.2, 0, 1.9, 0.8]):
+        settle_at(world, np.array(before))
+        settle_at(world, q)
+        tau2, bend = world.state().tau[1], world.d.qpos[j]
+        world.step(2.0)
+        assert abs(world.d.qpos[j] - bend) < 1e-5  # it stays: 0.007 mm at the flange's 0.7 m
+        off.append(bend + 1e-4 * tau2)  # from the spring's rest, -compliance x torque
+    assert all(abs(o) <= 3e-4 * 1.01 for o in off), off
+    assert abs(off[0] - off[1]) > 1e-4, off
+
+
 @pytest.mark.usefixtures("renders")
 def test_the_camera_measures_the_spot_where_mujoco_ray_meets_the_sheet(scenes):
     """Photos rendered by MuJoCo (the spot drawn where mj_ray hits), measured through the sheet's markers as

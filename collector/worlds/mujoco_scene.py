@@ -41,6 +41,8 @@ CAMERA_OFFSET_MM = (350.0, 0.0, 600.0)  # beyond the sheet's centre (away from t
 CAMERA_MM_PER_PX = 0.33  # at the sheet's centre
 TEXTURE_MM_PER_PX = 0.1  # the sheet's texture: 254 dpi
 HOME = (0.0, -0.7854, 0.0, -2.3562, 0.0, 1.5708, 0.7854)  # rad: Franka's ready pose
+FRICTION_SOLREF = (0.004, 1.0)  # s, damping ratio: the stiffest MuJoCo allows at its 2 ms step
+FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)  # an impedance near 1: the friction hardly yields
 PASSIVE_DAMPING = 2.0  # Nms/rad on a passive hinge: the link's oscillation settles within a second
 # the light: the paper at about two thirds of full scale (a photo exposed for the spot, which is brighter)
 LAMP = 0.3
@@ -299,6 +301,12 @@ def _arm(spec, drawn: dict, passive: tuple) -> None:
         j.damping = [PASSIVE_DAMPING, 0.0, 0.0]
         j.armature = 0.01
         j.frictionloss = p.friction
+        if p.friction:  # MuJoCo's default friction is soft: under a steady load it creeps to the spring's
+            # rest (a 3 Nm band on a 1e-4 rad/Nm hinge left no trace: the settled poses of a spring alone).
+            # Near-rigid, it sticks where the motion stopped, within +-friction / stiffness, and creeps
+            # ~2e-6 rad in 5 s (a 17 Nm pendulum; default: at rest to 1e-9 rad in 1 s)
+            j.solref_friction = FRICTION_SOLREF
+            j.solimp_friction = FRICTION_SOLIMP
         if p.backlash:  # MuJoCo's soft limit: its ends give ~1e-4 rad/Nm (stiffer ends chattered: the arm
             # never came to rest); a backlash here is free play, then a spring
             j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
