@@ -255,8 +255,9 @@ def _colourless(seed: int, second: bool, off_balance: bool = False) -> WildScene
 
 # How far a camera's auto white balance misses the room light: its blue and red gains each off by up to
 # this (natural log) from the green's. +-0.1 is a median angular error of 2 deg (4.6 at most) in the
-# camera's RGB: the fast statistical estimators cameras run miss by a few degrees in the median. A grey
-# surface then reads a few % off neutral, as no renderer's perfect balance leaves it (issue 55).
+# camera's RGB: the fast statistical estimators cameras run miss by a few degrees in the median. The colour
+# matrix after it widens the miss (1.9x in red over green): a grey surface then reads up to ~20 % off
+# neutral, where the renderer's perfect balance leaves it at 1.00 (issue 55).
 BALANCE_MISS = 0.1
 
 
