@@ -75,7 +75,8 @@ def pooled_rows(real, synth, rule) -> None:
     )
     for kind in ("disc in halo", "glint beside", "lamp at an edge", "reddish surface"):
         row(f"wild: {kind}", fit.score([p for p in synth if p.name.startswith(kind)], rule))
-    for kind in ("colourless core", "leaning core", "red object", "red-lit edge", "two white cores"):
+    kinds = ("colourless core", "leaning core", "red object", "red-lit edge", "two white cores")
+    for kind in (*kinds, "colourless off balance"):
         row(f"wild: {kind}", fit.score([p for p in synth if p.name.startswith(kind)], rule))
 
 

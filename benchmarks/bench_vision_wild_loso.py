@@ -61,6 +61,10 @@ def kind_rows(fresh: list, rule) -> None:
         "fresh: two white cores (refuse)",
         fit.score([p for p in fresh if p.name.startswith("two white")], rule),
     )
+    row(
+        "fresh: colourless, balance off",
+        fit.score([p for p in fresh if p.name.startswith("colourless off")], rule),
+    )
 
 
 def cached(path: Path | None, build):

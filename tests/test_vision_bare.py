@@ -173,6 +173,28 @@ def test_of_several_candidates_a_red_object_is_refused_by_its_light():
     assert _laser_like(plain, RULE.adds_share) == (plain, None)
 
 
+def test_a_lopsided_lamp_is_no_yardstick_for_a_spot_clipped_in_red():
+    # A lamp's white clipped core, its red glow cut by an edge, adds 0.99 of its red in luma; a true spot
+    # clipped in red alone beside it 0.73 (a rendered lamp at an edge, issue 47's wild scenes). Measured
+    # against the lamp the spot was refused as "colouring the photo" and the lamp then reported; the lamp
+    # is no beam (0.24 lopsided, the spot 0.06), so it is no yardstick, and the point symmetry refuses it.
+    def cand(u, light, white, lop):
+        ev = Evidence("red", 1.0, 60, 1.0, light, None, 50, white, 400, 0.8, 1.0, 1.0, 10.0, lopsided=lop)
+        return Spot(u, 50.0, 0.1, 0.1, 255.0, True, 400, evidence=ev)
+
+    lamp, spot = cand(10, 0.99, 160, 0.24), cand(90, 0.73, 0, 0.06)
+    assert _laser_like([lamp, spot], RULE.adds_share, most=RULE.lopsided_max) == ([lamp, spot], None)
+    assert _point_symmetric([lamp, spot], RULE.lopsided_max)[0] == [spot]
+    # A point-symmetric whitened spot stays the yardstick: a red object beside it is refused.
+    white_spot, red = cand(10, 0.97, 50, 0.05), cand(90, 0.45, 0, 0.04)
+    assert _laser_like([white_spot, red], RULE.adds_share, most=RULE.lopsided_max)[0] == [white_spot]
+    # Where every candidate is lopsided (a small spot on a real surface measures 0.2 of it) the point
+    # symmetry tells none apart, and the most laser-like one is the yardstick, as before: an orange object
+    # rising 0.81 beside a spot rising 0.97 is refused.
+    small, orange = cand(10, 0.97, 7, 0.23), cand(90, 0.81, 0, 0.59)
+    assert _laser_like([small, orange], RULE.adds_share, most=RULE.lopsided_max)[0] == [small]
+
+
 def test_a_beams_light_is_point_symmetric_and_a_cut_glow_is_not():
     # An elliptical Gaussian spot, clipped or not, turned half round about its centre lands on itself (up
     # to the bilinear interpolation: under 0.02); the same light cut by a dark object 2 px past its
@@ -287,6 +309,29 @@ def test_a_lone_white_glare_is_no_spot():
         )
         spots, _ = reported(render(photo, seed))
         assert spots == [], (seed, [(s.u, s.v, s.evidence.rule) for s in spots])
+
+
+def test_a_camera_whose_balance_misses_leaves_the_grey_surface_off_neutral():
+    # The renderer balances perfectly: the colourless core's grey surface reads a paper ratio of 1.00
+    # (within the JPEG's rounding). A real camera's balance misses (render_wild.BALANCE_MISS: +-0.1 in the
+    # red and blue gains), and the colour matrix after it widens the miss by its red row's red term less
+    # its green row's (1.65 + 0.25: ln(R/G) of a grey moves 1.9 x the red gain's): colourless_off_balance's
+    # surface reads off neutral, never farther than that.
+    from lasercal.vision.render import PHONE_CCM
+    from lasercal.vision.render_wild import BALANCE_MISS, colourless_core, colourless_off_balance
+
+    widened = float(PHONE_CCM[2, 2] - PHONE_CCM[1, 2]) * BALANCE_MISS
+
+    def off(draw, seed):  # |ln paper ratio| under the spot's rim, in the laser's colour
+        sc = draw(seed)
+        spots = measure_candidates(sc.img, "red", None, 2.2, True)["red"][0]
+        s = min(spots, key=lambda s: np.hypot(s.u - sc.truth[0], s.v - sc.truth[1]))
+        return abs(np.log(s.evidence.paper_ratio))
+
+    balanced = [off(colourless_core, seed) for seed in SEEDS]
+    missed = [off(colourless_off_balance, seed) for seed in SEEDS]
+    assert max(balanced) <= 0.01, balanced
+    assert max(missed) > 0.03 and max(missed) <= widened + 0.01, missed
 
 
 def test_rule_defaults_are_the_fitted_ones():

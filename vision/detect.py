@@ -254,7 +254,7 @@ def select(
     # Issue 55's choice among several, with any number of spots expected (--expect any): with a count
     # expected, the strongest are kept, and the others named with their strength.
     if len(spots) > 1 and expect is None:
-        spots, note = _laser_like(spots, rule.adds_share, rule.dominance, rank)
+        spots, note = _laser_like(spots, rule.adds_share, rule.dominance, rank, rule.lopsided_max)
         if note:
             warnings.append(note)
     if len(spots) > 1 and expect is None:
@@ -341,7 +341,7 @@ def _adds(s: Spot) -> float:
 
 
 def _laser_like(
-    spots: list[Spot], share: float, dominance: float = 0.0, rank=_strength
+    spots: list[Spot], share: float, dominance: float = 0.0, rank=_strength, most: float = RULE.lopsided_max
 ) -> tuple[list[Spot], str | None]:
     """Of several candidates, those that add light like the most laser-like one: their luma rise over
     their colour's (:func:`_adds`) at least ``share`` of its (:attr:`DecisionRule.adds_share`); and a
@@ -349,8 +349,15 @@ def _laser_like(
     chose it (issue 55). One far weaker is left to the dominance (:func:`_refused_among`). Only against a
     candidate whose clipping whitened its core (a white pixel): laser spots clipped in their own channel
     alone rise 0.46-0.62 in luma (three lasers in one photo, ``tests/test_vision_plane.py``), as far
-    apart as a spot and a red object."""
-    top = max(spots, key=_adds)
+    apart as a spot and a red object.
+
+    The yardstick is none that :func:`_point_symmetric` refuses (over ``most``,
+    :attr:`DecisionRule.lopsided_max`, while another candidate is under it): a lamp whose clipped white
+    core an edge cuts adds more luma than a spot clipped in red alone, but it is no beam, and a spot is not
+    refused for adding less than it (a rendered lamp at an edge refused the true spot so, 0.73 against
+    0.99; :func:`_point_symmetric` then refuses the lamp)."""
+    beams = [s for s in spots if _lopsided(s) <= most] or spots
+    top = max(beams, key=_adds)
     if top.evidence is None or not top.evidence.white_px:
         return spots, None
     best = _adds(top)
@@ -389,18 +396,21 @@ def _point_symmetric(
     A spot the photo's edge cuts is not judged by it; one far weaker is left to the dominance
     (:func:`_refused_among`)."""
 
-    def lop(s: Spot) -> float:
-        ev = s.evidence
-        return 0.0 if ev is None or ev.cut or ev.lopsided is None else ev.lopsided
-
-    kept, rest = _refused_among(spots, lambda s: lop(s) > most, dominance, rank)
+    kept, rest = _refused_among(spots, lambda s: _lopsided(s) > most, dominance, rank)
     if not rest:
         return spots, None
-    where = "; ".join(f"({s.u:.1f}, {s.v:.1f}) px (lopsided {lop(s):.2f})" for s in rest[:3])
+    where = "; ".join(f"({s.u:.1f}, {s.v:.1f}) px (lopsided {_lopsided(s):.2f})" for s in rest[:3])
     return kept, (
         f"several candidates: refused {len(rest)} whose light is cut on one side (a lit edge, not a "
         f"laser spot; a beam's light is point-symmetric about its centre, under {most:.2f}): {where}"
     )
+
+
+def _lopsided(s: Spot) -> float:
+    """How far a spot's light is from point-symmetric (:attr:`~vision.spot.Evidence.lopsided`); 0 for a
+    spot the photo's edge cuts, whose light shows on one side whatever made it."""
+    ev = s.evidence
+    return 0.0 if ev is None or ev.cut or ev.lopsided is None else ev.lopsided
 
 
 def _one_per_light(spots: list[Spot]) -> list[Spot]:

@@ -404,19 +404,22 @@ def wild(n: int, seed: int = 0) -> list[Labelled]:
 def wild55(n: int, seed: int = 0, first: int | None = None) -> list[Labelled]:
     """Labelled photos of issue 55's kinds (:data:`vision.render_wild.SCENES_55`: a colourless white core,
     a clipped core a flare streak leans, a red object beside a spot, a red-lit edge beside a spot), ``n``
-    of each, and ``n`` of the colourless core's counter-case (:func:`~vision.render_wild.two_white_cores`:
-    no spot may be reported there but the true one, and none is right). The seeds are ``seed`` x 1000 on,
-    or ``first`` on when given.
+    of each, ``n`` of the colourless core's counter-case (:func:`~vision.render_wild.two_white_cores`:
+    no spot may be reported there but the true one, and none is right) and ``n`` colourless cores through
+    a camera whose white balance misses (:func:`~vision.render_wild.colourless_off_balance`: a real
+    camera's grey is a few % off neutral, the renderer's exactly neutral). The seeds are ``seed`` x 1000
+    on, or ``first`` on when given.
 
     Returns
     -------
     list of Labelled, source "wild 55" (the spot's label: its true centre, uncertainty 0.5 px, its core
     radius; the counter-case's spot is an uncertain one, never false and never needed)
     """
-    from lasercal.vision.render_wild import SCENES_55, two_white_cores
+    from lasercal.vision.render_wild import SCENES_55, colourless_off_balance, two_white_cores
 
     out = []
-    for kind, draw in dict(SCENES_55, **{"two white cores": two_white_cores}).items():
+    more = {"two white cores": two_white_cores, "colourless off balance": colourless_off_balance}
+    for kind, draw in dict(SCENES_55, **more).items():
         for i in range(n):
             sc = draw((seed * 1000 if first is None else first) + i)
             label = dict(x=sc.truth[0], y=sc.truth[1], uncertainty_px=0.5, radius_px=sc.radius)

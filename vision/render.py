@@ -300,6 +300,10 @@ class Photo:
     response: tuple | None = None  # (B, G, R) response to the laser (cross-talk); None: LASER_RESPONSE
     # the paper's reflectance (B, G, R) relative to white, e.g. (0.25, 0.9, 0.95) yellow
     surface: tuple = (1.0, 1.0, 1.0)
+    # The light (B, G, R) a phone camera white-balances for; None: the room light (tint) itself, a perfect
+    # balance. A real camera's auto white balance estimates the room light and misses it by a few degrees,
+    # which leaves a grey surface a few % off neutral.
+    balance: tuple | None = None
 
     def truth(self) -> np.ndarray:
         """(n, 2) array of the spots' true centres, px."""
@@ -498,7 +502,7 @@ def _phone(img: np.ndarray, photo: Photo, cam: PhoneCamera, rng, seed: int) -> n
     rgb = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2BGR).astype(np.float32) / 65535  # OpenCV's name for RGGB
     # White balance for the room light, scaled so that no gain is below 1: whatever clipped on
     # the sensor stays clipped (white) instead of turning a tint.
-    wb = 1 / np.float32(photo.tint)
+    wb = 1 / np.float32(photo.tint if photo.balance is None else photo.balance)
     rgb = np.minimum(rgb * (wb / wb.min()), 1.0)
     top = rgb.max(axis=2, keepdims=True)
     rgb = np.clip(rgb @ np.asarray(cam.ccm, np.float32).T, 0, 1)

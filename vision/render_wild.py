@@ -9,7 +9,7 @@ the photos are 640 x 480 crops at 0.1 mm per pixel, rendered by :mod:`vision.ren
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -205,6 +205,12 @@ def colourless_core(seed: int) -> WildScene:
     return _colourless(seed, False)
 
 
+def colourless_off_balance(seed: int) -> WildScene:
+    """:func:`colourless_core`'s scene through a camera whose white balance misses the room light (see
+    :data:`BALANCE_MISS`): the grey surface reads a few % off neutral, as a real camera leaves it."""
+    return _colourless(seed, False, off_balance=True)
+
+
 def two_white_cores(seed: int) -> WildScene:
     """:func:`colourless_core`'s scene with the faint glare made a second white clipped blob of about the
     spot's size (a glare off a glossy object): which of the two is the laser the photo cannot say. The
@@ -212,7 +218,7 @@ def two_white_cores(seed: int) -> WildScene:
     return _colourless(seed, True)
 
 
-def _colourless(seed: int, second: bool) -> WildScene:
+def _colourless(seed: int, second: bool, off_balance: bool = False) -> WildScene:
     rng = np.random.default_rng([seed, 5])
     view = _view()
     uv = np.array([320.0, 240.0]) + rng.uniform(-120, 120, 2) * (1, 0.7)
@@ -242,7 +248,33 @@ def _colourless(seed: int, second: bool) -> WildScene:
         ),
         response=(rng.uniform(0.4, 0.8), rng.uniform(0.5, 0.9), 1.0),
     )
+    if off_balance:  # drawn last: every other draw of the seed is the perfectly balanced scene's
+        photo = replace(photo, balance=_missed_balance(rng, photo.tint))
     return WildScene(render(photo, seed), uv, core, glare_at)
+
+
+# How far a camera's auto white balance misses the room light: its blue and red gains each off by up to
+# this (natural log) from the green's. +-0.1 is a median angular error of 2 deg (4.6 at most) in the
+# camera's RGB: the fast statistical estimators cameras run miss by a few degrees in the median. The colour
+# matrix after it widens the miss (1.9x in red over green): a grey surface then reads up to ~20 % off
+# neutral, where the renderer's perfect balance leaves it at 1.00 (issue 55).
+BALANCE_MISS = 0.1
+
+
+def _missed_balance(rng, tint: tuple) -> tuple:
+    """The light (B, G, R) a camera balances for when its estimate of the room light ``tint`` misses.
+
+    Parameters
+    ----------
+    rng : numpy Generator
+    tint : (B, G, R), the room light
+
+    Returns
+    -------
+    (B, G, R) tuple: ``tint`` with its blue and red each scaled by exp(U(-BALANCE_MISS, BALANCE_MISS))
+    """
+    miss = np.exp(rng.uniform(-BALANCE_MISS, BALANCE_MISS, 2))
+    return float(tint[0] * miss[0]), float(tint[1]), float(tint[2] * miss[1])
 
 
 def leaning_core(seed: int) -> WildScene:
