@@ -65,8 +65,11 @@ def test_the_fit_harness_reports_what_the_command_reports(name):
 @needs_photos
 def test_leave_one_source_out_finds_the_spots_and_invents_few(measured):
     # Issue 30: the rule is fitted without the source it is scored on, as on cameras never seen.
-    # Measured: 18 of 21 found, 3 false, no photo lost, median 0.5 px (bench_vision_loso.py); the
-    # bounds leave a photo's margin either way.
+    # With this test's training set (40 phone renders, 60 lit papers, 4 of each issue-47 scene):
+    # 19 of 21 found, 1 false, no photo lost; the bounds leave one photo's margin either way (a fold's
+    # thresholds are the middle of equally good grid values: a tie moved by rounding can move a photo).
+    # Issue 55's bar is scored by bench_vision_loso.py with the full training set (120 phone renders, 8 of
+    # each issue-47 scene, the issue-55 kinds: ~3x this test's CPU): 20 of 21, 0 false, median 0.50 px.
     from lasercal.vision import fit
 
     real, synth = measured
@@ -74,8 +77,8 @@ def test_leave_one_source_out_finds_the_spots_and_invents_few(measured):
     assert set(folds) == {p.source for p in real} and len(folds) == 7
     total = sum((s for _, s in folds.values()), fit.Score())
     assert total.labelled == 21 and total.photos == 24
-    assert total.found >= 17 and total.false <= 4 and total.unmeasurable == 0
-    assert total.median <= 2.0
+    assert total.found >= 18 and total.false <= 2 and total.unmeasurable == 0, total
+    assert total.median <= 0.6, total
     # Issue 47 item 3: each fold's rule, fitted without one source, takes no white light for a laser (the
     # bluish torch, the cool lamp and the white glare of the rim-shift test below, on every paper).
     white = []
