@@ -289,7 +289,7 @@ def print_table(rows: list) -> None:
         "`--extend auto` names",
         "folds agreeing",
         "held out: geometric -> extended (gain)",
-        "the whole session's choice refitted per fold",
+        "refitted per fold",
         "reported before (gain, metric; named)",
         "doc:line",
         "wall / CPU s",
