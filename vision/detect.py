@@ -304,8 +304,12 @@ def _judged(
         done = finish(replace(s, evidence=ev))
         if isinstance(done, Rejection):
             refused.append(done)
-        else:
-            kept.append(_rim_centred(replace(done, evidence=judge(done.evidence, rule)), rule.lean_min))
+            continue
+        # A ringed core that stands for a refused fit brings evidence of its own to judge; judging the
+        # evidence just judged again would only copy it (judge reads neither rule nor confidence).
+        if done.evidence is not ev:
+            done = replace(done, evidence=judge(done.evidence, rule))
+        kept.append(_rim_centred(done, rule.lean_min))
     # A colourless core is read only where no spot shows the laser's colour (see vision.bare).
     if any(s.evidence is None or s.evidence.rule != "bare" for s in kept):
         refused += [Rejection("white", s.u, s.v, s.evidence) for s in kept if s.evidence.rule == "bare"]

@@ -203,7 +203,8 @@ def _cost(photos: list[Labelled], rule: DecisionRule) -> float:
     by: dict[str, list] = {}
     for p in photos:
         by.setdefault(p.source, []).append(p)
-    return float(np.mean([score(ps, rule).errors / len(ps) for ps in by.values()]))
+    # Summed per photo (errors add up): the sum of the Scores would join their distances for nothing.
+    return float(np.mean([sum(score_of(p, rule).errors for p in ps) / len(ps) for ps in by.values()]))
 
 
 def fit_rule(
