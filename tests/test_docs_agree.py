@@ -30,6 +30,7 @@ PAGES = {
     "diagnosis where the world holds more": ("diagnosis.md",),
     "vision, phone photos": ("results.md", "vision.md"),
     "capture coach vs": ("results.md", "coach.md"),
+    "vision, real photos": ("vision.md",),
     "real Pandas (MUKCa)": ("results.md", "real-data.md", "diagnosis.md"),
     "full pose from raw": ("results.md", "fullpose.md"),
     "real UR10": ("results.md", "real-data.md"),
