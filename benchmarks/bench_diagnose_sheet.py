@@ -56,11 +56,12 @@ calibration: [P1, P2, P3, P4, P5]
 """
 
 
-def one(tmp: Path, layout: str, kind: str, seed: int, effect=None) -> dict:
-    """Simulate and solve one session; the diagnosis as ``solve --json`` reports it."""
+def one(tmp: Path, layout: str, kind: str, seed: int, effect=None, per_point: int = 15) -> dict:
+    """Simulate and solve one session (``per_point`` captures at each calibration point); the diagnosis as
+    ``solve --json`` reports it."""
     measured, noise = KINDS[kind]
     s = tmp / f"s{seed}"
-    argv = ["simulate", "panda_thesis_identified", "--layout", layout, "--per-point", "15"]
+    argv = ["simulate", "panda_thesis_identified", "--layout", layout, "--per-point", str(per_point)]
     argv += ["--aim-noise", noise, "--measured", measured, "--seed", str(seed), "-o", str(s), "--force"]
     if layout.endswith("sheet/layout.yaml"):
         argv += ["--sheet-pose", "452", "3", "1.0"]
