@@ -332,12 +332,46 @@ def test_extend_auto_on_one_session_keeps_the_joint_compliance_it_hides(tmp_path
     out = tmp_path / "m.yaml"
     assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--extend", "auto", "--folds", "0"]) == 0
     text = capsys.readouterr().out
-    table = text.split("held out (")[1].split("kept: ")[0].splitlines()[1:]
+    table = text.split("held out (")[1].split("the choice made inside")[0].splitlines()[1:]
     held = {ln.split(":")[0].strip(): float(ln.split(":")[1].split()[0]) for ln in table}
     kept = text.split("kept: ")[1].split("\n")[0]
     # compliance alone on the hidden joints (not compliance + map: the session has no map)
     assert kept == "joint compliance (joints 2,3)" and held[kept] < held["geometric"] / 3
+    # issue 52: each block held out chose it from the other two alone, and its gain is the outer folds'
+    folds = text.split("inside each fold")[1].split("held out with")[0].splitlines()[1:]
+    assert len(folds) == 3 and all(kept in ln for ln in folds), folds
+    nested = text.split("held out with each fold's own choice: ")[1]
+    assert float(nested.split()[0]) == held[kept] and "3 of 3 folds chose" in nested
     assert set(load_model(out).extensions) == {"joint_compliance"}
+
+
+def test_extend_auto_keeps_the_geometry_when_the_folds_chose_otherwise(tmp_path, capsys, monkeypatch):
+    """Issue 52: the session's best model is kept only when all but one outer fold chose it from its own
+    training blocks; here two of three folds are made to choose the geometry: the geometry is kept, and
+    the held-out figure is each fold's own choice's."""
+    from lasercal.solver.analysis import pose_cv
+
+    rng = np.random.default_rng(13)
+    nominal, truth, ext, sessions, _ = truth_and_sessions(rng, 1, 120, [-2e-5, -2e-5], noise=0.01, span=0.8)
+    write_session(tmp_path / "s", sessions[0].q, sessions[0].T)
+    made = pose_cv.nested_choices
+    monkeypatch.setattr(pose_cv, "nested_choices", lambda c, *a: [made(c, *a)[0], c[0].label, c[0].label])
+    out = tmp_path / "m.yaml"
+    assert main(["solve", str(tmp_path / "s"), "-o", str(out), "--extend", "auto", "--folds", "0"]) == 0
+    text = capsys.readouterr().out
+    assert text.split("\nkept: ")[1].split("\n")[0] == "geometric"
+    assert "1 of 3 folds chose joint compliance (joints 2,3) (2 needed)" in text
+    assert "joint compliance (joints 2,3), best held out, is not named: the folds disagreed" in text
+    assert not load_model(out).extensions
+    table = text.split("held out (")[1].split("the choice made inside")[0].splitlines()[1:]
+    held = {ln.split(":")[0].strip(): float(ln.split(":")[1].split()[0]) for ln in table}
+    folds = [
+        float(ln.split(", ")[-2].split()[0]) for ln in text.split("inside each fold")[1].splitlines()[1:4]
+    ]
+    nested = float(text.split("held out with each fold's own choice: ")[1].split()[0])
+    assert nested == pytest.approx(np.mean(folds), abs=2e-3) and held["geometric"] > nested > min(
+        held.values()
+    )
 
 
 @needs_data

@@ -135,6 +135,7 @@ def solve_poses(args) -> int:
                 f"  {row['label']}: {row['position_mm']:.3f} mm, {row['rotation_mrad']:.3f} mrad "
                 f"(fitted {row['train_position_mm']:.3f} mm)"
             )
+        out += chosen_in_folds(auto)
         out.append(f"kept: {auto.chosen}")
     elif args.folds and len(sessions) > 1:
         pos, rot = [], []
@@ -150,6 +151,26 @@ def solve_poses(args) -> int:
         out.append(f"leave one session out: {np.mean(pos):.3f} mm, {1e3 * np.mean(rot):.3f} mrad mean")
     print("\n".join(out) + f"\nwrote {args.output}")
     return 0
+
+
+def chosen_in_folds(auto) -> list:
+    """The lines saying what each outer fold chose from its training sessions alone, the held-out error of
+    those choices (the figure ``--extend auto`` stands by) and whether the folds agreed (pose_cv)."""
+    n = auto.nested
+    if n is None:
+        return ["the choice inside each fold: not made (fewer than three sessions or blocks)"]
+    geo = n["geometric_position_mm"]
+    out = [
+        "the choice made inside each fold (leave one out of its training sessions alone):",
+        *(f"  {f['held']} held out: {f['chose'] or 'no choice (an inner fit failed): the geometry'}, "
+          f"{f['position_mm']:.3f} mm, {f['rotation_mrad']:.3f} mrad" for f in auto.folds),
+        f"held out with each fold's own choice: {n['position_mm']:.3f} mm, {n['rotation_mrad']:.3f} mrad "
+        f"(geometric {geo:.3f} mm: {100 * (geo - n['position_mm']) / geo:+.1f} %); "
+        f"{n['agree']} of {len(auto.folds)} folds chose {auto.best} ({n['needed']} needed)",
+    ]  # fmt: skip
+    if auto.chosen != auto.best:
+        out.append(f"{auto.best}, best held out, is not named: the folds disagreed")
+    return out
 
 
 POSE_EXTEND = ("none", "auto", "joint_compliance", "joint_map")  # solve --extend of pose sessions

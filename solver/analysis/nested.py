@@ -19,6 +19,9 @@ from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.session import Session
 from lasercal.solver.identify.measurement import residuals
 
+# the agreement rule: a cause is named when all but at most this many fitted outer folds chose it too
+AGREE_ALL_BUT = 1
+
 
 @dataclass(frozen=True)
 class FoldChoice:
@@ -135,7 +138,7 @@ def fold_agreement(whole, choices: list) -> dict:
     fitted = [c for c in choices if c.failed is None]
     agree = sum(same_cause(whole, c.extension) for c in fitted)
     label = "none" if whole is None else whole.label
-    needed = max(len(fitted) - 1, 1)
+    needed = max(len(fitted) - AGREE_ALL_BUT, 1)
     out = {
         "folds_agree": int(agree),
         "folds_same_cause": int(sum(c.label == label for c in fitted)),

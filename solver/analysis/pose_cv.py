@@ -9,7 +9,12 @@ halves are the first and second half in recording order: the later half was meas
 joints the gravity model loads, and that plus a joint error map (:mod:`solver.kinematics.joint_map`) by this
 protocol over the sessions (leave one session out; one session: three blocks of rows in order), and keeps
 the one with the lowest held-out score (position mean / sigma_pos + rotation mean / sigma_rot, the noise
-levels of the geometric fit). Each fold's fit is its own: from the nominal robot, its frames from the
+levels of the geometric fit). That table chooses and scores on the same folds, so its best score is
+optimistic by the choice: the choice is also made inside each outer fold (:func:`nested_choices`), from a
+leave-one-out over that fold's training units alone, and the outer folds' scores of their own choices are
+the held-out figure reported. The choice is kept only when all but at most one outer fold made it too (the
+agreement rule of :func:`~lasercal.solver.analysis.nested.fold_agreement`); otherwise the geometry is kept
+and the folds' choices are said. Each fold's fit is its own: from the nominal robot, its frames from the
 closed-form start, its own rotation/position noise ratio, a joint map's knots over its own angles --
 nothing of the held-out session reaches it (a start from the whole data's fit would carry it: the
 directions the fold cannot identify stay where the start put them). The map's knot step and prior are
@@ -25,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lasercal.solver.analysis.nested import AGREE_ALL_BUT
 from lasercal.solver.errors import IdentificationError
 from lasercal.solver.formats.poses import PoseSession
 from lasercal.solver.identify.poses import PoseFit, errors, fit_poses, session_frames
@@ -123,52 +129,143 @@ class AutoResult:
 
     Attributes
     ----------
-    fit : PoseFit, the chosen candidate fitted on every session
+    fit : PoseFit, the kept candidate fitted on every session (the geometry when the folds disagreed)
     table : list of dict, per candidate: label, held-out position and rotation means (mm, mrad), score, train
-    chosen : str, the chosen candidate's label
+    chosen : str, the kept candidate's label
     seconds : float
+    best : str, the label the whole table scores best
+    folds : tuple of dict, per outer fold: 'held' (unit name), 'chose' (label, None when its inner folds
+        could not be fitted: it predicts with the geometry), 'position_mm' and 'rotation_mrad' of its
+        choice on its held-out unit
+    nested : dict or None, the outer folds' held-out means of their own choices ('position_mm',
+        'rotation_mrad'), the geometry's ('geometric_position_mm'), 'agree' (folds that chose ``best``) and
+        'needed'; None with fewer than three units
     """
 
     fit: PoseFit
     table: list
     chosen: str
     seconds: float
+    best: str = ""
+    folds: tuple = ()
+    nested: dict | None = None
+
+
+def fold_fits(cands: list, train: list, nominal: RobotModel, robust: bool) -> list:
+    """Every candidate fitted on ``train`` alone (its map's knots over their angles), each started from the
+    previous one's fit of the same sessions (the first from the nominal robot): nothing outside ``train``
+    reaches them.
+
+    Returns
+    -------
+    list of PoseFit, one per candidate
+    """
+    out, prev = [], None
+    for c in cands:
+        prev = fit_poses(train, nominal, c.extension, covering(c.joint_map, train), robust=robust, warm=prev)
+        out.append(prev)
+    return out
+
+
+def held_out(fit: PoseFit, held) -> tuple[float, float]:
+    """Mean held-out position (mm) and rotation (rad) errors of a fold's fit registered on ``held``
+    (:func:`half_scores`)."""
+    p, r = half_scores(fit.model, held)
+    return float(p.mean()), float(r.mean())
+
+
+def score(pos: float, rot: float, ref: PoseFit) -> float:
+    """``--extend auto``'s score: held-out position mean / sigma_pos + rotation mean / sigma_rot, the noise
+    levels of the geometric fit ``ref``."""
+    return pos / ref.sigma_pos + rot / ref.sigma_rot
+
+
+def nested_choices(cands: list, units: list, geo_folds: list, nominal: RobotModel, robust: bool) -> list:
+    """Each outer fold's choice of candidate from its training units alone: a leave-one-out over them (fit
+    on the others, score the one left out), scored as the whole table is, against the fold's own geometric
+    fit ``geo_folds[k]``. A fit on the units left after two are held out serves both outer folds that leave
+    those two out.
+
+    Returns
+    -------
+    list of str or None per outer fold (None: fewer than three units, or an inner fold could not be fitted)
+    """
+    n = len(units)
+    if n < 3:
+        return [None] * n
+    fitted: dict = {}  # the candidates fitted without a pair of units
+    errors: dict = {}
+
+    def inner(k: int, i: int) -> list:  # per candidate, its errors on unit i fitted without units k and i
+        pair = frozenset((k, i))
+        if pair not in fitted:
+            fitted[pair] = fold_fits(
+                cands, [u for j, u in enumerate(units) if j not in pair], nominal, robust
+            )
+        if (pair, i) not in errors:
+            errors[(pair, i)] = [held_out(f, units[i]) for f in fitted[pair]]
+        return errors[(pair, i)]
+
+    out = []
+    for k in range(n):
+        try:
+            scores = np.mean(
+                [[score(p, r, geo_folds[k]) for p, r in inner(k, i)] for i in range(n) if i != k], 0
+            )
+            out.append(cands[int(np.argmin(scores))].label)
+        except IdentificationError:
+            out.append(None)
+    return out
 
 
 def extend_auto(sessions: list, nominal: RobotModel, robust: bool = True) -> AutoResult:
-    """Fit every :func:`candidates` model on all sessions, cross-validate each (module docstring), keep the
-    best."""
+    """Fit every :func:`candidates` model on all sessions, cross-validate each, choose inside each outer fold
+    too, and keep the best when the folds agree (module docstring)."""
     t0 = time.perf_counter()
     units = folds(sessions)
     split = len(sessions) == 1
-    fits, table, prev = {}, [], None
-    for c in candidates(nominal, sessions):
+    cands = candidates(nominal, sessions)
+    per_fold = [
+        fold_fits(cands, [u for j, u in enumerate(units) if j != k], nominal, robust)
+        for k in range(len(units))
+    ]
+    fits, table, prev, outer = {}, [], None, {}
+    for ci, c in enumerate(cands):
         full = fit_poses(
             units if split else sessions, nominal, c.extension, c.joint_map, robust=robust, warm=prev
         )
         prev = full
-        pos, rot = [], []
-        for k, held in enumerate(units):
-            train = [u for j, u in enumerate(units) if j != k]
-            jm = covering(c.joint_map, train)
-            f = fit_poses(train, nominal, c.extension, jm, robust=robust)  # its own fit (module docstring)
-            p, r = half_scores(f.model, held)
-            pos.append(p.mean())
-            rot.append(r.mean())
+        outer[c.label] = [held_out(per_fold[k][ci], held) for k, held in enumerate(units)]
         fits[c.label] = full
         table.append(
             {
                 "label": c.label,
-                "position_mm": float(np.mean(pos)),
-                "rotation_mrad": 1e3 * float(np.mean(rot)),
+                "position_mm": float(np.mean([p for p, _ in outer[c.label]])),
+                "rotation_mrad": 1e3 * float(np.mean([r for _, r in outer[c.label]])),
                 "train_position_mm": float(np.mean(np.concatenate([e[0] for e in full.errors.values()]))),
             }
         )
     ref = fits[table[0]["label"]]
     for row in table:
-        row["score"] = row["position_mm"] / ref.sigma_pos + row["rotation_mrad"] * 1e-3 / ref.sigma_rot
-    best = min(table, key=lambda r: r["score"])
-    chosen = fits[best["label"]]
+        row["score"] = score(row["position_mm"], row["rotation_mrad"] * 1e-3, ref)
+    best = min(table, key=lambda r: r["score"])["label"]
+    choices = nested_choices(cands, units, [f[0] for f in per_fold], nominal, robust)
+    fold_rows, nested = [], None
+    if any(ch is not None for ch in choices):
+        for k, (held, ch) in enumerate(zip(units, choices)):
+            p, r = outer[ch or cands[0].label][k]
+            fold_rows.append({"held": held.name, "chose": ch, "position_mm": p, "rotation_mrad": 1e3 * r})
+        fitted = [ch for ch in choices if ch is not None]
+        nested = {
+            "position_mm": float(np.mean([f["position_mm"] for f in fold_rows])),
+            "rotation_mrad": float(np.mean([f["rotation_mrad"] for f in fold_rows])),
+            "geometric_position_mm": table[0]["position_mm"],
+            "agree": sum(ch == best for ch in fitted),
+            "needed": max(len(fitted) - AGREE_ALL_BUT, 1),
+        }
+    agreed = nested is None or nested["agree"] >= nested["needed"]
+    kept = best if agreed else cands[0].label
+    chosen = fits[kept]
     if split:  # the blocks were fitted as sessions of their own: refit the whole session once
         chosen = fit_poses(sessions, nominal, chosen.effects[0], chosen.effects[1], robust=robust)
-    return AutoResult(chosen, table, best["label"], time.perf_counter() - t0)
+    return AutoResult(chosen, table, kept, time.perf_counter() - t0, best, tuple(fold_rows), nested)
