@@ -16,9 +16,10 @@ prepare them, in a temporary folder (the data are read from DATA, never copied i
   decision is made on the same folds it is scored on (``joint_map.gain_is``);
 * UR10: ``lasercal import-ipa DATA/ur10-tracker/Series_X -o X`` for A, B, C, then ``lasercal solve A B C -o
   M.yaml --extend auto`` (pose sessions: ``solver/analysis/pose_cv.py``, no ``--json``; it compares its three
-  candidates by leave one series out and keeps the best, so its figure is scored on the folds that chose
-  it). The ``nested`` row (skipped with ``--no-nested``) runs the same ``extend_auto`` on the two training
-  series of each outer fold and scores its choice on the held-out series: the selection inside the folds.
+  candidates by leave one series out, makes the choice again inside each outer fold from its two training
+  series, and reports those folds' held-out figure and how many chose its best). The ``nested`` row
+  (skipped with ``--no-nested``) is an outside check of that: ``extend_auto`` run on the two training series
+  of each outer fold, its choice scored on the held-out series.
 
 Columns: the data set; captures (poses for the UR10); what is named (effect and joints, or none and why);
 the outer folds that chose the same cause (of those fitted, and how many the agreement rule needs); the
@@ -199,14 +200,16 @@ def solve_diagnosed(name: str, session: Path, extra: list, tmp: Path) -> list:
 
 
 def ur10_cli(sessions: list, tmp: Path) -> dict:
-    """``lasercal solve A B C -o M.yaml --extend auto``: its held-out table and what it keeps.
+    """``lasercal solve A B C -o M.yaml --extend auto``: its held-out table, each outer fold's own choice and
+    what it keeps.
 
     Returns
     -------
-    dict as :func:`diagnosis_row`'s (held out: mean position error, mm, leave one series out)
+    dict as :func:`diagnosis_row`'s (held out: mean position error, mm, leave one series out; 'extended' the
+    outer folds' own choices, 'refit' the kept candidate's row of the table)
     """
     out, wall, cpu = lasercal(["solve", *map(str, sessions), "-o", "ur10.yaml", "--extend", "auto"], tmp)
-    rows, kept, poses = {}, "?", 0
+    rows, kept, poses, folds, nested, agree = {}, "?", 0, [], float("nan"), "?"
     for line in out.splitlines():
         if line.startswith("pose sessions: "):  # 'pose sessions: A (11911), B (1495), C (2773); 61.2 s'
             poses = sum(int(part.split("(")[1].rstrip(")")) for part in line.split(";")[0].split(", "))
@@ -215,16 +218,21 @@ def ur10_cli(sessions: list, tmp: Path) -> dict:
         elif line.startswith("  ") and " mm, " in line and "(fitted" in line:
             label, figures = line.strip().rsplit(": ", 1)
             rows[label] = float(figures.split(" mm")[0])
+        elif line.startswith("  ") and " held out: " in line:  # '  A held out: LABEL, 0.174 mm, 0.433 mrad'
+            folds.append(line.strip())
+        elif line.startswith("held out with each fold's own choice: "):  # '...: 0.236 mm, ...; 3 of 3 folds'
+            nested = float(line.split(": ")[1].split(" mm")[0])
+            agree = line.split("; ")[-1].split(" folds chose")[0] + " (" + line.rsplit("(", 1)[1]
     print(f"ur10 A+B+C: kept {kept}, {wall:.0f} s wall, {cpu:.0f} s CPU", flush=True)
     return {
         "name": "ur10 A+B+C",
         "captures": poses,
         "named": kept,
-        "folds": "chosen on them",
+        "folds": agree,
         "geometric": rows["geometric"],
-        "extended": rows[kept],
+        "extended": nested,
         "refit": rows[kept],
-        "choices": [f"{short(k)}: {v:.3f} mm" for k, v in rows.items()],
+        "choices": [f"{short(k)}: {v:.3f} mm" for k, v in rows.items()] + folds,
         "rejected": None,
         "wall": wall,
         "cpu": cpu,
