@@ -90,7 +90,7 @@ def solve_poses(args) -> int:
     import numpy as np
 
     from lasercal.collector.sessions.store import atomic_output
-    from lasercal.solver.analysis.pose_cv import candidates, covering, extend_auto, half_scores
+    from lasercal.solver.analysis.pose_cv import candidates, covering, extend_auto, held_out
     from lasercal.solver.errors import LasercalError
     from lasercal.solver.formats.poses import load_pose_session
     from lasercal.solver.identify.poses import fit_poses
@@ -144,9 +144,9 @@ def solve_poses(args) -> int:
             ext, jm = fit.effects
             # each fold its own fit, from the nominal (pose_cv's module docstring)
             f = fit_poses(train, nominal, ext, covering(jm, train), robust=not args.no_robust)
-            p, r = half_scores(f.model, held)
-            pos.append(p.mean())
-            rot.append(r.mean())
+            p, r = held_out(f, held)
+            pos.append(p)
+            rot.append(r)
             out.append(f"  held out {held.name}: {pos[-1]:.3f} mm, {1e3 * rot[-1]:.3f} mrad")
         out.append(f"leave one session out: {np.mean(pos):.3f} mm, {1e3 * np.mean(rot):.3f} mrad mean")
     print("\n".join(out) + f"\nwrote {args.output}")
