@@ -345,6 +345,27 @@ def test_extend_auto_on_one_session_keeps_the_joint_compliance_it_hides(tmp_path
     assert set(load_model(out).extensions) == {"joint_compliance"}
 
 
+def test_extend_auto_on_two_sessions_chooses_inside_each_fold_over_the_training_sessions_blocks(
+    tmp_path, capsys
+):
+    """Issue 52: with two sessions each outer fold trains on one and chooses over its three blocks of rows."""
+    rng = np.random.default_rng(13)
+    nominal, truth, ext, sessions, _ = truth_and_sessions(rng, 2, 90, [-2e-5, -2e-5], noise=0.01, span=0.8)
+    for k, s in enumerate(sessions):
+        write_session(tmp_path / f"s{k}", s.q, s.T)
+    out = tmp_path / "m.yaml"
+    assert (
+        main(["solve", str(tmp_path / "s0"), str(tmp_path / "s1"), "-o", str(out), "--extend", "auto"]) == 0
+    )
+    text = capsys.readouterr().out
+    kept = text.split("\nkept: ")[1].split("\n")[0]
+    folds = text.split("inside each fold")[1].split("held out with")[0].splitlines()[1:]
+    assert kept == "joint compliance (joints 2,3)" and len(folds) == 2 and all(kept in ln for ln in folds), (
+        text
+    )
+    assert f"2 of 2 folds chose {kept} (1 needed)" in text
+
+
 def test_extend_auto_keeps_the_geometry_when_the_folds_chose_otherwise(tmp_path, capsys, monkeypatch):
     """Issue 52: the session's best model is kept only when all but one outer fold chose it from its own
     training blocks; here two of three folds are made to choose the geometry: the geometry is kept, and

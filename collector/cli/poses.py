@@ -158,10 +158,11 @@ def chosen_in_folds(auto) -> list:
     those choices (the figure ``--extend auto`` stands by) and whether the folds agreed (pose_cv)."""
     n = auto.nested
     if n is None:
-        return ["the choice inside each fold: not made (fewer than three sessions or blocks)"]
+        return ["the choice inside each fold: not made (no fold's inner fits could be made)"]
     geo = n["geometric_position_mm"]
     out = [
-        "the choice made inside each fold (leave one out of its training sessions alone):",
+        "the choice made inside each fold (leave one out of its training sessions alone; of one session's "
+        "blocks):",
         *(f"  {f['held']} held out: {f['chose'] or 'no choice (an inner fit failed): the geometry'}, "
           f"{f['position_mm']:.3f} mm, {f['rotation_mrad']:.3f} mrad" for f in auto.folds),
         f"held out with each fold's own choice: {n['position_mm']:.3f} mm, {n['rotation_mrad']:.3f} mrad "

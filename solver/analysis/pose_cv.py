@@ -139,7 +139,7 @@ class AutoResult:
         choice on its held-out unit
     nested : dict or None, the outer folds' held-out means of their own choices ('position_mm',
         'rotation_mrad'), the geometry's ('geometric_position_mm'), 'agree' (folds that chose ``best``) and
-        'needed'; None with fewer than three units
+        'needed'; None when no fold could choose
     """
 
     fit: PoseFit
@@ -182,36 +182,28 @@ def score(pos: float, rot: float, ref: PoseFit) -> float:
 
 def nested_choices(cands: list, units: list, geo_folds: list, nominal: RobotModel, robust: bool) -> list:
     """Each outer fold's choice of candidate from its training units alone: a leave-one-out over them (fit
-    on the others, score the one left out), scored as the whole table is, against the fold's own geometric
-    fit ``geo_folds[k]``. A fit on the units left after two are held out serves both outer folds that leave
-    those two out.
+    on the others, score the one left out; one training session: over its three blocks of rows,
+    :func:`folds`), scored as the whole table is, against the fold's own geometric fit ``geo_folds[k]``.
+    The candidates fitted on some units serve every outer fold that trains on exactly those.
 
     Returns
     -------
-    list of str or None per outer fold (None: fewer than three units, or an inner fold could not be fitted)
+    list of str or None per outer fold (None: an inner fold could not be fitted)
     """
-    n = len(units)
-    if n < 3:
-        return [None] * n
-    fitted: dict = {}  # the candidates fitted without a pair of units
-    errors: dict = {}
+    fitted: dict = {}
 
-    def inner(k: int, i: int) -> list:  # per candidate, its errors on unit i fitted without units k and i
-        pair = frozenset((k, i))
-        if pair not in fitted:
-            fitted[pair] = fold_fits(
-                cands, [u for j, u in enumerate(units) if j not in pair], nominal, robust
-            )
-        if (pair, i) not in errors:
-            errors[(pair, i)] = [held_out(f, units[i]) for f in fitted[pair]]
-        return errors[(pair, i)]
+    def errors_on(train: list, held) -> list:  # per candidate, (position, rotation) on ``held``
+        key = tuple(u.name for u in train)
+        if key not in fitted:
+            fitted[key] = fold_fits(cands, train, nominal, robust)
+        return [held_out(f, held) for f in fitted[key]]
 
     out = []
-    for k in range(n):
+    for k in range(len(units)):
+        inner = folds([u for j, u in enumerate(units) if j != k])
         try:
-            scores = np.mean(
-                [[score(p, r, geo_folds[k]) for p, r in inner(k, i)] for i in range(n) if i != k], 0
-            )
+            per_held = [errors_on([u for j, u in enumerate(inner) if j != i], h) for i, h in enumerate(inner)]
+            scores = np.mean([[score(p, r, geo_folds[k]) for p, r in e] for e in per_held], 0)
             out.append(cands[int(np.argmin(scores))].label)
         except IdentificationError:
             out.append(None)
