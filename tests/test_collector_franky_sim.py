@@ -30,14 +30,17 @@ ROOT = Path(__file__).resolve().parents[1]
 # The fake camera in a clean world (``capture --camera fake`` off the fake backend), from
 # benchmarks/bench_camera_sigma.py both 200 7 3 (1,000 photos beside the five crosses): sessions of the
 # tests' sizes resampled 200,000 times (``--bounds 40 10``), the 0.1 % and 99.9 % quantiles of the z-score
-# RMS (error / stated sigma, both axes), the 99.9 % quantile of the largest error, mm, and the bound on the
-# larger axis's mean error, mm, above the 99.99 % quantile of 10-photo sessions' (0.0377; 15 photos' 0.0306,
-# for which it was set).
+# RMS (error / stated sigma, both axes) and the bound on the larger axis's mean error, mm, above the 99.99 %
+# quantile of 10-photo sessions' (0.0377; 15 photos' 0.0306, for which it was set). The largest error, mm,
+# from the photos' tail (``largest_bound``: a generalised Pareto fit to the top 10 %, its 99.9 % session
+# quantile 0.1184 / 0.1127 mm, here its bootstrap 95 % upper limit). Until issue 51's second pass this was the
+# resampled 99.9 % quantile, 0.1180 for both: the single largest of the 1,000 photos, which a fresh session
+# passes in about 1 of 25 (40 photos) or 100 (10 photos); franky-sim's session did once, at 0.1243 mm.
 PHOTOS_PER_POINT = 8
 CLEAN_Z_RMS_40 = (0.816, 1.483)
-CLEAN_LARGEST_ERROR_40 = 0.1180
+CLEAN_LARGEST_ERROR_40 = 0.1368
 CLEAN_Z_RMS_10 = (0.562, 1.844)
-CLEAN_LARGEST_ERROR_10 = 0.1180
+CLEAN_LARGEST_ERROR_10 = 0.1273
 CLEAN_MEAN_ERROR_10 = 0.04
 
 
