@@ -4,6 +4,7 @@ simulated sessions of a known robot (exact data recover it)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -282,7 +283,7 @@ def test_solve_extend_joint_map_names_the_map_and_predict_applies_it(tmp_path):
     assert mean["joint_map"] < mean["none"] / 5
 
 
-def test_solve_register_predict_round_trip(tmp_path):
+def test_solve_register_predict_round_trip(tmp_path, capsys):
     rng = np.random.default_rng(12)
     nominal, truth, _, sessions, frames = truth_and_sessions(rng, n_sessions=2, m=40)
     for s in sessions:
@@ -295,12 +296,20 @@ def test_solve_register_predict_round_trip(tmp_path):
                 str(tmp_path / "s1"),
                 "-o",
                 str(tmp_path / "m.yaml"),
-                "--folds",
-                "0",
+                "--json",
             ]
         )
         == 0
     )
+    # --json: the fit and the leave-one-session-out folds (each fold its own fit; exact data, so the held-out
+    # error is the solver's tolerance), in mm and mrad
+    got = json.loads(capsys.readouterr().out)
+    loso = got["leave_one_session_out"]
+    assert [f["held"] for f in loso["folds"]] == ["s0", "s1"] and got["units"] == {
+        "position": "mm",
+        "rotation": "mrad",
+    }
+    assert loso["position_mm"] < 1e-4 and max(s["fitted_position_mm"] for s in got["sessions"]) < 1e-4
     X = exp6(np.r_[0.1, 0.2, -0.3, 1500.0, 200.0, -900.0])
     M = nominal.ee_pose @ exp6(np.r_[0.0, 0.0, 0.4, 1.0, 2.0, 80.0])
     q = rng.uniform(-np.pi, np.pi, (60, 6))
@@ -354,16 +363,19 @@ def test_extend_auto_on_two_sessions_chooses_inside_each_fold_over_the_training_
     for k, s in enumerate(sessions):
         write_session(tmp_path / f"s{k}", s.q, s.T)
     out = tmp_path / "m.yaml"
-    assert (
-        main(["solve", str(tmp_path / "s0"), str(tmp_path / "s1"), "-o", str(out), "--extend", "auto"]) == 0
-    )
-    text = capsys.readouterr().out
-    kept = text.split("\nkept: ")[1].split("\n")[0]
-    folds = text.split("inside each fold")[1].split("held out with")[0].splitlines()[1:]
-    assert kept == "joint compliance (joints 2,3)" and len(folds) == 2 and all(kept in ln for ln in folds), (
-        text
-    )
-    assert f"2 of 2 folds chose {kept} (1 needed)" in text
+    args = ["solve", str(tmp_path / "s0"), str(tmp_path / "s1"), "-o", str(out), "--extend", "auto", "--json"]
+    assert main(args) == 0
+    said = capsys.readouterr()
+    got = json.loads(said.out)  # --json: stdout is the JSON alone, and nothing says it was ignored
+    assert "--json" not in said.err
+    kept, folds, nested = got["kept"], got["fold_choices"], got["nested"]
+    assert kept == "joint compliance (joints 2,3)" and [f["chose"] for f in folds] == [kept, kept], got
+    assert (nested["agree"], nested["needed"], got["folds_disagreed"]) == (2, 1, False)
+    # the figure stood by is the outer folds' own choices', each fold's held-out error of its own fit
+    assert nested["position_mm"] == pytest.approx(np.mean([f["position_mm"] for f in folds]), rel=1e-12)
+    assert nested["position_mm"] < nested["geometric_position_mm"] / 3
+    assert [s["name"] for s in got["sessions"]] == ["s0", "s1"] and got["output"] == str(out)
+    assert set(load_model(out).extensions) == {"joint_compliance"}
 
 
 def test_extend_auto_keeps_the_geometry_when_the_folds_chose_otherwise(tmp_path, capsys, monkeypatch):

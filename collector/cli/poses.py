@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 from lasercal.collector.cli.options import INFOLDER, ROBOT, output_argument
@@ -121,6 +122,7 @@ def solve_poses(args) -> int:
     model = fit.model.replace(nominal=str(sessions[0].meta.get("robot", nominal.name)))
     with atomic_output(args.output) as tmp:
         model.save(tmp)
+    stats = pose_statistics(sessions, fit, model, args)
     out = [f"pose sessions: {', '.join(f'{s.name} ({s.m})' for s in sessions)}; {fit.seconds:.1f} s"]
     out.append(
         f"noise the data show: {fit.sigma_pos:.3f} mm, {1e3 * fit.sigma_rot:.3f} mrad per axis; "
@@ -137,20 +139,61 @@ def solve_poses(args) -> int:
             )
         out += chosen_in_folds(auto)
         out.append(f"kept: {auto.chosen}")
+        stats.update(extend_auto_statistics(auto))
     elif args.folds and len(sessions) > 1:
-        pos, rot = [], []
+        loso = []
         for k, held in enumerate(sessions):
             train = [s for j, s in enumerate(sessions) if j != k]
             ext, jm = fit.effects
             # each fold its own fit, from the nominal (pose_cv's module docstring)
             f = fit_poses(train, nominal, ext, covering(jm, train), robust=not args.no_robust)
             p, r = held_out(f, held)
-            pos.append(p)
-            rot.append(r)
-            out.append(f"  held out {held.name}: {pos[-1]:.3f} mm, {1e3 * rot[-1]:.3f} mrad")
-        out.append(f"leave one session out: {np.mean(pos):.3f} mm, {1e3 * np.mean(rot):.3f} mrad mean")
-    print("\n".join(out) + f"\nwrote {args.output}")
+            loso.append({"held": held.name, "position_mm": p, "rotation_mrad": 1e3 * r})
+            out.append(f"  held out {held.name}: {p:.3f} mm, {1e3 * r:.3f} mrad")
+        pos, rot = (float(np.mean([f[k] for f in loso])) for k in ("position_mm", "rotation_mrad"))
+        out.append(f"leave one session out: {pos:.3f} mm, {rot:.3f} mrad mean")
+        stats["leave_one_session_out"] = {"folds": loso, "position_mm": pos, "rotation_mrad": rot}
+    if args.json:
+        print(json.dumps(stats, indent=2))
+    else:
+        print("\n".join(out) + f"\nwrote {args.output}")
     return 0
+
+
+def pose_statistics(sessions: list, fit, model, args) -> dict:
+    """What ``solve --json`` prints for pose sessions: the fit (mm, mrad), each session's fitted errors and
+    the model written."""
+    return {
+        "measurement": "pose",
+        "units": {"position": "mm", "rotation": "mrad"},
+        "sessions": [
+            {
+                "name": s.name,
+                "poses": s.m,
+                "fitted_position_mm": float(fit.errors[s.name][0].mean()),
+                "fitted_rotation_mrad": 1e3 * float(fit.errors[s.name][1].mean()),
+            }
+            for s in sessions
+        ],
+        "extend": args.extend,
+        "noise": {"position_mm": float(fit.sigma_pos), "rotation_mrad": 1e3 * float(fit.sigma_rot)},
+        "outliers": int(model.identification["outliers"]),
+        "seconds": float(fit.seconds),
+        "output": str(args.output),
+    }
+
+
+def extend_auto_statistics(auto) -> dict:
+    """``--extend auto``'s part of ``solve --json`` on pose sessions: every candidate's held-out row, each
+    outer fold's own choice, their held-out figure and agreement, and the candidate kept (pose_cv)."""
+    return {
+        "held_out": auto.table,
+        "fold_choices": list(auto.folds),
+        "nested": auto.nested,
+        "best": auto.best,
+        "kept": auto.chosen,
+        "folds_disagreed": auto.chosen != auto.best,
+    }
 
 
 def chosen_in_folds(auto) -> list:

@@ -199,7 +199,6 @@ def cmd_solve(args) -> int:
             "allow_partial",
             "base_link",
             "tip_link",
-            "json",
             "sheet_shape",
         )
         return solve_poses(args)
