@@ -1,7 +1,9 @@
 """The diagnosis where the world holds more than its candidate list (issue 52, item 4).
 
-Run: python benchmarks/bench_diagnose_messy.py [SEEDS] [KINDS] [CASES] [FIRST] (a table)
+Run: python benchmarks/bench_diagnose_messy.py [SEEDS] [KINDS] [CASES] [FIRST] [EFFECTS] [PER_POINT] (a table)
      e.g. python benchmarks/bench_diagnose_messy.py 20 camera,eye none
+     (EFFECTS: capture's --effects, default all, a subset separating what costs a planted effect its power;
+     PER_POINT: captures per point, default 9, the README's)
 
 Every session is made by the public commands, in-process, as the outside check makes them: a sheet printed
 for ``--place 450 0 0``; ``lasercal capture --backend fake --auto --per-point 9 --effects all`` (the fake
@@ -51,6 +53,10 @@ CASES = {
         {"encoder_eccentricity": {"units": "rad", "joints": [3], "a": [3e-3], "b": [0.0]}},
     ),
     "drift j4": ("drift", (4,), {"drift": {"units": "rad/s", "joints": [4], "r": [1e-6]}}),
+    # a 45-capture session lasts ~210 s: 1e-6 rad/s moves joint 4 by 0.2 mrad over it, ~0.1 mm of spot, at
+    # the arm's repeatability; these move it by 3x and 10x that (the smallest drift named 9 of 10)
+    "drift j4 3e-6": ("drift", (4,), {"drift": {"units": "rad/s", "joints": [4], "r": [3e-6]}}),
+    "drift j4 1e-5": ("drift", (4,), {"drift": {"units": "rad/s", "joints": [4], "r": [1e-5]}}),
 }
 
 
@@ -74,7 +80,7 @@ def truth_file(tmp: Path, label: str, ext: dict | None) -> list[str]:
     return ["--truth", str(path)]
 
 
-def one(tmp: Path, kind: str, label: str, seed: int) -> dict:
+def one(tmp: Path, kind: str, label: str, seed: int, effects: str = "all", per_point: str = "9") -> dict:
     """Capture and solve one session; its diagnosis as ``solve --json`` reports it."""
     s = tmp / f"{kind}_{label.replace(' ', '_')}_{seed}"
     capture = [
@@ -86,7 +92,7 @@ def one(tmp: Path, kind: str, label: str, seed: int) -> dict:
         "--backend",
         "fake",
     ]
-    opts = ["--auto", "--per-point", "9", "--effects", "all", "--seed", str(seed), *KINDS[kind]]
+    opts = ["--auto", "--per-point", per_point, "--effects", effects, "--seed", str(seed), *KINDS[kind]]
     code, _ = run([*capture, *opts, *truth_file(tmp, label, CASES[label][2]), "-o", str(s)])
     if code != 0:
         return {"error": f"capture exit {code}"}
@@ -103,7 +109,12 @@ def robot_joints(d: dict) -> set:
 
 
 def main_(
-    seeds: int = 20, kinds: str = "eye,camera", cases: str = ",".join(CASES), first: str = "1000"
+    seeds: int = 20,
+    kinds: str = "eye,camera",
+    cases: str = ",".join(CASES),
+    first: str = "1000",
+    effects: str = "all",
+    per_point: str = "9",
 ) -> None:
     tmp = Path(tempfile.mkdtemp(prefix="bench_messy_"))
     assert run(["sheet", "-o", str(tmp / "sheet"), "--place", "450", "0", "0"])[0] == 0
@@ -115,7 +126,7 @@ def main_(
             named = false = errors = 0
             gains, agree = [], []
             for seed in range(seeds):
-                d = one(tmp, kind, label, int(first) + seed)
+                d = one(tmp, kind, label, int(first) + seed, effects, per_point)
                 if "error" in d:
                     errors += 1
                     continue
