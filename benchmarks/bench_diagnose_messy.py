@@ -16,7 +16,8 @@ with T the thesis's Panda whose ``extensions`` hold it; then ``lasercal solve S 
 Columns: sessions; named (the finding is the planted effect at its joint; for ``none``: the finding is
 ``none`` or a cause outside the robot); a robot effect named falsely (a joint named where none was
 planted, or another effect's joint); the outer folds' held-out gain (%) where named; the folds that chose
-the same cause (where the diagnosis records it).
+the same cause (where the diagnosis records it); sheet: sessions whose sheet was found not flat (its curl
+and shear modelled, ``sheet_shape``: a finding outside the robot).
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ def truth_file(tmp: Path, label: str, ext: dict | None) -> list[str]:
 
 
 def one(tmp: Path, kind: str, label: str, seed: int, effects: str = "all", per_point: str = "9") -> dict:
-    """Capture and solve one session; its diagnosis as ``solve --json`` reports it."""
+    """Capture and solve one session; what ``solve --json`` reports."""
     s = tmp / f"{kind}_{label.replace(' ', '_')}_{seed}"
     capture = [
         "capture",
@@ -99,7 +100,7 @@ def one(tmp: Path, kind: str, label: str, seed: int, effects: str = "all", per_p
     code, out = run(["solve", str(s), "-o", str(s) + ".yaml", "--extend", "auto", "--json"])
     if code != 0:
         return {"error": f"solve exit {code}"}
-    return json.loads(out)["diagnosis"]
+    return json.loads(out)
 
 
 def robot_joints(d: dict) -> set:
@@ -118,18 +119,20 @@ def main_(
 ) -> None:
     tmp = Path(tempfile.mkdtemp(prefix="bench_messy_"))
     assert run(["sheet", "-o", str(tmp / "sheet"), "--place", "450", "0", "0"])[0] == 0
-    head = ("kind", "case", "sessions", "named", "false robot", "gain %", "folds")
-    print("{:7s} {:16s} {:>8s} {:>6s} {:>11s} {:>8s} {:>6s}".format(*head))
+    head = ("kind", "case", "sessions", "named", "false robot", "gain %", "folds", "sheet")
+    print("{:7s} {:16s} {:>8s} {:>6s} {:>11s} {:>8s} {:>6s} {:>6s}".format(*head))
     for kind in kinds.split(","):
         for label in cases.split(","):
             effect, joints, _ = CASES[label]
-            named = false = errors = 0
+            named = false = errors = sheet = 0
             gains, agree = [], []
             for seed in range(seeds):
-                d = one(tmp, kind, label, int(first) + seed, effects, per_point)
-                if "error" in d:
+                res = one(tmp, kind, label, int(first) + seed, effects, per_point)
+                if "error" in res:
                     errors += 1
                     continue
+                d, shape = res["diagnosis"], res.get("sheet_shape") or {}
+                sheet += bool(shape.get("kept"))
                 found = robot_joints(d) if d["effect"] != "none" else set()
                 want = {(effect, j) for j in joints}
                 hit = found == want if effect else not found
@@ -140,13 +143,17 @@ def main_(
                 a = d.get("acceptance", {}).get("folds_agree")
                 if a is not None:
                     agree.append(a)
-                said = f"{d['effect']} {d.get('label')} gain {d['gain_percent']:.1f} %"
+                said = f"{d['effect']} {d.get('label')} gain {d['gain_percent']:.1f} %" + (
+                    f"; the sheet: curl {shape['curl_mm']:.2f} mm, shear {shape['shear_mm_per_m']:.2f} mm/m"
+                    if shape.get("kept")
+                    else ""
+                )
                 print(f"    seed {int(first) + seed}: {said}", flush=True)
             n = seeds - errors
             g = f"{np.mean(gains):.1f}" if gains else "-"
             f = f"{np.mean(agree):.1f}" if agree else "-"
             print(
-                f"{kind:7s} {label:16s} {n:8d} {named:6d} {false:11d} {g:>8s} {f:>6s}"
+                f"{kind:7s} {label:16s} {n:8d} {named:6d} {false:11d} {g:>8s} {f:>6s} {sheet:6d}"
                 + (f"  ({errors} failed)" if errors else ""),
                 flush=True,
             )
