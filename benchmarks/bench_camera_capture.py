@@ -83,6 +83,9 @@ def run(options: str, where: Path) -> tuple[float, float, float, float, list[flo
     lasercal(*base, "--per-point", "9", *options.split(), "-o", "s", cwd=where)
     lasercal("solve", "s", "-o", "m.yaml", "--extend", "auto", cwd=where)
     val = ["--layout", "sheet/layout.yaml", "--backend", "fake", "-n", "30", "--point", "P6"]
+    opts = options.split()
+    if "--truth" in opts:  # validated on the same true arm the session captured
+        val += ["--truth", opts[opts.index("--truth") + 1]]
     err = error_mean(lasercal("validate", "m.yaml", *val, "-o", "val", cwd=where))
     honest, repeat = floors(where / "s", where / "sheet" / "layout.yaml", "P6", 30, 0)
     return err, honest, repeat, float(load_session(where / "s").t[-1]), sheet_sigmas(where)

@@ -148,6 +148,13 @@ def _coach_arguments(p: argparse.ArgumentParser) -> None:
         help="no status block, suggested poses or stopping rule after each capture",
     )
     p.add_argument(
+        "--plan-effects",
+        action="store_true",
+        default=None,
+        help="the coach also plans poses that tell the joint compliances the diagnosis tests from the "
+        "geometry and the sheet (docs/diagnosis.md); its promise stays the geometry's",
+    )
+    p.add_argument(
         "--guide",
         choices=("hand", "move"),
         default="hand",

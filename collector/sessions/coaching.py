@@ -103,7 +103,16 @@ def session_coach(
     # camera sessions find, docs/sessions.md), not the aiming noise
     noise = CAMERA_NOISE_MM if cfg.get("camera") else cfg["aim_noise"]
     tol = robot_tolerances(nominal).with_noise("laser", noise)
-    return Coach(model, layout, cfg["seed"], tol, sheet=sheet is not None, anywhere=anywhere, pose=sheet)
+    return Coach(
+        model,
+        layout,
+        cfg["seed"],
+        tol,
+        sheet=sheet is not None,
+        anywhere=anywhere,
+        pose=sheet,
+        effects=bool(cfg.get("plan_effects")),
+    )
 
 
 EYE_FILE = "camera_eye.yaml"  # where the camera stands, as the first measured photo's markers said

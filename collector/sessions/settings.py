@@ -63,6 +63,7 @@ SETTINGS = FIXED + (
     "photo_format",
     "view",  # --view: a resumed session brings its live view back (on 127.0.0.1 unless told again)
     "view_port",
+    "plan_effects",  # --plan-effects: the coach plans for the joint compliances too (a resume keeps it)
 )
 
 

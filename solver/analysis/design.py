@@ -41,6 +41,12 @@ tr(S^-1 G W G^T), evaluated for all candidates at once. The best candidate is ta
 and the step repeated K times. Eq. D7: the products J_c C and J_c C W of all candidates follow each
 rank-two change of C in O(N p) (:class:`_Design`), so a step never recomputes them in O(N p^2).
 
+Eq. D8 (``capture --plan-effects``): the design may also count the joint compliances the diagnosis tests
+(:func:`compliance_design`), so that the captures tell them from the geometry and a sheet's pose: C and the
+candidates' Jacobians grow by the compliances' columns (d spot / d q_j tau_j), and W by a block that weighs a
+compliance's variance, relative to its prior, as much as the geometry's predicted error squared
+(:func:`effect_design`). The promise stays eq. D5's, of the geometry.
+
 Candidates: configurations sampled by the aiming IK (:func:`~lasercal.solver.kinematics.aim.aim`)
 under the current model at the calibration points, kept when they satisfy :class:`Constraints`.
 """
@@ -600,6 +606,76 @@ class Plan:
         )
 
 
+# eq. D8's compliances: a prior sigma of the order a Panda's joints show (the thesis's identified joint-2
+# compliance, 1.2e-4 rad/Nm; MUKCa's 0.5-3e-4), and a compliance's relative variance weighed as much as the
+# geometry's predicted error squared (chosen before measuring: benchmarks/bench_diagnose_messy.py)
+COMPLIANCE_SCALE = 1e-4  # rad/Nm
+COMPLIANCE_WEIGHT = 1.0
+
+
+def compliance_design(nominal: RobotModel, q: np.ndarray) -> tuple | None:
+    """(joints, scale, weight) of eq. D8: the joints (0-based) whose gravity torque, over the candidate
+    configurations q (N, n) rad, spreads as the diagnosis requires of a testable compliance
+    (TORQUE_SPREAD_RATIO x TORQUE_NOISE_NM); None without a gravity model or such a joint."""
+    from lasercal.solver.analysis.diagnose import TORQUE_NOISE_NM, TORQUE_SPREAD_RATIO
+    from lasercal.solver.kinematics.gravity import gravity_torques
+
+    if not nominal.links:
+        return None
+    spread = gravity_torques(nominal, q).std(axis=0)
+    joints = np.flatnonzero(spread >= TORQUE_SPREAD_RATIO * TORQUE_NOISE_NM)
+    return (joints, COMPLIANCE_SCALE, COMPLIANCE_WEIGHT) if len(joints) else None
+
+
+def compliance_columns(
+    model: RobotModel, torques: RobotModel, q: np.ndarray, z: np.ndarray, joints
+) -> np.ndarray:
+    """d spot / d c_j (k, 2, e) of joint compliances c_j at ``joints`` (0-based): q_j moves by c_j tau_j(q)
+    (:mod:`solver.kinematics.elastic`, to first order), so the column is d spot / d q_j times tau_j, mm per
+    rad/Nm; tau from the gravity model of ``torques`` at q (k, n) rad; spots on planes z (k,) mm."""
+    from lasercal.solver.kinematics.gravity import gravity_torques
+    from lasercal.solver.kinematics.laser import spot_joint_jacobian
+
+    Jq = spot_joint_jacobian(model, q, z)[1]
+    return Jq[:, :, joints] * gravity_torques(torques, q)[:, None, joints]
+
+
+def effect_design(post: Posterior, W, Jc, cand: Candidates, q, target, torques: RobotModel, joints, scale,
+                  weight) -> tuple:  # fmt: skip
+    """The design's matrices with the joint compliances counted (eq. D8).
+
+    C' = (J'^T J' / sigma^2 + blockdiag(R R^T, scale^2 I)^-1)^-1 over the robot's parameters and the
+    compliances, J' the captures' rows with the compliances' columns (eq. D4); W' = blockdiag(W, w I /
+    scale^2) with w = ``weight`` tr(W C'): a compliance's variance, relative to its prior, counts ``weight``
+    times the geometry's predicted error squared. tr(W' C') is then what eqs. D6-D7 lower.
+
+    Parameters
+    ----------
+    post : Posterior of the captures so far (the robot's parameters, p)
+    W : (p, p) array, eq. D5
+    Jc : (N, 2, p) array, the candidates' Jacobians
+    cand : Candidates
+    q, target : (m, n) rad and (m, 3) mm, the captures so far
+    torques : RobotModel whose gravity model gives tau
+    joints : (e,) int array, 0-based; scale : float, rad/Nm; weight : float
+
+    Returns
+    -------
+    (Posterior with cov C' (p + e, p + e), W' (p + e, p + e), Jc' (N, 2, p + e))
+    """
+    p, e = post.params.size, len(joints)
+    used = post.weights > 0
+    Je = compliance_columns(post.model, torques, q[used], target[used, 2], joints).reshape(-1, e)
+    R = np.zeros((p + e, p + e))
+    R[:p, :p], R[p:, p:] = post.prior_root[:p, :p], scale * np.eye(e)
+    C = _posterior_cov(np.concatenate([post.rows[:, :p], Je], axis=1), R, post.sigma)
+    Wd = np.zeros_like(C)
+    Wd[:p, :p] = W[:p, :p]
+    Wd[p:, p:] = weight * float(np.sum(W[:p, :p] * C[:p, :p])) / scale**2 * np.eye(e)
+    Jce = compliance_columns(post.model, torques, cand.q, cand.target[:, 2], joints)
+    return replace(post, cov=C), Wd, np.concatenate([Jc[:, :, :p], Jce], axis=2)
+
+
 def candidate_jacobian(post: Posterior, cand: Candidates) -> np.ndarray:
     """The candidates' spot Jacobians J_c (N, 2, p) at the posterior's estimate (eq. D6)."""
     return post.jacobian(cand.q, cand.target)
@@ -909,6 +985,8 @@ class Coach:
         the candidates aim at these spots of each point's cell (:func:`candidates`)
     pose : SheetPose or None, where a sheet session's sheet lies (its placement): the posterior's
         covariance spans the sheet's pose, print and tilt, as ``solve`` fits them (:func:`posterior`)
+    effects : bool, plan for the joint compliances the diagnosis tests as well (eq. D8,
+        :func:`compliance_design`); the promise stays the geometry's
     """
 
     def __init__(
@@ -927,6 +1005,7 @@ class Coach:
         sheet: bool = False,
         anywhere: dict | None = None,
         pose: SheetPose | None = None,
+        effects: bool = False,
     ):
         rng = np.random.default_rng([seed, 0xC0AC4])
         con = constraints or Constraints.for_layout(layout)
@@ -938,6 +1017,7 @@ class Coach:
         self.post = posterior(nominal, np.empty((0, nominal.n)), np.empty((0, 3)), tolerances)
         self.jacobians = SpotJacobians(self.post.params)
         self.counted = counted_parameters(self.post.params, sheet)
+        self.effects = compliance_design(nominal, self.cand.q) if effects else None
 
     def see_from(self, eye: np.ndarray, markers: np.ndarray, need: int) -> int:
         """Plan only poses the session's camera can measure: its spot and at least ``need`` of the sheet's
@@ -992,8 +1072,13 @@ class Coach:
         k = k or self.lookahead
         taken = None if target is None else (q, target)
         n = int(self.cand.available(allowed, taken).sum())
-        plan = select(post, W, self.cand, max(k, min(self.horizon, n)), allowed, Jc, taken=taken)
-        if promise is not post:
+        design = (post, W, Jc)
+        if self.effects is not None and len(q) and target is not None:
+            qa, ta = np.asarray(q).reshape(-1, self.nominal.n), np.asarray(target).reshape(-1, 3)
+            design = effect_design(post, W, Jc, self.cand, qa, ta, self.nominal, *self.effects)
+        plan = select(design[0], design[1], self.cand, max(k, min(self.horizon, n)), allowed, design[2],
+                      taken=taken)  # fmt: skip
+        if promise is not post or design[0] is not post:
             plan = plan.promised(promise, Wp, e)
         ahead = plan.expected[min(self.lookahead, len(plan.expected)) - 1]
         plan = plan.first(k)
