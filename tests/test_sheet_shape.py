@@ -178,3 +178,14 @@ def test_the_finding_names_the_sheet_and_where_structure_remains():
     line = sheet_shape_line(flat)
     assert "0.145 mm RMS" in line and "x0 y0 (0.500 mm)" in line and "0.000" not in line
     assert "beyond their noise" not in sheet_shape_line({**flat, "regions": {**flat["regions"], "p": 0.5}})
+    # no F test (the data cannot see a shape): its reason said once, not twice
+    blind = {
+        **flat,
+        "F": None,
+        "reason": "the data cannot see the sheet's shape beyond its plane",
+        "regions": {},
+    }
+    assert sheet_shape_line(blind) == (
+        "finding (the sheet): flat and square within what the data see (the data cannot see the sheet's "
+        "shape beyond its plane)"
+    )

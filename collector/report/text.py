@@ -219,7 +219,8 @@ def sheet_shape_line(d: dict) -> str:
         seen = f"; the camera saw the raised paper {cam:.2f} mm RMS askew, {how}" if cam else ""
         return f"finding (the sheet): not flat -- {sizes}; modelled ({test}){seen}"
     reg = d.get("regions") or {}
-    line = f"finding (the sheet): flat and square within what the data see ({test}; {d['reason']})"
+    why = test if d.get("F") is None else f"{test}; {d['reason']}"  # no F test: the reason is the test
+    line = f"finding (the sheet): flat and square within what the data see ({why})"
     if reg and reg["p"] < 0.01:  # structure beyond the noise that no sheet term holds: its size and where
         worst = reg["cells"][reg["worst"]]["mean_mm"]
         line += (
