@@ -667,13 +667,13 @@ def effect_design(post: Posterior, W, Jc, cand: Candidates, q, target, torques: 
     used = post.weights > 0
     Je = compliance_columns(post.model, torques, q[used], target[used, 2], joints).reshape(-1, e)
     R = np.zeros((p + e, p + e))
-    R[:p, :p], R[p:, p:] = post.prior_root[:p, :p], scale * np.eye(e)
-    C = _posterior_cov(np.concatenate([post.rows[:, :p], Je], axis=1), R, post.sigma)
+    R[:p, :p], R[p:, p:] = post.prior_root, scale * np.eye(e)
+    C = _posterior_cov(np.concatenate([post.rows, Je], axis=1), R, post.sigma)
     Wd = np.zeros_like(C)
-    Wd[:p, :p] = W[:p, :p]
-    Wd[p:, p:] = weight * float(np.sum(W[:p, :p] * C[:p, :p])) / scale**2 * np.eye(e)
+    Wd[:p, :p] = W
+    Wd[p:, p:] = weight * float(np.sum(W * C[:p, :p])) / scale**2 * np.eye(e)
     Jce = compliance_columns(post.model, torques, cand.q, cand.target[:, 2], joints)
-    return replace(post, cov=C), Wd, np.concatenate([Jc[:, :, :p], Jce], axis=2)
+    return replace(post, cov=C), Wd, np.concatenate([Jc, Jce], axis=2)
 
 
 def candidate_jacobian(post: Posterior, cand: Candidates) -> np.ndarray:
